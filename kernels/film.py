@@ -1,0 +1,48 @@
+"""The film: per-pixel output arrays written by every integrator, and the AOV convention.
+
+Pixels are stored row-major, index ``y * width + x`` with row 0 at the top of the image.
+AOVs (arbitrary output variables) describe the primary ray through the pixel CENTRE
+(u = v = 0.5), whatever the spp, so they are exact and deterministic:
+
+- ``depth``     distance t along the unit camera ray to the first hit (world units), +inf on a miss
+- ``normal``    unit geometric normal at the hit, world space, flipped to face the camera; 0 on a miss
+- ``object_id`` index of the hit shape in the scene file's ``[[shape]]`` list, -1 on a miss
+- ``position``  world-space hit point; 0 on a miss
+"""
+import warp as wp
+
+from .traverse import NO_HIT, SceneData, geometric_normal, prim_shape
+
+
+@wp.struct
+class Film:
+    rgb: wp.array(dtype=wp.vec3)  # linear radiance, W/(m^2 sr)
+    depth: wp.array(dtype=float)
+    normal: wp.array(dtype=wp.vec3)
+    object_id: wp.array(dtype=wp.int32)
+    position: wp.array(dtype=wp.vec3)
+
+
+@wp.func
+def facing_normal(scene: SceneData, prim: wp.int32, p: wp.vec3, d: wp.vec3) -> wp.vec3:
+    """Unit geometric normal at ``p`` flipped to the side the ray direction ``d`` comes from."""
+    n = geometric_normal(scene, prim, p)
+    if wp.dot(n, d) > 0.0:
+        return -n
+    return n
+
+
+@wp.func
+def write_aovs(film: Film, scene: SceneData, pixel: wp.int32, o: wp.vec3, d: wp.vec3, t: float, prim: wp.int32):
+    """Record the AOVs of the pixel-centre ray ``o + t d`` (unit ``d``) that hit ``prim`` (or missed)."""
+    if prim == NO_HIT:
+        film.depth[pixel] = wp.inf
+        film.normal[pixel] = wp.vec3(0.0)
+        film.object_id[pixel] = -1
+        film.position[pixel] = wp.vec3(0.0)
+    else:
+        p = o + t * d
+        film.depth[pixel] = t
+        film.normal[pixel] = facing_normal(scene, prim, p, d)
+        film.object_id[pixel] = prim_shape(scene, prim)
+        film.position[pixel] = p

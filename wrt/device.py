@@ -1,0 +1,117 @@
+"""Upload host data to a Warp device: the scene geometry and BVH, materials, camera.
+
+This is the one place where numpy arrays become ``wp.array``s; kernels receive the structs
+built here. float64 host values are rounded to float32 once, here.
+"""
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+
+import numpy as np
+import warp as wp
+
+from kernels.camera import CameraData
+from kernels.raycast import MaterialData
+from kernels.traverse import BvhNode, SceneData
+
+from .errors import WrtError
+from .geometry import Primitives, polygon_projection
+from .scene import Camera, Scene
+
+
+def init_warp() -> str:
+    """Initialise Warp, keeping its native start-up messages off the console; returns them.
+
+    Warp's native library prints a warning to stderr when it finds no CUDA driver, which is the
+    normal case on a CPU-only machine. The CLI shows the text only if CUDA was asked for.
+    """
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as capture:
+        os.dup2(capture.fileno(), 2)
+        try:
+            wp.init()
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        capture.seek(0)
+        return capture.read().decode(errors="replace")
+
+
+def resolve_device(name: str | None) -> wp.context.Device:
+    """The Warp device called ``name`` ("cpu", "cuda", "cuda:0"; None = "cpu").
+
+    Raises ``WrtError`` when Warp has no such device (e.g. "cuda" on a machine without a GPU).
+    """
+    name = name or "cpu"
+    if name.startswith("cuda") and not wp.is_cuda_available():
+        raise WrtError(f"device {name!r}: Warp found no CUDA device on this machine (use --device cpu)")
+    try:
+        return wp.get_device(name)
+    except (RuntimeError, ValueError) as e:
+        raise WrtError(f"device {name!r}: {e}") from None
+
+
+def _vec3(a: np.ndarray, device) -> wp.array:
+    return wp.array(np.asarray(a, dtype=np.float32).reshape(-1, 3), dtype=wp.vec3, device=device)
+
+
+def _int(a: np.ndarray, device) -> wp.array:
+    return wp.array(np.asarray(a, dtype=np.int32).reshape(-1), dtype=wp.int32, device=device)
+
+
+def _float(a: np.ndarray, device) -> wp.array:
+    return wp.array(np.asarray(a, dtype=np.float32).reshape(-1), dtype=wp.float32, device=device)
+
+
+def upload_geometry(p: Primitives, device) -> SceneData:
+    """``SceneData`` for primitives already passed through ``wrt.geometry.build``."""
+    nodes = np.zeros(len(p.bvh.count), dtype=BvhNode.numpy_dtype())
+    nodes["lo"], nodes["hi"], nodes["start"], nodes["count"] = p.bvh.lo, p.bvh.hi, p.bvh.start, p.bvh.count
+    axes, uvs = [], []
+    for verts, normal in zip(p.poly_verts, p.poly_normal):
+        axis, uv = polygon_projection(verts, normal)
+        axes.append(axis)
+        uvs.append(uv)
+    poly_count = np.array([len(v) for v in p.poly_verts], dtype=np.int32)
+    poly_offset = [float(np.dot(n, v.mean(axis=0))) for v, n in zip(p.poly_verts, p.poly_normal)]
+    s = SceneData()
+    s.nodes = wp.array(nodes, dtype=BvhNode, device=device)
+    s.prims = _int(p.prims, device)
+    s.sphere_center = _vec3(p.sphere_center, device)
+    s.sphere_radius = _float(p.sphere_radius, device)
+    s.sphere_shape = _int(p.sphere_shape, device)
+    s.tri_verts = _vec3(p.tri_verts, device)
+    s.tri_shape = _int(p.tri_shape, device)
+    s.poly_normal = _vec3(p.poly_normal, device)
+    s.poly_offset = _float(poly_offset, device)
+    s.poly_axis = _int(axes, device)
+    s.poly_start = _int(np.concatenate(([0], np.cumsum(poly_count)[:-1])), device)
+    s.poly_count = _int(poly_count, device)
+    s.poly_uv = wp.array(np.concatenate(uvs or [np.zeros((0, 2))]).astype(np.float32), dtype=wp.vec2, device=device)
+    s.poly_shape = _int(p.poly_shape, device)
+    s.plane_point = _vec3(p.plane_point, device)
+    s.plane_normal = _vec3(p.plane_normal, device)
+    s.plane_shape = _int(p.plane_shape, device)
+    return s
+
+
+def upload_materials(scene: Scene, device) -> MaterialData:
+    """Per-shape material index and per-material albedo (linear RGB)."""
+    m = MaterialData()
+    m.shape_material = _int([shape.material for shape in scene.shapes] or [0], device)
+    m.albedo = _vec3([mat.albedo for mat in scene.materials], device)
+    return m
+
+
+def camera_data(camera: Camera, width: int, height: int) -> CameraData:
+    """``CameraData`` for the scene-format camera convention (see ``kernels.camera``)."""
+    forward, right, up = camera.basis()
+    c = CameraData()
+    c.origin = wp.vec3(*camera.origin)
+    c.forward, c.right, c.up = wp.vec3(*forward), wp.vec3(*right), wp.vec3(*up)
+    c.tan_half_fov = math.tan(math.radians(camera.fov) / 2.0)
+    c.aspect = width / height
+    c.width, c.height = width, height
+    return c

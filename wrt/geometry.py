@@ -1,0 +1,120 @@
+"""Scene shapes flattened into primitive arrays (host, float64), and their BVH, ready for upload.
+
+Every ``[[shape]]`` becomes primitives of one kind: a sphere, a plane, a triangle, a polygon, or
+a mesh's triangles; each primitive remembers its shape index (the ``object_id``). Bounded
+primitives go into one BVH with mixed kinds; planes are unbounded and stay outside it. After the
+build each kind's arrays are reordered to the order the leaves visit them, for memory locality.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from kernels.traverse import POLYGON, SPHERE, TRIANGLE
+
+from .bvh import Bvh, build_bvh
+from .scene import Mesh, Plane, Polygon, Scene, Sphere, Triangle
+
+
+@dataclass
+class Primitives:
+    """All primitives of a scene by kind (world space, float64; shape ids int32)."""
+
+    sphere_center: np.ndarray  # (S, 3)
+    sphere_radius: np.ndarray  # (S,)
+    sphere_shape: np.ndarray
+    tri_verts: np.ndarray  # (T, 3, 3): triangle, vertex, xyz
+    tri_shape: np.ndarray
+    poly_verts: list  # P arrays (n_i, 3)
+    poly_normal: np.ndarray  # (P, 3) unit
+    poly_shape: np.ndarray
+    plane_point: np.ndarray  # (L, 3)
+    plane_normal: np.ndarray  # (L, 3) unit
+    plane_shape: np.ndarray
+    bvh: Bvh | None = None  # over the bounded primitives, see ``bounded_ids``
+    prims: np.ndarray | None = None  # (N,) packed ids in leaf order
+
+    def bounded_ids(self) -> np.ndarray:
+        """Packed ids ``(index << 2) | kind`` of spheres, then triangles, then polygons."""
+        return np.concatenate(
+            [
+                (np.arange(len(self.sphere_radius)) << 2) | SPHERE,
+                (np.arange(len(self.tri_shape)) << 2) | TRIANGLE,
+                (np.arange(len(self.poly_verts)) << 2) | POLYGON,
+            ]
+        ).astype(np.int64)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Axis-aligned bounds (N, 3) of the bounded primitives, in ``bounded_ids`` order."""
+        r = self.sphere_radius[:, None]
+        lo = [self.sphere_center - r, self.tri_verts.min(axis=1)] + [v.min(axis=0, keepdims=True) for v in self.poly_verts]
+        hi = [self.sphere_center + r, self.tri_verts.max(axis=1)] + [v.max(axis=0, keepdims=True) for v in self.poly_verts]
+        return np.concatenate(lo), np.concatenate(hi)
+
+
+def flatten(scene: Scene) -> Primitives:
+    """Collect the primitives of every shape, tagged with the shape's index in file order."""
+    spheres, tris, polys, planes = [], [], [], []
+    tri_blocks, tri_shape_blocks = [], []
+    for i, shape in enumerate(scene.shapes):
+        if isinstance(shape, Sphere):
+            spheres.append((shape.center, shape.radius, i))
+        elif isinstance(shape, Plane):
+            planes.append((shape.point, shape.normal, i))
+        elif isinstance(shape, Triangle):
+            tris.append((shape.vertices, i))
+        elif isinstance(shape, Polygon):
+            polys.append((shape.vertices, shape.normal, i))
+        elif isinstance(shape, Mesh):
+            tri_blocks.append(shape.vertices[shape.faces])
+            tri_shape_blocks.append(np.full(len(shape.faces), i, dtype=np.int32))
+    tri_blocks.insert(0, np.asarray([v for v, _ in tris], dtype=np.float64).reshape(-1, 3, 3))
+    tri_shape_blocks.insert(0, np.asarray([s for _, s in tris], dtype=np.int32))
+    return Primitives(
+        sphere_center=np.asarray([c for c, _, _ in spheres], dtype=np.float64).reshape(-1, 3),
+        sphere_radius=np.asarray([r for _, r, _ in spheres], dtype=np.float64),
+        sphere_shape=np.asarray([s for _, _, s in spheres], dtype=np.int32),
+        tri_verts=np.concatenate(tri_blocks),
+        tri_shape=np.concatenate(tri_shape_blocks),
+        poly_verts=[np.asarray(v, dtype=np.float64) for v, _, _ in polys],
+        poly_normal=np.asarray([n for _, n, _ in polys], dtype=np.float64).reshape(-1, 3),
+        poly_shape=np.asarray([s for _, _, s in polys], dtype=np.int32),
+        plane_point=np.asarray([p for p, _, _ in planes], dtype=np.float64).reshape(-1, 3),
+        plane_normal=np.asarray([n for _, n, _ in planes], dtype=np.float64).reshape(-1, 3),
+        plane_shape=np.asarray([s for _, _, s in planes], dtype=np.int32),
+    )
+
+
+def _leaf_order(kind: int, ids: np.ndarray) -> np.ndarray:
+    """Input indices of one kind's primitives in the order the BVH leaves list them."""
+    return ids[(ids & 3) == kind] >> 2
+
+
+def build(scene: Scene) -> Primitives:
+    """Flatten ``scene``, build the BVH over its bounded primitives and reorder to leaf order."""
+    p = flatten(scene)
+    ids = p.bounded_ids()
+    bvh = build_bvh(*p.bounds())
+    ids = ids[bvh.order]
+    s = _leaf_order(SPHERE, ids)
+    t = _leaf_order(TRIANGLE, ids)
+    g = _leaf_order(POLYGON, ids)
+    p.sphere_center, p.sphere_radius, p.sphere_shape = p.sphere_center[s], p.sphere_radius[s], p.sphere_shape[s]
+    p.tri_verts, p.tri_shape = p.tri_verts[t], p.tri_shape[t]
+    p.poly_verts, p.poly_normal, p.poly_shape = [p.poly_verts[k] for k in g], p.poly_normal[g], p.poly_shape[g]
+    # renumber the packed ids: the k-th primitive of a kind in leaf order now has index k
+    new_ids = np.empty_like(ids)
+    for kind in (SPHERE, TRIANGLE, POLYGON):
+        mask = (ids & 3) == kind
+        new_ids[mask] = (np.arange(mask.sum()) << 2) | kind
+    p.bvh, p.prims = bvh, new_ids.astype(np.int32)
+    return p
+
+
+def polygon_projection(vertices: np.ndarray, normal: np.ndarray) -> tuple[int, np.ndarray]:
+    """Dominant axis of ``normal`` and the polygon's vertices with that coordinate dropped (n, 2)."""
+    axis = int(np.argmax(np.abs(normal)))
+    keep = [k for k in range(3) if k != axis]
+    return axis, vertices[:, keep]
+

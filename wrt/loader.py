@@ -1,0 +1,291 @@
+"""Load and validate a TOML scene file into ``wrt.scene`` dataclasses.
+
+Every problem is reported as one ``SceneError`` naming the file, the table (``render``,
+``camera``, ``material[i]``, ``shape[i]``, ``light[i]``; ``i`` counts from 0 in file order), the
+key and the offending value. The format is documented in ``docs/scene-format.md``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+import os
+import tomllib
+from collections.abc import Mapping
+
+import numpy as np
+
+from .errors import MeshFileError, SceneError, WrtError
+from .meshio import apply_transform, load_mesh
+from .scene import INTEGRATORS, Camera, Light, Material, Mesh, Plane, Polygon, RenderSettings, Scene, Sphere, Triangle
+
+TOP_LEVEL = ("render", "camera", "material", "shape", "light")
+MATERIAL_TYPES = ("diffuse",)
+SHAPE_TYPES = ("sphere", "plane", "triangle", "polygon", "mesh")
+LIGHT_TYPES = ("point", "directional", "spot", "area", "sphere", "environment")
+DEFAULT_MATERIAL = Material(name="default", type="diffuse", albedo=(0.5, 0.5, 0.5))
+MAX_IMAGE_SIDE = 16384
+MAX_SPP = 1 << 20
+_REQUIRED = object()
+
+
+class _Table:
+    """Typed, validating access to one TOML table; ``finish`` rejects the keys nobody read."""
+
+    def __init__(self, file: str, name: str, data: object):
+        if not isinstance(data, Mapping):
+            raise SceneError(file, name, None, f"must be a table, got {type(data).__name__}")
+        self.file, self.name, self.data, self.used = file, name, data, set()
+
+    def error(self, key: str, problem: str, value=SceneError._NO_VALUE) -> SceneError:
+        return SceneError(self.file, self.name, key, problem, value)
+
+    def get(self, key: str, default):
+        self.used.add(key)
+        if key in self.data:
+            return self.data[key]
+        if default is _REQUIRED:
+            raise self.error(key, "is required")
+        return default
+
+    def number(self, key: str, default=_REQUIRED, *, integer=False, lo=-math.inf, hi=math.inf, lo_open=False, hi_open=False):
+        value = self.get(key, default)
+        if value is default and default is not _REQUIRED:
+            return value
+        kinds = (int,) if integer else (int, float)
+        if isinstance(value, bool) or not isinstance(value, kinds):
+            raise self.error(key, "must be an integer" if integer else "must be a number", value)
+        if not math.isfinite(value):
+            raise self.error(key, "must be finite", value)
+        below = value <= lo if lo_open else value < lo
+        above = value >= hi if hi_open else value > hi
+        if below or above:
+            raise self.error(key, f"must be in {'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}", value)
+        return int(value) if integer else float(value)
+
+    def string(self, key: str, default=_REQUIRED, choices=None) -> str:
+        value = self.get(key, default)
+        if not isinstance(value, str):
+            raise self.error(key, "must be a string", value)
+        if choices is not None and value not in choices:
+            raise self.error(key, f"must be one of {', '.join(choices)}", value)
+        return value
+
+    def vectors(self, key: str, default=_REQUIRED, *, count=None, min_count=1) -> tuple:
+        """A list of 3-vectors (``count`` of them, or at least ``min_count``)."""
+        value = self.get(key, default)
+        if value is default and default is not _REQUIRED:
+            return value
+        if not isinstance(value, list) or (count is not None and len(value) != count) or len(value) < min_count:
+            what = f"{count}" if count is not None else f"at least {min_count}"
+            raise self.error(key, f"must be a list of {what} points [x, y, z]", value)
+        return tuple(_vec3(self, key, v, value) for v in value)
+
+    def vec3(self, key: str, default=_REQUIRED, *, nonzero=False, lo=-math.inf, hi=math.inf) -> tuple:
+        value = self.get(key, default)
+        if value is default and default is not _REQUIRED:
+            return value
+        v = _vec3(self, key, value, value)
+        if nonzero and not any(v):
+            raise self.error(key, "must not be the zero vector", value)
+        if any(c < lo or c > hi for c in v):
+            raise self.error(key, f"components must be in [{lo:g}, {hi:g}]", value)
+        return v
+
+    def finish(self) -> None:
+        unknown = [k for k in self.data if k not in self.used]
+        if unknown:
+            key = unknown[0]
+            close = difflib.get_close_matches(key, sorted(self.used), n=1)
+            hint = f" (did you mean '{close[0]}'?)" if close else f" (known: {', '.join(sorted(self.used))})"
+            raise self.error(key, "unknown key" + hint)
+
+
+def _vec3(table: _Table, key: str, v, shown) -> tuple[float, float, float]:
+    if not isinstance(v, list) or len(v) != 3 or any(isinstance(c, bool) or not isinstance(c, (int, float)) for c in v):
+        raise table.error(key, "must be 3 numbers [x, y, z]", shown)
+    if not all(math.isfinite(c) for c in v):
+        raise table.error(key, "components must be finite", shown)
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+def _array_of_tables(file: str, doc: Mapping, key: str) -> list:
+    value = doc.get(key, [])
+    if not isinstance(value, list):
+        raise SceneError(file, None, key, f"must be an array of tables, written [[{key}]]")
+    return value
+
+
+def _render(file: str, data) -> RenderSettings:
+    t = _Table(file, "render", data)
+    d = RenderSettings()
+    settings = RenderSettings(
+        width=t.number("width", d.width, integer=True, lo=1, hi=MAX_IMAGE_SIDE),
+        height=t.number("height", d.height, integer=True, lo=1, hi=MAX_IMAGE_SIDE),
+        spp=t.number("spp", d.spp, integer=True, lo=1, hi=MAX_SPP),
+        max_depth=t.number("max_depth", d.max_depth, integer=True, lo=1, hi=1024),
+        seed=t.number("seed", d.seed, integer=True, lo=0, hi=2**31 - 1),
+        integrator=t.string("integrator", d.integrator, INTEGRATORS),
+    )
+    t.finish()
+    return settings
+
+
+def _camera(file: str, data) -> Camera:
+    t = _Table(file, "camera", data)
+    origin = t.vec3("origin")
+    look_at = t.vec3("look_at")
+    up = t.vec3("up", Camera.up, nonzero=True)
+    fov = t.number("fov", Camera.fov, lo=0.0, hi=180.0, lo_open=True, hi_open=True)
+    t.finish()
+    forward = np.subtract(look_at, origin)
+    if not np.any(forward):
+        raise t.error("look_at", "must differ from origin", list(look_at))
+    forward /= np.linalg.norm(forward)
+    sin_angle = np.linalg.norm(np.cross(forward, np.asarray(up) / np.linalg.norm(up)))
+    if sin_angle < 1e-6:
+        raise t.error("up", "is parallel to the viewing direction (look_at - origin)", list(up))
+    return Camera(origin=origin, look_at=look_at, up=up, fov=fov)
+
+
+def _material(file: str, index: int, data) -> Material:
+    t = _Table(file, f"material[{index}]", data)
+    material = Material(
+        name=t.string("name"),
+        type=t.string("type", "diffuse", MATERIAL_TYPES),
+        albedo=t.vec3("albedo", Material.albedo, lo=0.0, hi=1.0),
+    )
+    t.finish()
+    return material
+
+
+def _newell_normal(t: _Table, vertices: tuple) -> tuple[float, float, float]:
+    """Unit normal of a planar polygon by Newell's method; rejects zero-area and non-planar input."""
+    v = np.asarray(vertices, dtype=np.float64)
+    n = np.cross(v, np.roll(v, -1, axis=0)).sum(axis=0)
+    length = np.linalg.norm(n)
+    size = np.ptp(v, axis=0).max()
+    if length <= 1e-12 * max(size, 1e-300) ** 2:
+        raise t.error("vertices", "polygon has zero area")
+    n /= length
+    deviation = np.abs((v - v.mean(axis=0)) @ n).max()
+    if deviation > 1e-5 * size:
+        raise t.error("vertices", f"polygon is not planar (a vertex is {deviation:.3g} off its plane)")
+    return tuple(float(c) for c in n)
+
+
+def _mesh(t: _Table, scene_dir: str, material: int) -> Mesh:
+    name = t.string("file")
+    transform = t.get("transform", {})
+    tt = _Table(t.file, f"{t.name}.transform", transform)
+    translate = tt.vec3("translate", (0.0, 0.0, 0.0))
+    scale = tt.get("scale", 1.0)
+    if isinstance(scale, list):
+        scale = tt.vec3("scale")
+        if not all(scale):
+            raise tt.error("scale", "components must be nonzero", list(scale))
+    else:
+        scale = tt.number("scale", 1.0)
+        if scale == 0.0:
+            raise tt.error("scale", "must be nonzero", scale)
+    rotate = tt.vec3("rotate", (0.0, 0.0, 0.0))
+    tt.finish()
+    path = os.path.join(scene_dir, name)
+    try:
+        vertices, faces = load_mesh(path)
+    except MeshFileError as e:
+        raise t.error("file", str(e), name) from None
+    vertices = apply_transform(vertices, translate=translate, scale=scale, rotate=rotate)
+    return Mesh(file=path, vertices=vertices, faces=faces, material=material)
+
+
+def _shape(file: str, index: int, data, material_index: Mapping[str, int], scene_dir: str):
+    t = _Table(file, f"shape[{index}]", data)
+    kind = t.string("type", choices=SHAPE_TYPES)
+    name = t.get("material", None)
+    if name is None:
+        material = material_index[DEFAULT_MATERIAL.name]
+    elif not isinstance(name, str) or name not in material_index:
+        known = ", ".join(k for k in material_index if k != DEFAULT_MATERIAL.name) or "none defined"
+        raise t.error("material", f"no [[material]] with this name (known: {known})", name)
+    else:
+        material = material_index[name]
+    if kind == "sphere":
+        shape = Sphere(center=t.vec3("center"), radius=t.number("radius", lo=0.0, lo_open=True), material=material)
+    elif kind == "plane":
+        normal = np.asarray(t.vec3("normal", nonzero=True))
+        shape = Plane(point=t.vec3("point"), normal=tuple(normal / np.linalg.norm(normal)), material=material)
+    elif kind == "triangle":
+        shape = Triangle(vertices=t.vectors("vertices", count=3), material=material)
+    elif kind == "polygon":
+        vertices = t.vectors("vertices", min_count=3)
+        shape = Polygon(vertices=vertices, normal=_newell_normal(t, vertices), material=material)
+    else:
+        shape = _mesh(t, scene_dir, material)
+    t.finish()
+    return shape
+
+
+def _light(file: str, index: int, data) -> Light:
+    t = _Table(file, f"light[{index}]", data)
+    kind = t.string("type", choices=LIGHT_TYPES)
+    return Light(type=kind, params={k: v for k, v in t.data.items() if k != "type"})
+
+
+def parse_scene(doc: Mapping, file: str = "<memory>", scene_dir: str = ".") -> Scene:
+    """Validate an already-parsed TOML document (a dict) into a ``Scene``.
+
+    Mesh paths are relative to ``scene_dir``. Raises ``SceneError`` on any problem.
+    """
+    top = _Table(file, None, doc)
+    for key in doc:
+        if key not in TOP_LEVEL:
+            raise top.error(key, f"unknown table (known: {', '.join(TOP_LEVEL)})")
+    if "camera" not in doc:
+        raise SceneError(file, "camera", None, "is required")
+    render = _render(file, doc.get("render", {}))
+    camera = _camera(file, doc["camera"])
+    materials = [_material(file, i, m) for i, m in enumerate(_array_of_tables(file, doc, "material"))]
+    material_index: dict[str, int] = {}
+    for i, m in enumerate(materials):
+        if m.name in material_index or m.name == DEFAULT_MATERIAL.name:
+            raise SceneError(file, f"material[{i}]", "name", "is already used (or reserved)", m.name)
+        material_index[m.name] = i
+    material_index[DEFAULT_MATERIAL.name] = len(materials)
+    materials.append(DEFAULT_MATERIAL)
+    shapes = [_shape(file, i, s, material_index, scene_dir) for i, s in enumerate(_array_of_tables(file, doc, "shape"))]
+    lights = [_light(file, i, l) for i, l in enumerate(_array_of_tables(file, doc, "light"))]
+    return Scene(render=render, camera=camera, materials=tuple(materials), shapes=tuple(shapes), lights=tuple(lights), path=file)
+
+
+def load_scene(path: str | os.PathLike) -> Scene:
+    """Read and validate a TOML scene file.
+
+    Raises
+    ------
+    WrtError
+        The file cannot be read.
+    SceneError
+        It is not valid TOML, or a table, key or value is wrong (the message names them).
+    """
+    path = os.fspath(path)
+    try:
+        with open(path, "rb") as f:
+            doc = tomllib.load(f)
+    except OSError as e:
+        raise WrtError(f"{path}: cannot read scene file ({e.strerror})") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise SceneError(path, None, None, f"not valid TOML: {e}") from None
+    return parse_scene(doc, file=path, scene_dir=os.path.dirname(os.path.abspath(path)))
+
+
+def override_render(scene: Scene, source: str = "command line", **changes) -> Scene:
+    """A copy of ``scene`` with ``[render]`` keys replaced (None values are ignored).
+
+    The new values are validated exactly like the file's, errors naming ``source``.
+    """
+    values = {k: v for k, v in changes.items() if v is not None}
+    if not values:
+        return scene
+    merged = {**dataclasses.asdict(scene.render), **values}
+    return dataclasses.replace(scene, render=_render(source, merged))
