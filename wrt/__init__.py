@@ -9,7 +9,7 @@ from importlib import metadata as _metadata
 
 from .errors import SceneError, WrtError
 from .loader import load_scene, parse_scene
-from .render import RenderResult, render
+from .renderer import RenderResult, render
 
 try:
     __version__ = _metadata.version("wrt")

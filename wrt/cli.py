@@ -53,7 +53,7 @@ def _render(args) -> int:
     from .device import init_warp
     from .imageio import write_image
     from .loader import load_scene, override_render
-    from .render import render
+    from .renderer import render
 
     if args.threads is not None and args.threads < 1:
         raise WrtError(f"--threads {args.threads}: must be >= 1")

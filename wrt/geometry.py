@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kernels.traverse import POLYGON, SPHERE, TRIANGLE
+from kernels.traverse import PLANE, POLYGON, SPHERE, TRIANGLE
 
 from .bvh import Bvh, build_bvh
 from .scene import Mesh, Plane, Polygon, Scene, Sphere, Triangle
@@ -44,6 +44,16 @@ class Primitives:
                 (np.arange(len(self.poly_verts)) << 2) | POLYGON,
             ]
         ).astype(np.int64)
+
+    def shape_of(self, packed: np.ndarray) -> np.ndarray:
+        """Shape index (``object_id``) of each packed primitive id; -1 where the id is -1 (no hit)."""
+        packed = np.asarray(packed, dtype=np.int64)
+        kind, index = packed & 3, packed >> 2
+        out = np.full(packed.shape, -1, dtype=np.int32)
+        for k, table in ((SPHERE, self.sphere_shape), (TRIANGLE, self.tri_shape), (POLYGON, self.poly_shape), (PLANE, self.plane_shape)):
+            hit = (packed >= 0) & (kind == k)
+            out[hit] = table[index[hit]]
+        return out
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Axis-aligned bounds (N, 3) of the bounded primitives, in ``bounded_ids`` order."""

@@ -1,0 +1,133 @@
+"""Scene loading and validation (wrt/loader.py): good files load, bad ones give exit 2 naming the key."""
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+import wrt
+from wrt.cli import main
+
+GOOD = """
+[render]
+width = 32
+height = 24
+spp = 1
+
+[camera]
+origin = [0, 0, 5]
+look_at = [0, 0, 0]
+
+[[material]]
+name = "red"
+albedo = [0.8, 0.1, 0.1]
+
+[[shape]]
+type = "sphere"
+center = [0, 0, 0]
+radius = 1.0
+material = "red"
+"""
+
+
+def write(tmp_path, text, name="scene.toml"):
+    path = tmp_path / name
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+def test_good_scene_loads_with_defaults(tmp_path):
+    scene = wrt.load_scene(write(tmp_path, GOOD))
+    assert scene.render.width == 32 and scene.render.integrator == "raycast" and scene.render.max_depth == 8
+    assert scene.camera.fov == 45.0 and scene.camera.up == (0.0, 1.0, 0.0)
+    assert scene.materials[scene.shapes[0].material].albedo == (0.8, 0.1, 0.1)
+
+
+def test_mesh_path_is_relative_to_scene_and_transform_applies(tmp_path):
+    (tmp_path / "m").mkdir()
+    (tmp_path / "m" / "tri.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    scene = wrt.load_scene(
+        write(
+            tmp_path,
+            GOOD + '\n[[shape]]\ntype = "mesh"\nfile = "m/tri.obj"\ntransform = { translate = [0, 0, -2], scale = 2.0, rotate = [0, 0, 90] }\n',
+        )
+    )
+    np.testing.assert_allclose(scene.shapes[1].vertices, [[0, 0, -2], [0, 2, -2], [-2, 0, -2]], atol=1e-12)
+
+
+def test_lights_are_accepted_and_ignored_by_raycast(tmp_path):
+    scene = wrt.load_scene(write(tmp_path, GOOD + '\n[[light]]\ntype = "point"\nposition = [0, 3, 0]\nintensity = [10, 10, 10]\n'))
+    assert scene.lights[0].type == "point"
+
+
+BAD = [
+    ("unknown render key", GOOD.replace("spp = 1", "sp = 1"), "render.sp", "did you mean 'spp'"),
+    ("wrong type", GOOD.replace("width = 32", 'width = "32"'), "render.width = '32'", "must be an integer"),
+    ("zero width", GOOD.replace("width = 32", "width = 0"), "render.width = 0", "must be in [1, 16384]"),
+    ("huge width", GOOD.replace("width = 32", "width = 1000000"), "render.width = 1000000", "must be in"),
+    ("zero spp", GOOD.replace("spp = 1", "spp = 0"), "render.spp = 0", "must be in"),
+    ("unknown integrator", GOOD.replace("spp = 1", 'integrator = "magic"'), "render.integrator = 'magic'", "must be one of"),
+    ("fov 0", GOOD.replace("look_at = [0, 0, 0]", "look_at = [0, 0, 0]\nfov = 0"), "camera.fov = 0", "must be in (0, 180)"),
+    ("fov 180", GOOD.replace("look_at = [0, 0, 0]", "look_at = [0, 0, 0]\nfov = 180"), "camera.fov = 180", "must be in (0, 180)"),
+    ("up parallel", GOOD.replace("look_at = [0, 0, 0]", "look_at = [0, 0, 0]\nup = [0, 0, -3]"), "camera.up = [0.0, 0.0, -3.0]", "parallel"),
+    ("eye at target", GOOD.replace("origin = [0, 0, 5]", "origin = [0, 0, 0]"), "camera.look_at", "must differ from origin"),
+    ("missing camera", GOOD.replace("[camera]", "[cam]"), "cam", "unknown table"),
+    ("nan vector", GOOD.replace("center = [0, 0, 0]", "center = [0, nan, 0]"), "shape[0].center", "finite"),
+    ("short vector", GOOD.replace("center = [0, 0, 0]", "center = [0, 0]"), "shape[0].center = [0, 0]", "3 numbers"),
+    ("negative radius", GOOD.replace("radius = 1.0", "radius = -1.0"), "shape[0].radius = -1.0", "must be in (0, inf]"),
+    ("no such material", GOOD.replace('material = "red"', 'material = "blue"'), "shape[0].material = 'blue'", "known: red"),
+    ("unknown shape type", GOOD.replace('type = "sphere"', 'type = "cone"'), "shape[0].type = 'cone'", "must be one of"),
+    ("unknown shape key", GOOD.replace("radius = 1.0", "radius = 1.0\nradus = 2"), "shape[0].radus", "did you mean 'radius'"),
+    ("albedo above 1", GOOD.replace("[0.8, 0.1, 0.1]", "[1.8, 0.1, 0.1]"), "material[0].albedo", "[0, 1]"),
+    ("bad toml", GOOD.replace("width = 32", "width = = 32"), "scene.toml", "not valid TOML"),
+    ("zero plane normal", GOOD + '[[shape]]\ntype = "plane"\npoint = [0,0,0]\nnormal = [0,0,0]\n', "shape[1].normal", "zero vector"),
+    ("missing mesh", GOOD + '[[shape]]\ntype = "mesh"\nfile = "nope.ply"\n', "shape[1].file = 'nope.ply'", "nope.ply"),
+    ("light type", GOOD + '[[light]]\ntype = "laser"\n', "light[0].type = 'laser'", "must be one of"),
+    (
+        "non-planar polygon",
+        GOOD + '[[shape]]\ntype = "polygon"\nvertices = [[0,0,0],[1,0,0],[1,1,0],[0,1,0.5]]\n',
+        "shape[1].vertices",
+        "not planar",
+    ),
+    ("two-point polygon", GOOD + '[[shape]]\ntype = "polygon"\nvertices = [[0,0,0],[1,0,0]]\n', "shape[1].vertices", "at least 3"),
+    ("triangle with 4 points", GOOD + '[[shape]]\ntype = "triangle"\nvertices = [[0,0,0],[1,0,0],[0,1,0],[1,1,0]]\n', "shape[1].vertices", "list of 3"),
+]
+
+
+@pytest.mark.parametrize("text, where, problem", [b[1:] for b in BAD], ids=[b[0] for b in BAD])
+def test_bad_scene_exits_2_naming_file_key_and_value(tmp_path, capsys, text, where, problem):
+    scene = write(tmp_path, text)
+    out = tmp_path / "out.png"
+    assert main(["render", str(scene), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("wrt: error: ") and err.count("\n") == 1, err
+    assert str(scene) in err and where in err and problem in err, err
+    assert not out.exists() and os.listdir(tmp_path) == ["scene.toml"]  # no output, no temp file
+
+
+def test_missing_scene_file(tmp_path, capsys):
+    assert main(["render", str(tmp_path / "none.toml"), "-o", str(tmp_path / "x.png")]) == 2
+    assert "none.toml: cannot read scene file" in capsys.readouterr().err
+
+
+def test_bad_options_exit_2(tmp_path, capsys):
+    scene = write(tmp_path, GOOD)
+    assert main(["render", str(scene), "-o", str(tmp_path / "x.jpg")]) == 2
+    assert "unsupported output format '.jpg'" in capsys.readouterr().err
+    assert main(["render", str(scene), "-o", str(tmp_path / "x.png"), "--aov", "depth"]) == 2
+    assert "--aov needs an .exr output" in capsys.readouterr().err
+    assert main(["render", str(scene), "-o", str(tmp_path / "x.png"), "--spp", "0"]) == 2
+    assert "render.spp = 0" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:
+        main(["render", str(scene), "-o", str(tmp_path / "x.exr"), "--aov", "colour"])
+    assert e.value.code == 2
+
+
+def test_console_script_prints_no_traceback(tmp_path):
+    """The installed entry point, as a user runs it."""
+    scene = write(tmp_path, GOOD.replace("radius = 1.0", "radius = -1.0"))
+    proc = subprocess.run([sys.executable, "-m", "wrt.cli", "render", str(scene), "-o", str(tmp_path / "o.png")], capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr and "shape[0].radius = -1.0" in proc.stderr
