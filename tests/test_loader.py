@@ -131,3 +131,14 @@ def test_console_script_prints_no_traceback(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "wrt.cli", "render", str(scene), "-o", str(tmp_path / "o.png")], capture_output=True, text=True)
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr and "shape[0].radius = -1.0" in proc.stderr
+
+
+def test_documented_example_loads(tmp_path):
+    """The complete example of docs/scene-format.md is a valid scene (the docs stay true)."""
+    text = open("docs/scene-format.md").read().split("## A complete example")[1]
+    toml = text.split("```toml")[1].split("```")[0]
+    (tmp_path / "meshes").mkdir()
+    (tmp_path / "meshes" / "torus_knot.ply").write_bytes(open("examples/meshes/torus_knot.ply", "rb").read())
+    scene = wrt.load_scene(write(tmp_path, toml))
+    assert [type(s).__name__ for s in scene.shapes] == ["Plane", "Sphere", "Triangle", "Polygon", "Mesh"]
+    assert scene.lights[0].type == "point"
