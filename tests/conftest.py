@@ -16,9 +16,9 @@ init_warp()
 CAMERA = {"origin": [0.0, 0.0, 5.0], "look_at": [0.0, 0.0, 0.0]}
 
 
-def make_scene(shapes, render=None, camera=None, materials=None, scene_dir="."):
+def make_scene(shapes, render=None, camera=None, materials=None, lights=None, scene_dir="."):
     """A validated ``Scene`` from inline tables, with a default camera and render settings."""
-    doc = {"camera": camera or CAMERA, "shape": shapes}
+    doc = {"camera": camera or CAMERA, "shape": shapes, "light": lights or []}
     if render:
         doc["render"] = render
     if materials:

@@ -92,6 +92,15 @@ BAD = [
         "not planar",
     ),
     ("two-point polygon", GOOD + '[[shape]]\ntype = "polygon"\nvertices = [[0,0,0],[1,0,0]]\n', "shape[1].vertices", "at least 3"),
+    ("phong over 1", GOOD.replace('name = "red"', 'name = "red"\ntype = "phong"\nspecular = [0.5, 0.0, 0.0]'), "material[0].specular", "must not exceed 1"),
+    ("key of another material type", GOOD.replace('name = "red"', 'name = "red"\nior = 1.5'), "material[0].ior", "unknown key"),
+    ("ior below 1", GOOD.replace('name = "red"\nalbedo = [0.8, 0.1, 0.1]', 'name = "red"\ntype = "dielectric"\nior = 0.5'), "material[0].ior = 0.5", "must be in [1, 10]"),
+    ("point light without intensity", GOOD + '[[light]]\ntype = "point"\nposition = [0, 1, 0]\n', "light[0].intensity", "is required"),
+    ("zero light direction", GOOD + '[[light]]\ntype = "directional"\ndirection = [0, 0, 0]\nirradiance = [1, 1, 1]\n', "light[0].direction", "zero vector"),
+    ("spot beam wider than cutoff", GOOD + '[[light]]\ntype = "spot"\nposition = [0, 1, 0]\ndirection = [0, -1, 0]\nintensity = [1, 1, 1]\ncutoff_angle = 10\nbeam_width = 20\n', "light[0].beam_width = 20", "must be in [0, 10]"),
+    ("unknown light key", GOOD + '[[light]]\ntype = "point"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\ncolor = [1, 1, 1]\n', "light[0].color", "unknown key"),
+    ("area light in whitted", GOOD.replace("spp = 1", 'integrator = "whitted"') + '[[light]]\ntype = "area"\n', "light[0].type = 'area'", "point, directional and spot"),
+    ("bad dielectric shadows", GOOD.replace("spp = 1", 'dielectric_shadows = "glass"'), "render.dielectric_shadows = 'glass'", "opaque, filtered"),
     ("triangle with 4 points", GOOD + '[[shape]]\ntype = "triangle"\nvertices = [[0,0,0],[1,0,0],[0,1,0],[1,1,0]]\n', "shape[1].vertices", "list of 3"),
 ]
 

@@ -13,12 +13,16 @@ import numpy as np
 import warp as wp
 
 from kernels.camera import CameraData
-from kernels.raycast import MaterialData
+from kernels.integrator import IntegratorSettings
+from kernels.lights import DIRECTIONAL, POINT, SPOT, LightData
+from kernels.materials import DIELECTRIC, DIFFUSE, MIRROR, PHONG, MaterialData
 from kernels.traverse import BvhNode, SceneData
 
 from .errors import WrtError
 from .geometry import Primitives, polygon_projection
-from .scene import Camera, Scene
+from .scene import Camera, DirectionalLight, PointLight, RenderSettings, Scene, SpotLight
+
+MATERIAL_CODES = {"diffuse": DIFFUSE, "phong": PHONG, "mirror": MIRROR, "dielectric": DIELECTRIC}
 
 
 def init_warp() -> str:
@@ -97,12 +101,61 @@ def upload_geometry(p: Primitives, device) -> SceneData:
     return s
 
 
+def _base_color(mat) -> tuple:
+    """The colour the raycast integrator shows for a material."""
+    return {"mirror": mat.reflectance, "dielectric": mat.transmittance}.get(mat.type, mat.albedo)
+
+
 def upload_materials(scene: Scene, device) -> MaterialData:
-    """Per-shape material index and per-material albedo (linear RGB)."""
+    """Per-shape material index and every material's parameters (linear RGB colours)."""
+    mats = scene.materials
     m = MaterialData()
     m.shape_material = _int([shape.material for shape in scene.shapes] or [0], device)
-    m.albedo = _vec3([mat.albedo for mat in scene.materials], device)
+    m.type = _int([MATERIAL_CODES[mat.type] for mat in mats], device)
+    m.base_color = _vec3([_base_color(mat) for mat in mats], device)
+    m.albedo = _vec3([mat.albedo for mat in mats], device)
+    m.specular = _vec3([mat.specular for mat in mats], device)
+    m.exponent = _float([mat.exponent for mat in mats], device)
+    m.reflectance = _vec3([mat.reflectance for mat in mats], device)
+    m.ior = _float([mat.ior for mat in mats], device)
+    with np.errstate(divide="ignore"):
+        m.sigma = _vec3([np.minimum(-np.log(mat.transmittance), 1e30) for mat in mats], device)
+    m.priority = _int([mat.priority for mat in mats], device)
+    m.emission = _vec3([mat.emission for mat in mats], device)
     return m
+
+
+def upload_lights(scene: Scene, device) -> LightData:
+    """The scene's point, directional and spot lights (other light types are not delta lights)."""
+    rows = []
+    for light in scene.lights:
+        if isinstance(light, PointLight):
+            rows.append((POINT, light.position, (0.0, 0.0, 1.0), light.intensity, 180.0, 180.0))
+        elif isinstance(light, DirectionalLight):
+            rows.append((DIRECTIONAL, (0.0, 0.0, 0.0), light.direction, light.irradiance, 180.0, 180.0))
+        elif isinstance(light, SpotLight):
+            rows.append((SPOT, light.position, light.direction, light.intensity, light.cutoff_angle, light.beam_width))
+    cutoff = np.radians([r[4] for r in rows])
+    lights = LightData()
+    lights.type = _int([r[0] for r in rows], device)
+    lights.position = _vec3([r[1] for r in rows], device)
+    lights.direction = _vec3([r[2] for r in rows], device)
+    lights.power = _vec3([r[3] for r in rows], device)
+    lights.cos_cutoff = _float(np.cos(cutoff), device)
+    lights.cutoff = _float(cutoff, device)
+    lights.beam = _float(np.radians([r[5] for r in rows]), device)
+    return lights
+
+
+def integrator_settings(render: RenderSettings) -> IntegratorSettings:
+    s = IntegratorSettings()
+    s.max_depth = render.max_depth
+    s.ambient = wp.vec3(*render.ambient)
+    s.background = wp.vec3(*render.background)
+    s.exterior_ior = render.exterior_ior
+    s.filtered_shadows = int(render.dielectric_shadows == "filtered")
+    s.min_throughput = render.min_throughput
+    return s
 
 
 def camera_data(camera: Camera, width: int, height: int) -> CameraData:

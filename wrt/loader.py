@@ -17,10 +17,26 @@ import numpy as np
 
 from .errors import MeshFileError, SceneError, WrtError
 from .meshio import apply_transform, load_mesh
-from .scene import INTEGRATORS, Camera, Light, Material, Mesh, Plane, Polygon, RenderSettings, Scene, Sphere, Triangle
+from .scene import (
+    DIELECTRIC_SHADOWS,
+    INTEGRATORS,
+    MATERIAL_TYPES,
+    Camera,
+    DirectionalLight,
+    Light,
+    Material,
+    Mesh,
+    Plane,
+    PointLight,
+    Polygon,
+    RenderSettings,
+    Scene,
+    Sphere,
+    SpotLight,
+    Triangle,
+)
 
 TOP_LEVEL = ("render", "camera", "material", "shape", "light")
-MATERIAL_TYPES = ("diffuse",)
 SHAPE_TYPES = ("sphere", "plane", "triangle", "polygon", "mesh")
 LIGHT_TYPES = ("point", "directional", "spot", "area", "sphere", "environment")
 DEFAULT_MATERIAL = Material(name="default", type="diffuse", albedo=(0.5, 0.5, 0.5))
@@ -126,6 +142,11 @@ def _render(file: str, data) -> RenderSettings:
         max_depth=t.number("max_depth", d.max_depth, integer=True, lo=1, hi=1024),
         seed=t.number("seed", d.seed, integer=True, lo=0, hi=2**31 - 1),
         integrator=t.string("integrator", d.integrator, INTEGRATORS),
+        ambient=t.vec3("ambient", d.ambient, lo=0.0),
+        background=t.vec3("background", d.background, lo=0.0),
+        exterior_ior=t.number("exterior_ior", d.exterior_ior, lo=1.0, hi=10.0),
+        dielectric_shadows=t.string("dielectric_shadows", d.dielectric_shadows, DIELECTRIC_SHADOWS),
+        min_throughput=t.number("min_throughput", d.min_throughput, lo=0.0, hi=1.0),
     )
     t.finish()
     return settings
@@ -148,14 +169,34 @@ def _camera(file: str, data) -> Camera:
     return Camera(origin=origin, look_at=look_at, up=up, fov=fov)
 
 
+# keys each material type reads, besides name, type and emission
+_MATERIAL_KEYS = {
+    "diffuse": ("albedo",),
+    "phong": ("albedo", "specular", "exponent"),
+    "mirror": ("reflectance",),
+    "dielectric": ("ior", "transmittance", "priority"),
+}
+
+
 def _material(file: str, index: int, data) -> Material:
     t = _Table(file, f"material[{index}]", data)
-    material = Material(
-        name=t.string("name"),
-        type=t.string("type", "diffuse", MATERIAL_TYPES),
-        albedo=t.vec3("albedo", Material.albedo, lo=0.0, hi=1.0),
-    )
+    kind = t.string("type", "diffuse", MATERIAL_TYPES)
+    values = {"name": t.string("name"), "type": kind, "emission": t.vec3("emission", Material.emission, lo=0.0)}
+    readers = {
+        "albedo": lambda: t.vec3("albedo", Material.albedo, lo=0.0, hi=1.0),
+        "specular": lambda: t.vec3("specular", Material.specular, lo=0.0, hi=1.0),
+        "exponent": lambda: t.number("exponent", Material.exponent, lo=0.0, hi=1e6),
+        "reflectance": lambda: t.vec3("reflectance", Material.reflectance, lo=0.0, hi=1.0),
+        "ior": lambda: t.number("ior", Material.ior, lo=1.0, hi=10.0),
+        "transmittance": lambda: t.vec3("transmittance", Material.transmittance, lo=0.0, hi=1.0),
+        "priority": lambda: t.number("priority", Material.priority, integer=True, lo=-1000, hi=1000),
+    }
+    for key in _MATERIAL_KEYS[kind]:
+        values[key] = readers[key]()
     t.finish()
+    material = Material(**values)
+    if kind == "phong" and any(a + s > 1.0 for a, s in zip(material.albedo, material.specular)):
+        raise t.error("specular", "albedo + specular must not exceed 1 in any channel (energy conservation)", list(material.specular))
     return material
 
 
@@ -226,10 +267,31 @@ def _shape(file: str, index: int, data, material_index: Mapping[str, int], scene
     return shape
 
 
-def _light(file: str, index: int, data) -> Light:
+def _unit(t: _Table, key: str) -> tuple[float, float, float]:
+    v = np.asarray(t.vec3(key, nonzero=True))
+    return tuple(float(c) for c in v / np.linalg.norm(v))
+
+
+def _light(file: str, index: int, data):
     t = _Table(file, f"light[{index}]", data)
     kind = t.string("type", choices=LIGHT_TYPES)
-    return Light(type=kind, params={k: v for k, v in t.data.items() if k != "type"})
+    if kind == "point":
+        light = PointLight(position=t.vec3("position"), intensity=t.vec3("intensity", lo=0.0))
+    elif kind == "directional":
+        light = DirectionalLight(direction=_unit(t, "direction"), irradiance=t.vec3("irradiance", lo=0.0))
+    elif kind == "spot":
+        cutoff = t.number("cutoff_angle", SpotLight.cutoff_angle, lo=0.0, hi=90.0, lo_open=True)
+        light = SpotLight(
+            position=t.vec3("position"),
+            direction=_unit(t, "direction"),
+            intensity=t.vec3("intensity", lo=0.0),
+            cutoff_angle=cutoff,
+            beam_width=t.number("beam_width", 0.75 * cutoff, lo=0.0, hi=cutoff),
+        )
+    else:  # parameters belong to the path integrator
+        return Light(type=kind, params={k: v for k, v in t.data.items() if k != "type"})
+    t.finish()
+    return light
 
 
 def parse_scene(doc: Mapping, file: str = "<memory>", scene_dir: str = ".") -> Scene:
@@ -255,6 +317,10 @@ def parse_scene(doc: Mapping, file: str = "<memory>", scene_dir: str = ".") -> S
     materials.append(DEFAULT_MATERIAL)
     shapes = [_shape(file, i, s, material_index, scene_dir) for i, s in enumerate(_array_of_tables(file, doc, "shape"))]
     lights = [_light(file, i, l) for i, l in enumerate(_array_of_tables(file, doc, "light"))]
+    if render.integrator == "whitted":
+        for i, light in enumerate(lights):
+            if isinstance(light, Light):
+                raise SceneError(file, f"light[{i}]", "type", "the whitted integrator takes point, directional and spot lights", light.type)
     return Scene(render=render, camera=camera, materials=tuple(materials), shapes=tuple(shapes), lights=tuple(lights), path=file)
 
 
@@ -287,5 +353,5 @@ def override_render(scene: Scene, source: str = "command line", **changes) -> Sc
     values = {k: v for k, v in changes.items() if v is not None}
     if not values:
         return scene
-    merged = {**dataclasses.asdict(scene.render), **values}
+    merged = {k: list(v) if isinstance(v, tuple) else v for k, v in {**dataclasses.asdict(scene.render), **values}.items()}
     return dataclasses.replace(scene, render=_render(source, merged))

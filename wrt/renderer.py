@@ -17,13 +17,14 @@ import warp as wp
 
 from kernels.film import Film
 from kernels.raycast import raycast
+from kernels.whitted import whitted
 
-from .device import camera_data, resolve_device, upload_geometry, upload_materials
+from .device import camera_data, integrator_settings, resolve_device, upload_geometry, upload_lights, upload_materials
 from .errors import WrtError
 from .geometry import build
 from .scene import Scene
 
-INTEGRATOR_KERNELS = {"raycast": raycast}
+INTEGRATOR_KERNELS = {"raycast": raycast, "whitted": whitted}
 TILE_PIXELS = 4096  # pixels per CPU launch: small enough to balance two threads, large enough to amortise a launch
 AOV_NAMES = ("depth", "normal", "object_id", "position")
 
@@ -86,6 +87,8 @@ def render(scene: Scene, spp: int | None = None, seed: int | None = None, device
     with wp.ScopedDevice(dev):
         geometry = upload_geometry(prims, dev)
         materials = upload_materials(scene, dev)
+        lights = upload_lights(scene, dev)
+        settings = integrator_settings(scene.render)
         cam = camera_data(scene.camera, w, h)
         film = Film()
         film.rgb = wp.zeros(w * h, dtype=wp.vec3, device=dev)
@@ -95,7 +98,7 @@ def render(scene: Scene, spp: int | None = None, seed: int | None = None, device
         film.position = wp.zeros(w * h, dtype=wp.vec3, device=dev)
 
         def launch(first: int, count: int) -> None:
-            wp.launch(kernel, dim=count, inputs=[geometry, materials, cam, spp, seed, first, film], device=dev)
+            wp.launch(kernel, dim=count, inputs=[geometry, materials, lights, settings, cam, spp, seed, first, film], device=dev)
 
         t3 = time.perf_counter()
         if dev.is_cuda:

@@ -10,7 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-INTEGRATORS = ("raycast",)
+INTEGRATORS = ("raycast", "whitted")
+DIELECTRIC_SHADOWS = ("opaque", "filtered")
 
 
 @dataclass(frozen=True)
@@ -26,6 +27,11 @@ class RenderSettings:
     max_depth: int = 8
     seed: int = 0
     integrator: str = "raycast"
+    ambient: tuple[float, float, float] = (0.0, 0.0, 0.0)  # non-physical lecture term, times albedo
+    background: tuple[float, float, float] = (0.0, 0.0, 0.0)  # radiance of rays leaving the scene
+    exterior_ior: float = 1.0  # index of refraction of the medium filling the scene
+    dielectric_shadows: str = "opaque"  # or "filtered": shadow rays pass dielectrics, Beer-attenuated
+    min_throughput: float = 1e-4  # whitted branches whose throughput falls below this are cut
 
 
 @dataclass(frozen=True)
@@ -46,13 +52,29 @@ class Camera:
         return forward, right, np.cross(right, forward)
 
 
+MATERIAL_TYPES = ("diffuse", "phong", "mirror", "dielectric")
+
+
 @dataclass(frozen=True)
 class Material:
-    """``[[material]]``: a named surface description; ``albedo`` is linear RGB in [0, 1]."""
+    """``[[material]]``: a named surface description. Colours are linear RGB.
+
+    ``albedo``: diffuse reflectance (diffuse, phong); ``specular`` and ``exponent``: the
+    energy-normalised Phong lobe; ``reflectance``: mirror colour; ``ior``, ``transmittance``
+    (fraction left after one scene unit inside, Beer-Lambert) and ``priority`` (which medium wins
+    where dielectrics overlap): dielectric; ``emission``: radiance in W/(m^2 sr) leaving the front side.
+    """
 
     name: str
     type: str = "diffuse"
     albedo: tuple[float, float, float] = (0.8, 0.8, 0.8)
+    specular: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    exponent: float = 32.0
+    reflectance: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    ior: float = 1.5
+    transmittance: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    priority: int = 0
+    emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -97,11 +119,47 @@ class Mesh:
 
 
 @dataclass(frozen=True)
+class PointLight:
+    """Isotropic point light; ``intensity`` is radiant intensity in W/sr (RGB)."""
+
+    position: tuple[float, float, float]
+    intensity: tuple[float, float, float]
+    type: str = "point"
+
+
+@dataclass(frozen=True)
+class DirectionalLight:
+    """Light from infinitely far away; ``direction`` is where the light travels (unit),
+    ``irradiance`` in W/m^2 (RGB) on a surface facing it."""
+
+    direction: tuple[float, float, float]
+    irradiance: tuple[float, float, float]
+    type: str = "directional"
+
+
+@dataclass(frozen=True)
+class SpotLight:
+    """Point light restricted to a cone around ``direction`` (unit): full ``intensity`` (W/sr)
+    within ``beam_width`` degrees of the axis, falling linearly in angle to 0 at ``cutoff_angle``
+    (Mitsuba 3's spot profile)."""
+
+    position: tuple[float, float, float]
+    direction: tuple[float, float, float]
+    intensity: tuple[float, float, float]
+    cutoff_angle: float = 20.0
+    beam_width: float = 15.0
+    type: str = "spot"
+
+
+@dataclass(frozen=True)
 class Light:
-    """``[[light]]``: kept as given; the integrators that use lights define their parameters."""
+    """A light type of a later integrator (area, sphere, environment): kept as given."""
 
     type: str
     params: dict = field(default_factory=dict)
+
+
+DELTA_LIGHTS = (PointLight, DirectionalLight, SpotLight)
 
 
 Shape = Sphere | Plane | Triangle | Polygon | Mesh
@@ -115,5 +173,5 @@ class Scene:
     camera: Camera
     materials: tuple[Material, ...]
     shapes: tuple[Shape, ...]
-    lights: tuple[Light, ...] = ()
+    lights: tuple = ()
     path: str = "<memory>"

@@ -1,0 +1,55 @@
+"""Delta lights (point, directional, spot): the radiance they deliver to a point.
+
+Units: point and spot ``intensity`` in W/sr, directional ``irradiance`` in W/m^2 (RGB).
+A point light at distance d delivers irradiance ``I / d^2`` on a surface facing it; the
+integrator multiplies by the BRDF and the cosine at the receiver.
+"""
+import warp as wp
+
+POINT = wp.constant(0)
+DIRECTIONAL = wp.constant(1)
+SPOT = wp.constant(2)
+
+
+@wp.struct
+class LightData:
+    type: wp.array(dtype=wp.int32)
+    position: wp.array(dtype=wp.vec3)
+    direction: wp.array(dtype=wp.vec3)  # unit, the way the light travels
+    power: wp.array(dtype=wp.vec3)  # intensity (W/sr) or irradiance (W/m^2)
+    cos_cutoff: wp.array(dtype=float)  # spot: cos of the cone's half-angle
+    cutoff: wp.array(dtype=float)  # spot: half-angle, radians
+    beam: wp.array(dtype=float)  # spot: half-angle of full intensity, radians
+
+
+@wp.func
+def spot_falloff(lights: LightData, i: wp.int32, w: wp.vec3) -> float:
+    """Mitsuba 3's spot profile for unit ``w`` leaving the light: 1 inside the beam, linear in
+    angle down to 0 at the cutoff."""
+    cos_theta = wp.dot(w, lights.direction[i])
+    if cos_theta <= lights.cos_cutoff[i]:
+        return 0.0
+    theta = wp.acos(wp.clamp(cos_theta, -1.0, 1.0))
+    if theta <= lights.beam[i]:
+        return 1.0
+    return (lights.cutoff[i] - theta) / (lights.cutoff[i] - lights.beam[i])
+
+
+@wp.func
+def light_incident(lights: LightData, i: wp.int32, p: wp.vec3):
+    """Light ``i`` seen from ``p``: ``(wi, distance, irradiance)`` with ``wi`` the unit direction
+    toward the light, ``distance`` to it (inf for directional) and the irradiance (W/m^2) it
+    delivers to a surface at ``p`` facing it."""
+    kind = lights.type[i]
+    if kind == DIRECTIONAL:
+        return -lights.direction[i], wp.inf, lights.power[i]
+    to_light = lights.position[i] - p
+    dist2 = wp.dot(to_light, to_light)
+    if dist2 == 0.0:
+        return wp.vec3(0.0, 0.0, 1.0), 0.0, wp.vec3(0.0)
+    dist = wp.sqrt(dist2)
+    wi = to_light / dist
+    e = lights.power[i] / dist2
+    if kind == SPOT:
+        e = e * spot_falloff(lights, i, -wi)
+    return wi, dist, e

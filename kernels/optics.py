@@ -1,0 +1,54 @@
+"""Specular optics: mirror reflection, Snell refraction and the exact dielectric Fresnel term.
+
+Conventions: ``d`` is the incident ray direction (unit, pointing toward the surface), ``n`` the
+unit normal on the side the ray comes from (``dot(d, n) < 0``), ``eta = n1 / n2`` the ratio of
+the indices of refraction of the incident and the transmitted medium.
+
+References
+----------
+M. Pharr, W. Jakob, G. Humphreys, pbrt-v4, sec. 9.3 (Snell's law in vector form, Fresnel).
+E. Hecht, Optics, 5th ed., sec. 4.6 (Fresnel equations).
+"""
+import warp as wp
+
+
+@wp.func
+def reflect(d: wp.vec3, n: wp.vec3) -> wp.vec3:
+    """Mirror direction ``R = d - 2 (d.n) n`` (the lecture's R = V - 2(V.N)N)."""
+    return d - 2.0 * wp.dot(d, n) * n
+
+
+@wp.func
+def refract(d: wp.vec3, n: wp.vec3, eta: float):
+    """Snell refraction of ``d`` through a surface with normal ``n`` facing the incident side.
+
+    Returns ``(ok, t)``: ``ok`` is False on total internal reflection (``sin^2 theta_t > 1``),
+    else ``t = eta d + (eta cos_i - cos_t) n`` normalised. ``eta == 1`` returns ``d`` exactly.
+    """
+    if eta == 1.0:
+        return True, d
+    cos_i = -wp.dot(d, n)
+    sin2_t = eta * eta * wp.max(0.0, 1.0 - cos_i * cos_i)
+    if sin2_t > 1.0:
+        return False, d
+    cos_t = wp.sqrt(1.0 - sin2_t)
+    return True, wp.normalize(eta * d + (eta * cos_i - cos_t) * n)
+
+
+@wp.func
+def fresnel_dielectric(cos_i: float, eta: float) -> float:
+    """Fraction of unpolarised light reflected at a dielectric interface (exact Fresnel equations).
+
+    ``cos_i`` is the cosine of the incidence angle (>= 0), ``eta = n1 / n2``. Returns 1 under
+    total internal reflection, 0 when ``eta == 1``.
+    """
+    if eta == 1.0:
+        return 0.0
+    cos_i = wp.clamp(cos_i, 0.0, 1.0)
+    sin2_t = eta * eta * (1.0 - cos_i * cos_i)
+    if sin2_t >= 1.0:
+        return 1.0
+    cos_t = wp.sqrt(1.0 - sin2_t)
+    r_par = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
+    r_perp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
+    return 0.5 * (r_par * r_par + r_perp * r_perp)

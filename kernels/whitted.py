@@ -1,0 +1,319 @@
+"""The "whitted" integrator: recursive ray tracing with shadows, reflection and refraction.
+
+Per camera ray, a ray tree is traced depth first with an explicit stack of pending branches
+(no recursion in kernels):
+
+- diffuse and Phong surfaces: direct light from every point, directional and spot light, each
+  checked by a shadow ray, plus the (non-physical) ``ambient`` term times the albedo; the path
+  ends there;
+- mirrors: one reflected branch, throughput times ``reflectance``;
+- dielectrics: a reflected branch weighted by the exact Fresnel reflectance F and a refracted
+  branch weighted by 1 - F (Snell's law), or only the reflected one under total internal
+  reflection; absorption inside follows Beer-Lambert over the distance travelled;
+- emission on any material is added where a ray hits its front side; rays that leave the scene
+  see ``background``.
+
+Depth: the camera ray is segment 1, each reflected, refracted or shadow ray one more; nothing is
+traced past ``max_depth`` segments (so direct light needs ``max_depth >= 2``). A branch whose
+throughput falls below ``min_throughput`` (largest channel) is cut. At a dielectric the heavier
+branch is followed first and the lighter one deferred on the stack; at most ``BRANCHES`` wait,
+and when the stack is full the lightest branch (deferred or new) is dropped, so the energy lost
+to the stack bound is the smallest available. A camera ray's whole tree stops at
+``MAX_SEGMENTS`` segments (reached only with ``min_throughput = 0`` and a deep ``max_depth``).
+
+Media: each branch carries a small stack of the dielectric shapes it is inside. The current
+medium is the entry of highest ``priority``, ties going to the most recently entered. A surface
+of a shape that does not win (entering a lower-priority medium, or leaving a shape that is not the
+current medium) is a false interface: the ray continues straight, only the stack changes. So
+nested objects need no priorities (an air bubble in glass, a glass sphere in water), and where
+dielectrics overlap the higher priority owns the overlap (a glass sphere half in water: give the
+glass priority 1). A ray leaving a shape it never entered (a camera inside glass) refracts from
+that shape's ior into the current medium.
+
+References
+----------
+T. Whitted, "An Improved Illumination Model for Shaded Display", CACM 23(6), 1980.
+C. Schmidt, B. Budge, "Simple Nested Dielectrics in Ray Traced Images", JGT 7(2), 2002.
+"""
+import warp as wp
+
+from .integrator import IntegratorSettings, make_render_kernel
+from .lights import LightData, light_incident
+from .materials import DIELECTRIC, DIFFUSE, MIRROR, PHONG, MaterialData, beer_lambert, eval_brdf
+from .optics import fresnel_dielectric, reflect, refract
+from .spawn import hit_error, spawn_origin
+from .traverse import NO_HIT, SceneData, any_hit, closest_hit, geometric_normal, prim_shape
+
+BRANCHES = 16  # pending branches per camera ray
+MEDIA = 4  # nested dielectrics a ray can be inside at once
+MAX_SEGMENTS = wp.constant(512)  # hard stop per camera ray, whatever happens
+SHADOW_CROSSINGS = wp.constant(16)  # dielectric surfaces a filtered shadow ray may pass
+BranchVec3 = wp.types.matrix(shape=(BRANCHES, 3), dtype=float)
+BranchMedia = wp.types.matrix(shape=(BRANCHES, MEDIA), dtype=wp.int32)
+BranchInt = wp.types.vector(length=BRANCHES, dtype=wp.int32)
+Media = wp.types.vector(length=MEDIA, dtype=wp.int32)
+
+
+@wp.func
+def max_component(v: wp.vec3) -> float:
+    return wp.max(wp.max(v[0], v[1]), v[2])
+
+
+@wp.func
+def lightest_branch(throughput: BranchVec3, count: wp.int32) -> wp.int32:
+    """Index of the deferred branch with the smallest throughput (largest channel)."""
+    best = int(0)
+    for k in range(1, count):
+        if max_component(throughput[k]) < max_component(throughput[best]):
+            best = k
+    return best
+
+
+@wp.func
+def shape_priority(materials: MaterialData, shape: wp.int32) -> wp.int32:
+    return materials.priority[materials.shape_material[shape]]
+
+
+@wp.func
+def current_medium(materials: MaterialData, media: Media, count: wp.int32) -> wp.int32:
+    """Slot of the medium the ray is in: highest priority, ties to the latest entered; -1 = exterior."""
+    best = int(-1)
+    for k in range(count):
+        if best < 0:
+            best = k
+        elif shape_priority(materials, media[k]) >= shape_priority(materials, media[best]):
+            best = k
+    return best
+
+
+@wp.func
+def medium_ior(materials: MaterialData, settings: IntegratorSettings, media: Media, slot: wp.int32) -> float:
+    if slot < 0:
+        return settings.exterior_ior
+    return materials.ior[materials.shape_material[media[slot]]]
+
+
+@wp.func
+def find_medium(media: Media, count: wp.int32, shape: wp.int32) -> wp.int32:
+    """Slot of the latest entry of ``shape`` in the stack, or -1."""
+    found = int(-1)
+    for k in range(count):
+        if media[k] == shape:
+            found = k
+    return found
+
+
+@wp.func
+def remove_medium(media: Media, count: wp.int32, slot: wp.int32) -> Media:
+    out = media
+    for k in range(slot, count - 1):
+        out[k] = media[k + 1]
+    out[count - 1] = -1
+    return out
+
+
+@wp.func
+def shadow_transmittance(
+    scene: SceneData, materials: MaterialData, settings: IntegratorSettings, o: wp.vec3, w: wp.vec3, t_max: float
+) -> wp.vec3:
+    """Fraction of a light's radiance reaching ``o`` from direction ``w`` over distance ``t_max``.
+
+    Opaque mode (default, physical for a ray tracer without caustics): 0 if anything is in the
+    way, else 1. Filtered mode (the lecture's): dielectrics let the shadow ray through in a
+    straight line, attenuated by Beer-Lambert over the length inside them; anything else blocks.
+    """
+    if settings.filtered_shadows == 0:
+        if any_hit(scene, o, w, 0.0, t_max):
+            return wp.vec3(0.0)
+        return wp.vec3(1.0)
+    transmittance = wp.vec3(1.0)
+    for _k in range(SHADOW_CROSSINGS):
+        t, prim = closest_hit(scene, o, w, 0.0, t_max)
+        if prim == NO_HIT:
+            return transmittance
+        m = materials.shape_material[prim_shape(scene, prim)]
+        if materials.type[m] != DIELECTRIC:
+            return wp.vec3(0.0)
+        p = o + t * w
+        n = geometric_normal(scene, prim, p)
+        if wp.dot(w, n) > 0.0:  # leaving: the segment just travelled was inside
+            transmittance = wp.cw_mul(transmittance, beer_lambert(materials.sigma[m], t))
+        o_next = spawn_origin(p, n, hit_error(o, p, t), w)
+        t_max = t_max - t
+        o = o_next
+    return wp.vec3(0.0)
+
+
+@wp.func
+def direct_light(
+    scene: SceneData,
+    materials: MaterialData,
+    lights: LightData,
+    settings: IntegratorSettings,
+    m: wp.int32,
+    p: wp.vec3,
+    n: wp.vec3,
+    err: float,
+    wo: wp.vec3,
+) -> wp.vec3:
+    """Reflected radiance (W/(m^2 sr)) toward ``wo`` at ``p`` (unit normal ``n`` on ``wo``'s side)
+    from all delta lights: sum of BRDF * irradiance * cos * shadow transmittance."""
+    total = wp.vec3(0.0)
+    for i in range(lights.type.shape[0]):
+        wi, dist, irradiance = light_incident(lights, i, p)
+        cos_theta = wp.dot(n, wi)
+        if cos_theta > 0.0 and max_component(irradiance) > 0.0:
+            visible = shadow_transmittance(scene, materials, settings, spawn_origin(p, n, err, wi), wi, dist)
+            total += wp.cw_mul(wp.cw_mul(eval_brdf(materials, m, n, wo, wi), irradiance), visible) * cos_theta
+    return total
+
+
+@wp.func
+def whitted_radiance(
+    scene: SceneData, materials: MaterialData, lights: LightData, settings: IntegratorSettings, o: wp.vec3, d: wp.vec3, t: float, prim: wp.int32
+) -> wp.vec3:
+    """Radiance (W/(m^2 sr)) arriving at ``o`` from direction ``-d``; ``(t, prim)`` is the ray's first hit."""
+    radiance = wp.vec3(0.0)
+    throughput = wp.vec3(1.0)
+    depth = int(1)
+    media = Media(-1, -1, -1, -1)
+    n_media = int(0)
+    pending_origin = BranchVec3()
+    pending_dir = BranchVec3()
+    pending_throughput = BranchVec3()
+    pending_depth = BranchInt()
+    pending_media = BranchMedia()
+    pending_n_media = BranchInt()
+    n_pending = int(0)
+    traced = bool(True)
+    for _segment in range(MAX_SEGMENTS):
+        if not traced:
+            t, prim = closest_hit(scene, o, d, 0.0, wp.inf)
+        traced = False
+        slot = current_medium(materials, media, n_media)
+        if slot >= 0:  # absorption along the segment just travelled (infinite if it escapes)
+            throughput = wp.cw_mul(throughput, beer_lambert(materials.sigma[materials.shape_material[media[slot]]], t))
+        go_on = bool(False)
+        if prim == NO_HIT:
+            radiance += wp.cw_mul(throughput, settings.background)
+        else:
+            p = o + t * d
+            n = geometric_normal(scene, prim, p)
+            shape = prim_shape(scene, prim)
+            m = materials.shape_material[shape]
+            entering = wp.dot(d, n) < 0.0
+            n_facing = n
+            if not entering:
+                n_facing = -n
+            else:
+                radiance += wp.cw_mul(throughput, materials.emission[m])
+            err = hit_error(o, p, t)
+            kind = materials.type[m]
+            if kind == DIFFUSE or kind == PHONG:
+                local = wp.cw_mul(settings.ambient, materials.albedo[m])
+                if depth < settings.max_depth:
+                    local += direct_light(scene, materials, lights, settings, m, p, n_facing, err, -d)
+                radiance += wp.cw_mul(throughput, local)
+            elif kind == MIRROR:
+                throughput = wp.cw_mul(throughput, materials.reflectance[m])
+                if depth < settings.max_depth and max_component(throughput) >= settings.min_throughput:
+                    d = reflect(d, n_facing)
+                    o = spawn_origin(p, n, err, d)
+                    depth += 1
+                    go_on = True
+            elif kind == DIELECTRIC:
+                # which media are on either side, and is this a real interface?
+                inside = find_medium(media, n_media, shape)
+                media_t = media
+                n_media_t = n_media
+                real = bool(True)
+                n1 = float(1.0)
+                n2 = float(1.0)
+                if entering:
+                    n1 = medium_ior(materials, settings, media, slot)
+                    n2 = materials.ior[m]
+                    if slot >= 0 and shape_priority(materials, media[slot]) > materials.priority[m]:
+                        real = False
+                    if n_media < MEDIA:
+                        media_t[n_media] = shape
+                        n_media_t = n_media + 1
+                elif inside < 0:  # leaving a shape never entered: the ray started inside it
+                    n1 = materials.ior[m]
+                    n2 = medium_ior(materials, settings, media, slot)
+                else:
+                    media_t = remove_medium(media, n_media, inside)
+                    n_media_t = n_media - 1
+                    if inside != slot:
+                        real = False
+                    n1 = materials.ior[m]
+                    n2 = medium_ior(materials, settings, media_t, current_medium(materials, media_t, n_media_t))
+                if not real:
+                    o = spawn_origin(p, n, err, d)
+                    media = media_t
+                    n_media = n_media_t
+                    go_on = True
+                elif depth < settings.max_depth:
+                    eta = n1 / n2
+                    fresnel = fresnel_dielectric(-wp.dot(d, n_facing), eta)
+                    ok, wt = refract(d, n_facing, eta)
+                    if not ok:
+                        fresnel = 1.0
+                    wr = reflect(d, n_facing)
+                    reflected = throughput * fresnel
+                    transmitted = throughput * (1.0 - fresnel)
+                    keep_r = max_component(reflected) >= settings.min_throughput
+                    keep_t = ok and max_component(transmitted) >= settings.min_throughput
+                    # Follow the heavier branch now and defer the lighter one. A full stack
+                    # evicts its lightest entry if the new one is heavier, else drops the new one.
+                    if keep_r and keep_t:
+                        defer_reflected = max_component(reflected) < max_component(transmitted)
+                        weight = wp.min(max_component(reflected), max_component(transmitted))
+                        slot_new = n_pending
+                        if n_pending == BRANCHES:
+                            slot_new = lightest_branch(pending_throughput, n_pending)
+                            if max_component(pending_throughput[slot_new]) >= weight:
+                                slot_new = -1
+                        else:
+                            n_pending += 1
+                        if slot_new >= 0:
+                            if defer_reflected:
+                                pending_origin[slot_new] = spawn_origin(p, n, err, wr)
+                                pending_dir[slot_new] = wr
+                                pending_throughput[slot_new] = reflected
+                                pending_media[slot_new] = media
+                                pending_n_media[slot_new] = n_media
+                            else:
+                                pending_origin[slot_new] = spawn_origin(p, n, err, wt)
+                                pending_dir[slot_new] = wt
+                                pending_throughput[slot_new] = transmitted
+                                pending_media[slot_new] = media_t
+                                pending_n_media[slot_new] = n_media_t
+                            pending_depth[slot_new] = depth + 1
+                        keep_r = not defer_reflected
+                        keep_t = defer_reflected
+                    if keep_r:
+                        d = wr
+                        throughput = reflected
+                    elif keep_t:
+                        d = wt
+                        throughput = transmitted
+                        media = media_t
+                        n_media = n_media_t
+                    if keep_r or keep_t:
+                        o = spawn_origin(p, n, err, d)
+                        depth += 1
+                        go_on = True
+        if not go_on:
+            if n_pending == 0:
+                break
+            n_pending -= 1
+            o = pending_origin[n_pending]
+            d = pending_dir[n_pending]
+            throughput = pending_throughput[n_pending]
+            depth = pending_depth[n_pending]
+            media = pending_media[n_pending]
+            n_media = pending_n_media[n_pending]
+    return radiance
+
+
+whitted = make_render_kernel(whitted_radiance)
