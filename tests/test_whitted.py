@@ -284,3 +284,62 @@ def test_max_depth_counts_segments():
     cam = {"origin": [0, 0, 4], "look_at": [0, 0, 0], "fov": 30}
     depth = [whitted(shapes, mats, lights, camera=cam, size=(9, 9), max_depth=k).rgb.max() for k in (1, 2, 3)]
     assert depth[0] == 0 and depth[1] == 0 and depth[2] > 0.01
+
+
+def slab(z_center, thickness, material):
+    return {"type": "mesh", "file": "examples/meshes/cube.stl", "material": material,
+            "transform": {"scale": [40.0, 40.0, thickness], "translate": [0.0, 0.0, z_center]}}
+
+
+def fresnel_normal(n1, n2):
+    return ((n1 - n2) / (n1 + n2)) ** 2
+
+
+def through_slabs(shapes, max_depth, glass_priority=0):
+    """Radiance of a unit emitter seen at normal incidence through ``shapes``; ``max_depth`` = real
+    interfaces + 1 leaves no segments for internal reflections."""
+    mats = [
+        {"name": "water", "type": "dielectric", "ior": 1.33},
+        {"name": "glass", "type": "dielectric", "ior": 1.5, "priority": glass_priority},
+        {"name": "light", "albedo": [0, 0, 0], "emission": [1, 1, 1]},
+    ]
+    r = whitted(shapes + [EMITTER], mats, camera={"origin": [0, 0, 5], "look_at": [0, 0, 0], "fov": 10}, size=(1, 1), max_depth=max_depth)
+    return r.rgb[0, 0, 0]
+
+
+def test_nested_media_use_the_right_ior_pairs():
+    """A glass slab inside a water slab: air|water|glass|water|air, four real interfaces."""
+    value = through_slabs([slab(0.0, 2.0, "water"), slab(0.0, 0.5, "glass")], max_depth=5)
+    expected = np.prod([1 - fresnel_normal(a, b) for a, b in [(1.0, 1.33), (1.33, 1.5), (1.5, 1.33), (1.33, 1.0)]])
+    assert value == pytest.approx(expected, rel=1e-5)
+
+
+@pytest.mark.parametrize("glass_priority, interfaces", [
+    (1, [(1.0, 1.5), (1.5, 1.33), (1.33, 1.0)]),  # glass owns the overlap: entering water there is false
+    (0, [(1.0, 1.5), (1.5, 1.33), (1.33, 1.0)]),  # tie: water, entered last, owns it; leaving glass is false
+])
+def test_overlapping_media_follow_priority(glass_priority, interfaces):
+    """Glass z in [-0.5, 0.5] overlapping water z in [-1, 0]: along the ray the real interfaces
+    depend on who owns the overlap [-0.5, 0]; at normal incidence both orders give the same
+    three ior pairs, but a wrong medium stack gives four or two."""
+    value = through_slabs([slab(-0.5, 1.0, "water"), slab(0.0, 1.0, "glass")], 4, glass_priority)
+    expected = np.prod([1 - fresnel_normal(a, b) for a, b in interfaces])
+    assert value == pytest.approx(expected, rel=1e-5)
+
+
+def test_overlap_priority_changes_absorption():
+    """Same overlap with absorbing water: the length travelled in water differs with ownership
+    (glass owns it: 0.5 units of water; water owns it: 1.0 unit)."""
+    mats = [
+        {"name": "water", "type": "dielectric", "ior": 1.33, "transmittance": [0.5, 0.5, 0.5]},
+        {"name": "light", "albedo": [0, 0, 0], "emission": [1, 1, 1]},
+    ]
+    values = []
+    for priority in (1, 0):
+        mats_p = mats + [{"name": "glass", "type": "dielectric", "ior": 1.5, "priority": priority}]
+        r = whitted([slab(-0.5, 1.0, "water"), slab(0.0, 1.0, "glass"), EMITTER], mats_p,
+                    camera={"origin": [0, 0, 5], "look_at": [0, 0, 0], "fov": 10}, size=(1, 1), max_depth=4)
+        values.append(r.rgb[0, 0, 0])
+    fresnel = np.prod([1 - fresnel_normal(a, b) for a, b in [(1.0, 1.5), (1.5, 1.33), (1.33, 1.0)]])
+    assert values[0] == pytest.approx(fresnel * 0.5**0.5, rel=1e-4)
+    assert values[1] == pytest.approx(fresnel * 0.5**1.0, rel=1e-4)
