@@ -33,7 +33,8 @@ def _aovs():
     ids = rng.integers(-1, 9, (H, W)).astype(np.int32)
     ids[0, 0] = -1
     position = rng.uniform(-1e3, 1e3, (H, W, 3)).astype(np.float32)
-    return {"depth": depth, "normal": normal, "object_id": ids, "position": position}
+    variance = rng.uniform(0.0, 2.0, (H, W, 3)).astype(np.float32)
+    return {"depth": depth, "normal": normal, "object_id": ids, "position": position, "variance": variance}
 
 
 def _sorted_listing(folder):
@@ -70,7 +71,7 @@ def test_exr_channel_names_are_the_public_contract(tmp_path):
     inp = oiio.ImageInput.open(str(path))
     names = set(inp.spec().channelnames)
     inp.close()
-    expected = {"R", "G", "B", "Z", "N.X", "N.Y", "N.Z", "id", "P.X", "P.Y", "P.Z"}
+    expected = {"R", "G", "B", "Z", "N.X", "N.Y", "N.Z", "id", "P.X", "P.Y", "P.Z", "var.R", "var.G", "var.B"}
     assert names == expected
 
 

@@ -23,12 +23,14 @@ AOV_CHANNELS = {
     "normal": ("N.X", "N.Y", "N.Z"),
     "object_id": ("id",),
     "position": ("P.X", "P.Y", "P.Z"),
+    "variance": ("var.R", "var.G", "var.B"),
 }
 """EXR channel names of each AOV, in component order; a public contract of the file format.
 
 ``depth`` is the ray distance to the first hit (scene units, +inf on a miss); ``normal`` the
 unit shading normal and ``position`` the hit point (world space); ``object_id`` (channel ``id``) the shape index in
-scene-file order (-1 on a miss), stored as float32.
+scene-file order (-1 on a miss), stored as float32. ``variance`` is the per-sample variance of
+each pixel's RGB estimate (reference images of the regression harness).
 """
 
 SUPPORTED_EXTENSIONS = (".exr", ".png")
