@@ -45,6 +45,44 @@ def _parser() -> argparse.ArgumentParser:
         "position (P.X,P.Y,P.Z), or all",
     )
     r.add_argument("--half", action="store_true", help="store EXR RGB as half floats (AOVs stay float32)")
+
+    m = verbs.add_parser(
+        "matrix",
+        help="run the feature test matrix (visual regression harness)",
+        description="Render every feature of harness/features.toml (or those named), score it by SSIM and a per-pixel "
+        "Z-test against its reference and by SSIM of its object ids against a pyvista rasterisation, check "
+        "convergence, print a table. Exit 0 when all pass, 1 on a regression, 2 on bad input.",
+    )
+    m.add_argument("features", nargs="*", metavar="FEATURE", help="feature names (default: all)")
+    m.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
+    m.add_argument("--jobs", type=int, default=1, help="features rendered at once (default 1; each uses all cores)")
+    m.add_argument("--report", metavar="DIR", help="write an HTML report (DIR/index.html and PNGs)")
+
+    refs = verbs.add_parser("refs", help="regenerate or calibrate reference images", description="Manage reference_images/.")
+    refs_verbs = refs.add_subparsers(dest="refs_verb", metavar="ACTION", required=True)
+    regen = refs_verbs.add_parser(
+        "regenerate",
+        help="re-render references (all, named, or --failed), then calibrate them",
+        description="Render converged references in independent batches, refuse any that does not reproduce "
+        "across seeds, print SSIM old vs new, write each file atomically, and recalibrate the thresholds.",
+    )
+    regen.add_argument("features", nargs="*", metavar="FEATURE")
+    regen.add_argument("--failed", action="store_true", help="only features that fail (or lack a valid reference)")
+    regen.add_argument("--spp", type=int, help="reference spp (default: the matrix entry's reference_spp)")
+    regen.add_argument("--device", default="cpu")
+    cal = refs_verbs.add_parser(
+        "calibrate",
+        help="set SSIM thresholds from renders with several seeds",
+        description="Render each feature at its test spp with several seeds, record the spread of SSIM against the "
+        "reference and set the threshold under it (min - max(0.002, 3 std)); stored in reference_images/NAME.json.",
+    )
+    cal.add_argument("features", nargs="*", metavar="FEATURE")
+    cal.add_argument("--device", default="cpu")
+
+    c = verbs.add_parser("compare", help="score two images", description="SSIM (tone-mapped), RMSE and max error (linear) of A against B.")
+    c.add_argument("a", metavar="A", help="image to score (.exr or .png)")
+    c.add_argument("b", metavar="B", help="reference image")
+    c.add_argument("--threshold", type=float, help="exit 1 when SSIM is below this")
     return parser
 
 
@@ -86,10 +124,41 @@ def _render(args) -> int:
     return 0
 
 
+def _matrix(args) -> int:
+    from harness import commands
+
+    if args.jobs < 1:
+        raise WrtError(f"--jobs {args.jobs}: must be >= 1")
+    return commands.matrix(args.features, args.device, args.jobs, args.report)
+
+
+def _refs(args) -> int:
+    from harness import commands
+
+    if args.refs_verb == "regenerate":
+        if args.spp is not None and args.spp < 1:
+            raise WrtError(f"--spp {args.spp}: must be >= 1")
+        return commands.refs_regenerate(args.features, args.failed, args.spp, args.device)
+    return commands.refs_calibrate(args.features, args.device)
+
+
+def _compare(args) -> int:
+    from harness import commands
+
+    return commands.compare(args.a, args.b, args.threshold)
+
+
+VERBS = {"render": _render, "matrix": _matrix, "refs": _refs, "compare": _compare}
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
-        return {"render": _render}[args.verb](args)
+        if args.verb != "render":
+            from .device import init_warp
+
+            init_warp()
+        return VERBS[args.verb](args)
     except WrtError as e:
         print(f"wrt: error: {e}", file=sys.stderr)
         return 2

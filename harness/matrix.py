@@ -1,0 +1,176 @@
+"""The feature matrix: one entry per renderer feature, read from ``harness/features.toml``.
+
+Each entry names its scene (a TOML file, relative to ``features.toml``), the integrator, image
+size, spp and seed it is tested at, the spp of its reference, the SSIM threshold of its geometry
+oracle, and a deliberately wrong variant that must fail (the harness's own sensitivity check).
+A new feature is one new entry and one scene file. Scenes are patched in memory with ``set``
+tables whose keys are paths into the scene document:
+
+- ``render.max_depth``, ``camera.fov``: a key of a table;
+- ``shape[2].center``, ``light[0].position``: a key of the i-th entry of an array of tables;
+- ``material[glass].ior``: a key of the array entry whose ``name`` is ``glass``;
+- ``light``: a whole table or array (``light = []`` removes every light).
+"""
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import os
+import re
+import tomllib
+from dataclasses import dataclass, field
+
+from wrt.errors import WrtError
+from wrt.loader import parse_scene
+from wrt.scene import Mesh, Scene
+
+HARNESS_DIR = os.path.dirname(os.path.abspath(__file__))
+FEATURES_FILE = os.path.join(HARNESS_DIR, "features.toml")
+# SSIM of the id images below which the geometry oracle disagrees: exact agreement scores 1; a
+# plane's horizon (the rasteriser's plane is a finite patch) and rasteriser edge rules cost up to ~0.01
+GEOMETRY_THRESHOLD = 0.98
+_PATH_PART = re.compile(r"^(?P<key>[A-Za-z_]\w*)(\[(?P<sel>[^\]]+)\])?$")
+
+
+@dataclass(frozen=True)
+class Feature:
+    """One matrix entry (see the module docstring and ``features.toml``)."""
+
+    name: str
+    scene: str  # absolute path
+    integrator: str
+    width: int
+    height: int
+    spp: int
+    seed: int
+    reference_spp: int
+    geometry_threshold: float
+    wrong: dict = field(default_factory=dict)  # {"description": str, "set": {path: value}}
+
+    @property
+    def stochastic(self) -> bool:
+        """Whether renders vary with the seed (more than one sample per pixel)."""
+        return self.spp > 1
+
+
+def _set_path(doc: dict, path: str, value, where: str) -> None:
+    """Assign ``value`` at ``path`` (see the module docstring) inside the scene document ``doc``."""
+    parts = path.split(".")
+    node = doc
+    for i, part in enumerate(parts):
+        m = _PATH_PART.match(part)
+        if not m:
+            raise WrtError(f"{where}: bad path {path!r} (at {part!r})")
+        key, sel = m["key"], m["sel"]
+        last = i == len(parts) - 1
+        if sel is None:
+            if last:
+                node[key] = copy.deepcopy(value)
+                return
+            node = node.setdefault(key, {})
+            continue
+        items = node.get(key)
+        if not isinstance(items, list):
+            raise WrtError(f"{where}: path {path!r}: no array of tables [[{key}]]")
+        if sel.lstrip("-").isdigit():
+            index = int(sel)
+        else:
+            matches = [k for k, item in enumerate(items) if item.get("name") == sel]
+            if not matches:
+                raise WrtError(f"{where}: path {path!r}: no [[{key}]] named {sel!r}")
+            index = matches[0]
+        if not -len(items) <= index < len(items):
+            raise WrtError(f"{where}: path {path!r}: index {index} out of range")
+        if last:
+            items[index] = copy.deepcopy(value)
+            return
+        node = items[index]
+
+
+def _read_toml(path: str) -> dict:
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f)
+    except OSError as e:
+        raise WrtError(f"{path}: cannot read ({e.strerror})") from None
+    except tomllib.TOMLDecodeError as e:
+        raise WrtError(f"{path}: not valid TOML: {e}") from None
+
+
+def load_features(path: str = FEATURES_FILE) -> list[Feature]:
+    """All matrix entries, in file order."""
+    doc = _read_toml(path)
+    base = os.path.dirname(os.path.abspath(path))
+    features = []
+    for i, entry in enumerate(doc.get("feature", [])):
+        where = f"{path}: feature[{i}]"
+        try:
+            spp = int(entry.get("spp", 1))
+            feature = Feature(
+                name=str(entry["name"]),
+                scene=os.path.normpath(os.path.join(base, entry["scene"])),
+                integrator=str(entry["integrator"]),
+                width=int(entry["width"]),
+                height=int(entry["height"]),
+                spp=spp,
+                seed=int(entry.get("seed", 0)),
+                reference_spp=int(entry.get("reference_spp", 64 * spp if spp > 1 else 1)),
+                geometry_threshold=float(entry.get("geometry_threshold", GEOMETRY_THRESHOLD)),
+                wrong=dict(entry.get("wrong", {})),
+            )
+        except KeyError as e:
+            raise WrtError(f"{where}: missing key {e.args[0]!r}") from None
+        except (TypeError, ValueError) as e:
+            raise WrtError(f"{where}: {e}") from None
+        features.append(feature)
+    names = [f.name for f in features]
+    duplicates = {n for n in names if names.count(n) > 1}
+    if duplicates:
+        raise WrtError(f"{path}: duplicate feature names: {', '.join(sorted(duplicates))}")
+    return features
+
+
+def select(features: list[Feature], names: list[str]) -> list[Feature]:
+    """The features called ``names`` (all when empty); an unknown name is a ``WrtError``."""
+    if not names:
+        return features
+    by_name = {f.name: f for f in features}
+    unknown = [n for n in names if n not in by_name]
+    if unknown:
+        raise WrtError(f"unknown feature {unknown[0]!r} (known: {', '.join(by_name)})")
+    return [by_name[n] for n in names]
+
+
+def scene_document(feature: Feature, wrong: bool = False) -> dict:
+    """The feature's scene as a TOML document with its render settings (and, if ``wrong``, the
+    wrong variant's patches) applied."""
+    doc = _read_toml(feature.scene)
+    render = doc.setdefault("render", {})
+    render.update(integrator=feature.integrator, width=feature.width, height=feature.height, spp=feature.spp, seed=feature.seed)
+    if wrong:
+        if not feature.wrong.get("set"):
+            raise WrtError(f"feature {feature.name!r} has no wrong variant")
+        for path, value in feature.wrong["set"].items():
+            _set_path(doc, path, value, f"feature {feature.name!r} wrong.set")
+    return doc
+
+
+def load_feature_scene(feature: Feature, wrong: bool = False) -> Scene:
+    """The validated scene of a feature (or of its wrong variant)."""
+    return parse_scene(scene_document(feature, wrong), file=feature.scene, scene_dir=os.path.dirname(feature.scene))
+
+
+def scene_hash(feature: Feature) -> str:
+    """SHA-256 of everything a reference depends on: the scene document (without spp and seed),
+    the bytes of its mesh files, the image size and the reference spp."""
+    doc = scene_document(feature)
+    for key in ("spp", "seed"):
+        doc["render"].pop(key)
+    h = hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode())
+    h.update(f"{feature.width}x{feature.height}@{feature.reference_spp}".encode())
+    for shape in load_feature_scene(feature).shapes:
+        if isinstance(shape, Mesh):
+            with open(shape.file, "rb") as f:
+                h.update(hashlib.sha256(f.read()).digest())
+    return h.hexdigest()

@@ -1,0 +1,172 @@
+"""Reference images of the feature matrix: rendering, storing, checking and calibrating them.
+
+Per feature, in ``reference_images/``:
+
+- ``NAME.exr``: the converged mean (RGB, half float) and the per-sample variance of every pixel
+  (``var.R/G/B``), with metadata ``wrt:scene_hash``, ``wrt:spp``, ``wrt:seed``, ``wrt:version``,
+  ``wrt:date``;
+- ``NAME.json``: the calibration: SSIM of test-spp renders with several seeds against the
+  reference, their spread, and the threshold set under it;
+- ``NAME.png``: a preview.
+
+A reference is rendered in ``BATCHES`` independent batches (seeds ``REFERENCE_SEED + i``); the
+spread of the batch means gives the per-sample variance, and the two halves of the batches must
+agree by the per-pixel Z-test before anything is stored ("reproduces"). Each file is written
+atomically, so an interrupted regeneration leaves every file old or new; a calibration that does
+not belong to its reference (hash mismatch) is reported, never used.
+"""
+from __future__ import annotations
+
+import datetime
+import hashlib
+import json
+import os
+import statistics
+from dataclasses import dataclass
+
+import numpy as np
+
+import wrt
+from wrt.errors import WrtError
+from wrt.imageio import read_image, write_image
+
+from .matrix import Feature, load_feature_scene, scene_hash
+from .score import ssim, z_test
+
+REFERENCE_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "reference_images")
+BATCHES = 32  # independent batches a reference is rendered in (variance estimate with 31 dof)
+REFERENCE_SEED = 1_000_000  # reference batches use seeds from here; test renders use small seeds
+CALIBRATION_SEEDS = (11, 12, 13, 14, 15, 16)
+CALIBRATION_MARGIN = 0.002  # threshold = min(SSIM) - max(CALIBRATION_MARGIN, 3 std(SSIM))
+
+
+class ReferenceError(WrtError):
+    """A reference that is missing, unreadable or does not match its feature."""
+
+    def __init__(self, feature: str, problem: str):
+        super().__init__(f"reference of {feature!r}: {problem}; run: wrt refs regenerate {feature}")
+        self.feature = feature
+
+
+@dataclass
+class Reference:
+    rgb: np.ndarray  # (H, W, 3) float32, converged mean
+    variance: np.ndarray  # (H, W, 3) per-sample variance
+    spp: int
+    metadata: dict
+    calibration: dict | None
+
+
+def paths(name: str, folder: str | None = None) -> dict[str, str]:
+    """The reference files of feature ``name`` in ``folder`` (default ``REFERENCE_DIR``)."""
+    folder = folder or REFERENCE_DIR
+    return {ext: os.path.join(folder, f"{name}.{ext}") for ext in ("exr", "json", "png")}
+
+
+def file_sha256(path: str) -> str:
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()
+
+
+def render_feature(feature: Feature, spp: int | None = None, seed: int | None = None, wrong: bool = False, device: str = "cpu", threads: int | None = None):
+    """Render a feature's scene (or its wrong variant) at its test spp and seed unless overridden."""
+    return wrt.render(load_feature_scene(feature, wrong), spp=spp, seed=seed, device=device, threads=threads)
+
+
+def load_reference(feature: Feature, folder: str | None = None, calibration: bool = True) -> Reference:
+    """The stored reference of ``feature``; ``ReferenceError`` naming the fix when it is missing,
+    corrupt, of the wrong size, made from another scene, or (with ``calibration``) when its
+    calibration file belongs to another reference image."""
+    p = paths(feature.name, folder)
+    if not os.path.exists(p["exr"]):
+        raise ReferenceError(feature.name, f"{p['exr']} is missing")
+    try:
+        image = read_image(p["exr"])
+    except WrtError as e:
+        raise ReferenceError(feature.name, f"unreadable ({e})") from None
+    if image.rgb.shape != (feature.height, feature.width, 3) or "variance" not in image.aovs:
+        raise ReferenceError(feature.name, f"{p['exr']} is {image.rgb.shape[1]}x{image.rgb.shape[0]} without the expected channels, the matrix wants {feature.width}x{feature.height}")
+    if image.metadata.get("scene_hash") != scene_hash(feature):
+        raise ReferenceError(feature.name, "the scene or the matrix entry changed since the reference was made (scene hash differs)")
+    stored = None
+    if calibration and os.path.exists(p["json"]):
+        try:
+            with open(p["json"]) as f:
+                stored = json.load(f)
+        except (OSError, ValueError) as e:
+            raise ReferenceError(feature.name, f"{p['json']} is unreadable ({e})") from None
+        if stored.get("reference_sha256") != file_sha256(p["exr"]):
+            raise ReferenceError(feature.name, "its calibration belongs to another reference image (run wrt refs calibrate, or regenerate)")
+    return Reference(rgb=image.rgb, variance=image.aovs["variance"], spp=int(image.metadata.get("spp", 0)), metadata=image.metadata, calibration=stored)
+
+
+def render_reference(feature: Feature, spp: int | None = None, device: str = "cpu", threads: int | None = None) -> Reference:
+    """Render a converged reference in ``BATCHES`` batches and check that it reproduces.
+
+    Deterministic features (1 spp at the pixel centre) have one exact batch and zero variance.
+    """
+    spp = spp or feature.reference_spp
+    batches = min(BATCHES, spp) if feature.stochastic else 1
+    per_batch = max(1, spp // batches)
+    means = np.stack([render_feature(feature, spp=per_batch, seed=REFERENCE_SEED + i, device=device, threads=threads).rgb for i in range(batches)]).astype(np.float64)
+    mean = means.mean(axis=0)
+    total = per_batch * batches
+    variance = np.zeros_like(mean)
+    if batches > 1:
+        # per-sample variance pooled within the two halves (disjoint seeds), then the halves
+        # must agree within it: a reference that depends on its seeds is not stored
+        half = batches // 2
+        first, second = means[:half], means[half:]
+        variance = 0.5 * (first.var(axis=0, ddof=1) + second.var(axis=0, ddof=1)) * per_batch
+        check = z_test(first.mean(axis=0), per_batch * half, second.mean(axis=0), variance, per_batch * (batches - half))
+        if not check.passed:
+            raise WrtError(
+                f"feature {feature.name!r}: the reference does not reproduce: two halves rendered with different seeds differ "
+                f"beyond their noise at {check.rejected} pixel blocks (min p = {check.min_p:.2e}); nothing was written"
+            )
+    metadata = {"scene_hash": scene_hash(feature), "spp": total, "seed": REFERENCE_SEED, "version": wrt.__version__, "date": datetime.date.today().isoformat()}
+    return Reference(rgb=mean.astype(np.float32), variance=variance.astype(np.float32), spp=total, metadata=metadata, calibration=None)
+
+
+def calibrate(feature: Feature, reference: Reference, device: str = "cpu", threads: int | None = None) -> dict:
+    """Render the feature at its test spp with ``CALIBRATION_SEEDS`` and set its SSIM threshold
+    under the spread: ``min - max(CALIBRATION_MARGIN, 3 std)``."""
+    seeds = CALIBRATION_SEEDS if feature.stochastic else CALIBRATION_SEEDS[:1]
+    scores = [ssim(render_feature(feature, seed=s, device=device, threads=threads).rgb, reference.rgb) for s in seeds]
+    spread = statistics.stdev(scores) if len(scores) > 1 else 0.0
+    margin = max(CALIBRATION_MARGIN, 3.0 * spread)
+    return {
+        "feature": feature.name,
+        "test_spp": feature.spp,
+        "seeds": list(seeds),
+        "ssim": scores,
+        "ssim_mean": statistics.fmean(scores),
+        "ssim_std": spread,
+        "margin": margin,
+        "ssim_threshold": min(scores) - margin,
+        "rule": "threshold = min(ssim) - max(0.002, 3 * std(ssim))",
+    }
+
+
+def _write_json(path: str, data: dict) -> None:
+    tmp = f"{path}.tmp-{os.getpid()}"
+    try:
+        with open(tmp, "w") as f:
+            json.dump(data, f, indent=2)
+            f.write("\n")
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+
+
+def store(feature: Feature, reference: Reference, folder: str | None = None) -> None:
+    """Write the reference EXR (half RGB, float variance) and its preview PNG, atomically each."""
+    p = paths(feature.name, folder)
+    write_image(p["exr"], reference.rgb, aovs={"variance": reference.variance}, metadata=reference.metadata, half=True)
+    write_image(p["png"], reference.rgb)
+
+
+def store_calibration(feature: Feature, calibration: dict, folder: str | None = None) -> None:
+    p = paths(feature.name, folder)
+    _write_json(p["json"], {**calibration, "reference_sha256": file_sha256(p["exr"])})

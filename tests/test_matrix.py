@@ -1,0 +1,160 @@
+"""The visual regression harness (harness/): the feature matrix collected by pytest, its
+sensitivity (every deliberately wrong variant fails), reference handling, `wrt compare`, and the
+HTML report in a real headless browser."""
+import json
+import os
+import re
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+
+import harness.references as references
+from harness.matrix import load_features, select
+from harness.report import write_report
+from harness.run import evaluate
+from wrt.cli import main
+from wrt.errors import WrtError
+from wrt.imageio import write_image
+
+FEATURES = load_features()
+
+
+def describe(r) -> str:
+    lines = [f"{r.feature.name}: SSIM {r.ssim:.4f} (threshold {r.ssim_threshold:.4f}), geometry SSIM {r.geometry_ssim:.4f}"]
+    if r.z is not None:
+        lines.append(f"Z-test: min p {r.z.min_p:.2e}, {r.z.rejected} rejected at level {r.z.threshold:.1e}")
+    return "\n".join(lines + r.failures)
+
+
+@pytest.mark.parametrize("feature", FEATURES, ids=[f.name for f in FEATURES])
+def test_feature(feature, tmp_path):
+    """One matrix entry, exactly as `wrt matrix NAME` scores it."""
+    result = evaluate(feature)
+    if not result.passed:
+        page = write_report([result], str(tmp_path / "report"), "cpu")
+        pytest.fail(f"{describe(result)}\nreport: {page}")
+
+
+@pytest.mark.parametrize("feature", FEATURES, ids=[f.name for f in FEATURES])
+def test_wrong_variant_fails(feature):
+    """The harness is sensitive: the feature's deliberately wrong variant scores below its thresholds."""
+    assert feature.wrong.get("description"), "every feature needs a wrong variant"
+    result = evaluate(feature, wrong=True)
+    assert not result.passed, f"wrong variant ({feature.wrong['description']}) still passes:\n{describe(result)}"
+
+
+def copy_references(tmp_path, monkeypatch, names):
+    folder = tmp_path / "refs"
+    folder.mkdir()
+    for name in names:
+        for path in references.paths(name).values():
+            shutil.copy(path, folder)
+    monkeypatch.setattr(references, "REFERENCE_DIR", str(folder))
+    return folder
+
+
+def test_missing_corrupt_and_stale_references_name_the_fix(tmp_path, monkeypatch, capsys):
+    folder = copy_references(tmp_path, monkeypatch, ["raycast_sphere", "raycast_triangle"])
+    feature = select(FEATURES, ["raycast_sphere"])[0]
+    os.remove(folder / "raycast_sphere.exr")
+    assert main(["matrix", "raycast_sphere"]) == 2
+    assert "run: wrt refs regenerate raycast_sphere" in capsys.readouterr().err
+    (folder / "raycast_sphere.exr").write_bytes(b"not an exr at all")
+    with pytest.raises(references.ReferenceError, match="unreadable.*wrt refs regenerate raycast_sphere"):
+        references.load_reference(feature)
+    # a reference made from another scene: same size, other hash
+    tri = select(FEATURES, ["raycast_triangle"])[0]
+    shutil.copy(folder / "raycast_triangle.exr", folder / "raycast_sphere.exr")
+    with pytest.raises(references.ReferenceError, match="scene hash differs"):
+        references.load_reference(feature)
+    # a calibration that belongs to another image
+    data = json.loads((folder / "raycast_triangle.json").read_text())
+    data["reference_sha256"] = "0" * 64
+    (folder / "raycast_triangle.json").write_text(json.dumps(data))
+    with pytest.raises(references.ReferenceError, match="calibration belongs to another"):
+        references.load_reference(tri)
+
+
+def test_unknown_feature_exits_2(capsys):
+    assert main(["matrix", "no_such_feature"]) == 2
+    assert "unknown feature 'no_such_feature'" in capsys.readouterr().err
+
+
+def test_regenerate_writes_reproducible_calibrated_references(tmp_path, monkeypatch, capsys):
+    folder = copy_references(tmp_path, monkeypatch, ["antialiasing"])
+    before = (folder / "antialiasing.exr").read_bytes()
+    assert main(["refs", "regenerate", "antialiasing", "--spp", "256"]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"antialiasing: 256 spp, SSIM old vs new 0\.99\d+", out), out
+    after = references.load_reference(select(FEATURES, ["antialiasing"])[0])
+    assert after.spp == 256 and (folder / "antialiasing.exr").read_bytes() != before
+    assert after.calibration["ssim_threshold"] < min(after.calibration["ssim"])
+    assert sorted(os.listdir(folder)) == ["antialiasing.exr", "antialiasing.json", "antialiasing.png"]  # no temp files
+
+
+def test_interrupted_regeneration_keeps_the_old_reference(tmp_path, monkeypatch):
+    folder = copy_references(tmp_path, monkeypatch, ["raycast_sphere"])
+    before = {p.name: p.read_bytes() for p in folder.iterdir()}
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("wrt.imageio.os.replace", interrupted)  # Ctrl-C just before the rename
+    assert main(["refs", "regenerate", "raycast_sphere"]) == 130
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+
+
+def test_a_reference_that_does_not_reproduce_is_refused(tmp_path, monkeypatch):
+    folder = copy_references(tmp_path, monkeypatch, ["antialiasing"])
+    before = (folder / "antialiasing.exr").read_bytes()
+    real = references.render_feature
+
+    def biased(feature, spp=None, seed=None, **kwargs):  # the later seeds render a 3% brighter image
+        result = real(feature, spp=spp, seed=seed, **kwargs)
+        if seed is not None and seed >= references.REFERENCE_SEED + references.BATCHES // 2:
+            result.rgb = result.rgb * 1.03
+        return result
+
+    monkeypatch.setattr(references, "render_feature", biased)
+    with pytest.raises(WrtError, match="does not reproduce"):
+        references.render_reference(select(FEATURES, ["antialiasing"])[0], spp=64)
+    assert (folder / "antialiasing.exr").read_bytes() == before
+
+
+def test_compare(tmp_path, capsys):
+    a = np.random.default_rng(0).uniform(0, 1, (32, 32, 3)).astype(np.float32)
+    write_image(str(tmp_path / "a.exr"), a)
+    write_image(str(tmp_path / "b.exr"), a * 0.5)
+    assert main(["compare", str(tmp_path / "a.exr"), str(tmp_path / "a.exr"), "--threshold", "0.999"]) == 0
+    assert "SSIM 1.000000" in capsys.readouterr().out
+    assert main(["compare", str(tmp_path / "a.exr"), str(tmp_path / "b.exr"), "--threshold", "0.99"]) == 1
+    assert main(["compare", str(tmp_path / "a.exr"), str(tmp_path / "missing.exr")]) == 2
+
+
+def find_chromium():
+    for name in ("chromium", "chromium-browser", "google-chrome"):
+        path = shutil.which(name)
+        if path:
+            return path
+    pytest.fail("headless Chromium is needed for the report test: apt-get install chromium (.ci/run installs it)")
+
+
+def test_report_renders_in_headless_chromium(tmp_path):
+    """The report page loads in a real browser, shows one row per feature, marks failed rows."""
+    good = evaluate(select(FEATURES, ["raycast_triangle"])[0])
+    bad = evaluate(select(FEATURES, ["refraction"])[0], wrong=True)
+    page = write_report([good, bad], str(tmp_path / "report"), "cpu")
+    chromium = find_chromium()
+    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--allow-file-access-from-files"]
+    dom = subprocess.run([chromium, *flags, "--dump-dom", f"file://{page}"], capture_output=True, text=True, timeout=120).stdout
+    assert "wrt feature matrix: 1 of 2 pass" in dom
+    rows = re.findall(r'<tr class="(pass|fail)" id="([a-z_]+)"', dom)
+    assert rows == [("pass", "raycast_triangle"), ("fail", "refraction")]
+    shot = tmp_path / "shot.png"
+    subprocess.run([chromium, *flags, f"--screenshot={shot}", "--window-size=1400,900", f"file://{page}"], capture_output=True, timeout=120)
+    from wrt.imageio import read_image
+
+    pixels = read_image(str(shot)).rgb
+    assert len(np.unique(pixels.reshape(-1, 3), axis=0)) > 50  # the images and colours are drawn
