@@ -12,11 +12,16 @@ from __future__ import annotations
 import colorsys
 import math
 import os
+import threading
 
 import numpy as np
 
 from wrt.geometry import polygon_projection
 from wrt.scene import Mesh, Plane, Polygon, Scene, Sphere, Triangle
+
+
+# VTK render windows are not safe to use from several threads at once (``wrt matrix --jobs``)
+_VTK_LOCK = threading.Lock()
 
 
 def _offscreen_environment() -> None:
@@ -104,6 +109,11 @@ def rasterize_ids(scene: Scene) -> np.ndarray:
     w, h = scene.render.width, scene.render.height
     center, radius = scene_extent(scene)
     reach = np.linalg.norm(center - np.asarray(scene.camera.origin)) + radius
+    with _VTK_LOCK:
+        return _decode(_rasterize(scene, pv, w, h, reach))
+
+
+def _rasterize(scene: Scene, pv, w: int, h: int, reach: float) -> np.ndarray:
     plotter = pv.Plotter(off_screen=True, window_size=(w, h))
     try:
         plotter.set_background((0, 0, 0))
@@ -111,10 +121,9 @@ def rasterize_ids(scene: Scene) -> np.ndarray:
         for i, mesh in enumerate(shape_meshes(scene, plane_size=2000 * reach)):
             plotter.add_mesh(mesh, color=_encode(i), lighting=False, show_scalar_bar=False, smooth_shading=False)
         _camera(plotter, scene, far=3000 * reach)
-        image = plotter.screenshot(return_img=True)
+        return plotter.screenshot(return_img=True)
     finally:
         plotter.close()
-    return _decode(image)
 
 
 def overview(scene: Scene, path: str, size: tuple[int, int] = (480, 360)) -> None:
@@ -125,6 +134,11 @@ def overview(scene: Scene, path: str, size: tuple[int, int] = (480, 360)) -> Non
     center, radius = scene_extent(scene)
     forward, right, up = scene.camera.basis()
     origin = np.asarray(scene.camera.origin)
+    with _VTK_LOCK:
+        _overview(scene, pv, path, size, center, radius, forward, right, up, origin)
+
+
+def _overview(scene, pv, path, size, center, radius, forward, right, up, origin) -> None:
     plotter = pv.Plotter(off_screen=True, window_size=size)
     try:
         plotter.set_background("white")

@@ -158,3 +158,14 @@ def test_report_renders_in_headless_chromium(tmp_path):
 
     pixels = read_image(str(shot)).rgb
     assert len(np.unique(pixels.reshape(-1, 3), axis=0)) > 50  # the images and colours are drawn
+
+
+def test_regenerate_failed_only_touches_broken_references(tmp_path, monkeypatch, capsys):
+    folder = copy_references(tmp_path, monkeypatch, ["raycast_sphere", "raycast_triangle"])
+    good = (folder / "raycast_triangle.exr").read_bytes()
+    os.remove(folder / "raycast_sphere.exr")
+    assert main(["refs", "regenerate", "raycast_sphere", "raycast_triangle", "--failed"]) == 0
+    out = capsys.readouterr().out
+    assert "raycast_sphere: 1 spp, new reference" in out and "raycast_triangle" not in out
+    assert (folder / "raycast_triangle.exr").read_bytes() == good
+    assert main(["matrix", "raycast_sphere", "raycast_triangle", "--jobs", "2"]) == 0
