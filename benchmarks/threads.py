@@ -17,21 +17,9 @@ import time
 import numpy as np
 
 import wrt
-from wrt.device import init_warp
+from wrt.device import cpu_model, init_warp
 from wrt.loader import override_render
 from wrt.renderer import default_threads
-
-
-def cpu_model() -> str:
-    """The CPU's model name (Linux), else the machine type."""
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.machine()
 
 
 def main() -> None:

@@ -17,6 +17,7 @@ import tempfile
 import numpy as np
 
 import wrt
+from wrt.device import cpu_model
 from wrt.imageio import srgb_encode, write_image
 
 from .matrix import load_feature_scene
@@ -32,17 +33,6 @@ def heat_map(image: np.ndarray, reference: np.ndarray) -> np.ndarray:
     d = np.clip(np.abs(srgb_encode(image) - srgb_encode(reference)).mean(axis=-1) / HEAT_SCALE, 0, 1)
     srgb = np.stack([np.clip(3 * d, 0, 1), np.clip(3 * d - 1, 0, 1), np.clip(3 * d - 2, 0, 1)], axis=-1)
     return np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4).astype(np.float32)
-
-
-def _cpu() -> str:
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.machine()
 
 
 STYLE = """
@@ -110,7 +100,7 @@ def write_report(results: list[FeatureResult], folder: str, device: str) -> str:
             )
         failed = sum(not r.passed for r in results)
         header = (
-            f"wrt {html.escape(wrt.__version__)} &middot; device {html.escape(device)} &middot; {html.escape(_cpu())}, "
+            f"wrt {html.escape(wrt.__version__)} &middot; device {html.escape(device)} &middot; {html.escape(cpu_model())}, "
             f"{os.cpu_count()} cores, {html.escape(platform.system())} &middot; {datetime.datetime.now().isoformat(timespec='seconds')}"
         )
         page = f"""<!DOCTYPE html>

@@ -73,14 +73,21 @@ def intersect_prim(scene: SceneData, prim: wp.int32, o: wp.vec3, d: wp.vec3, t_m
 
 
 @wp.func
-def closest_hit(scene: SceneData, o: wp.vec3, d: wp.vec3, t_min: float, t_max: float):
-    """Nearest intersection in ``(t_min, t_max)``: returns ``(t, prim)``; ``prim == NO_HIT`` on a miss."""
+def closest_plane(scene: SceneData, o: wp.vec3, d: wp.vec3, t_min: float, t_max: float):
+    """Nearest of the unbounded planes (tested outside the BVH): ``(t, prim)`` as ``closest_hit``."""
     hit = int(NO_HIT)
     for i in range(scene.plane_point.shape[0]):
         t = intersect_plane(o, d, scene.plane_point[i], scene.plane_normal[i], t_min, t_max)
         if t < t_max:
             t_max = t
             hit = (i << 2) | PLANE
+    return t_max, hit
+
+
+@wp.func
+def closest_hit(scene: SceneData, o: wp.vec3, d: wp.vec3, t_min: float, t_max: float):
+    """Nearest intersection in ``(t_min, t_max)``: returns ``(t, prim)``; ``prim == NO_HIT`` on a miss."""
+    t_max, hit = closest_plane(scene, o, d, t_min, t_max)
     if scene.nodes.shape[0] == 0:
         return t_max, hit
     inv_d = safe_inverse(d)
@@ -166,12 +173,7 @@ def any_hit(scene: SceneData, o: wp.vec3, d: wp.vec3, t_min: float, t_max: float
 @wp.func
 def closest_hit_brute_force(scene: SceneData, o: wp.vec3, d: wp.vec3, t_min: float, t_max: float):
     """Reference for ``closest_hit``: every primitive tested, no tree. Same return values."""
-    hit = int(NO_HIT)
-    for i in range(scene.plane_point.shape[0]):
-        t = intersect_plane(o, d, scene.plane_point[i], scene.plane_normal[i], t_min, t_max)
-        if t < t_max:
-            t_max = t
-            hit = (i << 2) | PLANE
+    t_max, hit = closest_plane(scene, o, d, t_min, t_max)
     for k in range(scene.prims.shape[0]):
         prim = scene.prims[k]
         t = intersect_prim(scene, prim, o, d, t_min, t_max)
