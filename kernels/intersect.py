@@ -10,16 +10,17 @@ References
 ----------
 E. Haines, J. Guenther, T. Akenine-Moller, "Precision Improvements for Ray/Sphere
 Intersection", Ray Tracing Gems, ch. 7, 2019.
-T. Moller, B. Trumbore, "Fast, Minimum Storage Ray/Triangle Intersection", JGT 2(1), 1997
-(Cramer's rule for the barycentric system, as in the ray-casting lecture).
+S. Woop, C. Benthin, I. Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1), 2013.
 M. Pharr, W. Jakob, G. Humphreys, pbrt-v4, sec. 6.1.2 (conservative slab test).
 """
 import warp as wp
 
 # 1 + 2 gamma(3) for float32: widens a slab interval so rounding never culls a box a ray touches.
 SLAB_WIDEN = wp.constant(1.0 + 2.0 * 3.0 * 5.9604645e-08 / (1.0 - 3.0 * 5.9604645e-08))
-# Stand-in for 1/0 in the slab test: large but finite, so (lo - o) * inv_d is never 0 * inf = NaN.
-INV_ZERO = wp.constant(1.0e30)
+# 1/d of a direction component too small to invert in float32 (0, -0, denormals): the ray does not
+# move along that axis (see safe_inverse, intersect_box).
+INV_ZERO = wp.constant(float("inf"))
+FLOAT32_MIN_NORMAL = wp.constant(1.17549435e-38)
 
 
 @wp.func
@@ -72,30 +73,84 @@ def intersect_sphere(o: wp.vec3, d: wp.vec3, center: wp.vec3, radius: float, t_m
 
 
 @wp.func
-def intersect_triangle(o: wp.vec3, d: wp.vec3, v0: wp.vec3, v1: wp.vec3, v2: wp.vec3, t_min: float, t_max: float) -> float:
-    """Triangle (v0, v1, v2), both sides, by Cramer's rule on ``o + t d = v0 + b1 e1 + b2 e2``.
+def shear(a: wp.vec3, kx: wp.int32, ky: wp.int32, kz: wp.int32, sx: float, sy: float) -> wp.vec2:
+    """Vertex ``a`` (relative to the ray origin) in the ray's sheared frame: ``a[kx] - sx a[kz]``, ``a[ky] - sy a[kz]``.
 
-    The barycentric coordinates ``b1, b2`` and ``t`` are ratios of scalar triple products (the
-    lecture's determinants in Moller-Trumbore form). Robustness: a zero determinant (ray in the
-    triangle's plane, or a zero-area triangle) is an exact miss, with no scale-dependent
-    epsilon; edges are inclusive so a ray through a shared edge hits at least one side.
+    The product of two float32 values is exact in float64, so each coordinate is rounded exactly
+    twice whatever the compiler fuses: a vertex shared by several triangles lands on the same
+    float32 point for all of them.
     """
-    e1 = v1 - v0
-    e2 = v2 - v0
-    pvec = wp.cross(d, e2)
-    det = wp.dot(e1, pvec)
-    if det == 0.0:
+    az = wp.float64(a[kz])
+    x = wp.float64(a[kx]) - wp.float64(sx) * az
+    y = wp.float64(a[ky]) - wp.float64(sy) * az
+    return wp.vec2(wp.float32(x), wp.float32(y))
+
+
+@wp.func
+def edge_function(p: wp.vec2, q: wp.vec2) -> wp.float64:
+    """``p.x q.y - p.y q.x`` with its exact sign (float32 products are exact in float64, one rounding).
+
+    ``edge_function(q, p)`` is exactly its negation, so the two triangles sharing an edge agree
+    on which side of it the ray passes.
+    """
+    return wp.float64(p[0]) * wp.float64(q[1]) - wp.float64(p[1]) * wp.float64(q[0])
+
+
+@wp.func
+def intersect_triangle(o: wp.vec3, d: wp.vec3, v0: wp.vec3, v1: wp.vec3, v2: wp.vec3, t_min: float, t_max: float) -> float:
+    """Triangle (v0, v1, v2), both sides, watertight (Woop, Benthin and Wald 2013).
+
+    The vertices are moved into a frame where the ray starts at the origin and runs along z
+    (translate by ``-o``, permute so that z is the largest component of ``d``, shear x and y
+    along it); the ray hits the triangle when the origin of the sheared xy-plane is inside the
+    projected triangle: the three 2D edge functions ``U, V, W`` share a sign (or are 0; either
+    sign, as both sides are hit, so the paper's swap that keeps the winding is not needed).
+    Each edge function is evaluated with its exact sign (``edge_function``), from sheared
+    vertices that are the same for every triangle sharing them, so two triangles sharing an edge
+    or a vertex never both miss a ray through it: a closed mesh has no cracks. Edges are
+    inclusive. ``U + V + W == 0`` (ray in the triangle's plane, zero-area triangle) is a miss,
+    without a scale-dependent epsilon, and so is a triangle whose float64 normal is 0 or
+    perpendicular to the ray. ``t`` is the float64 distance to the triangle's plane, rounded once
+    (the sheared values would carry the rounding of the vertices' distances from ``o``, large for
+    large triangles).
+    """
+    ad = wp.abs(d)
+    kz = int(0)
+    if ad[1] > ad[kz]:
+        kz = 1
+    if ad[2] > ad[kz]:
+        kz = 2
+    if ad[kz] == 0.0:
         return t_max
-    inv_det = 1.0 / det
-    s = o - v0
-    b1 = wp.dot(s, pvec) * inv_det
-    if b1 < 0.0 or b1 > 1.0:
+    kx = (kz + 1) % 3
+    ky = (kx + 1) % 3
+    sx = d[kx] / d[kz]
+    sy = d[ky] / d[kz]
+    a = v0 - o
+    b = v1 - o
+    c = v2 - o
+    a2 = shear(a, kx, ky, kz, sx, sy)
+    b2 = shear(b, kx, ky, kz, sx, sy)
+    c2 = shear(c, kx, ky, kz, sx, sy)
+    zero = wp.float64(0.0)
+    u = edge_function(c2, b2)
+    v = edge_function(a2, c2)
+    w = edge_function(b2, a2)
+    if (u < zero or v < zero or w < zero) and (u > zero or v > zero or w > zero):
         return t_max
-    qvec = wp.cross(s, e1)
-    b2 = wp.dot(d, qvec) * inv_det
-    if b2 < 0.0 or b1 + b2 > 1.0:
+    if u + v + w == zero:
         return t_max
-    t = wp.dot(e2, qvec) * inv_det
+    # t from the triangle's plane in float64 (float32 inputs are exact there): its error is the
+    # final rounding only, whatever the triangle's size, as the spawn offset assumes
+    o64 = wp.vec3d(wp.float64(o[0]), wp.float64(o[1]), wp.float64(o[2]))
+    p0 = wp.vec3d(wp.float64(v0[0]), wp.float64(v0[1]), wp.float64(v0[2]))
+    p1 = wp.vec3d(wp.float64(v1[0]), wp.float64(v1[1]), wp.float64(v1[2]))
+    p2 = wp.vec3d(wp.float64(v2[0]), wp.float64(v2[1]), wp.float64(v2[2]))
+    normal = wp.cross(p1 - p0, p2 - p0)
+    denom = wp.dot(normal, wp.vec3d(wp.float64(d[0]), wp.float64(d[1]), wp.float64(d[2])))
+    if denom == zero:
+        return t_max
+    t = wp.float32(wp.dot(normal, p0 - o64) / denom)
     if t > t_min and t < t_max:
         return t
     return t_max
@@ -159,14 +214,15 @@ def intersect_polygon(
 
 @wp.func
 def safe_inverse(d: wp.vec3) -> wp.vec3:
-    """Componentwise 1/d for the slab test, with zero components (either sign) mapped to ``INV_ZERO``.
+    """Componentwise 1/d for the slab test: finite where ``|d[k]|`` is a normal float32, else
+    ``INV_ZERO`` (+0.0, -0.0 and denormals, whose inverse overflows): "does not move along k".
 
-    The sign does not matter there: a ray that does not move along an axis gets slab distances of
-    opposite signs when it starts inside the slab and of equal signs when outside.
+    ``intersect_box`` handles those axes apart, so ``(lo - o) * inv_d`` never reaches
+    ``0 * inf = NaN`` (which would cull a box the ray starts on).
     """
     inv = wp.vec3(INV_ZERO, INV_ZERO, INV_ZERO)
     for k in range(3):
-        if d[k] != 0.0:
+        if wp.abs(d[k]) >= FLOAT32_MIN_NORMAL:
             inv[k] = 1.0 / d[k]
     return inv
 
@@ -176,13 +232,24 @@ def intersect_box(o: wp.vec3, inv_d: wp.vec3, lo: wp.vec3, hi: wp.vec3, t_max: f
     """Entry distance of the ray into the box [lo, hi] (clamped to >= 0), or ``t_max`` if it misses.
 
     Slab test with the far distance widened by ``SLAB_WIDEN`` (pbrt-v4) so a box is never culled
-    by rounding; ``inv_d`` comes from ``safe_inverse`` so no 0 * inf NaN can arise. A box the ray
-    enters exactly at ``t_max`` counts as missed.
+    by rounding; ``inv_d`` comes from ``safe_inverse``. Along an axis the ray does not move
+    (``inv_d == INV_ZERO``) the slab is all or nothing: the ray is in it for every t when its
+    origin lies in [lo, hi], boundary included (a ray running exactly along a box face keeps the
+    box), and never otherwise. A box the ray enters exactly at ``t_max`` counts as missed.
     """
-    t0 = wp.cw_mul(lo - o, inv_d)
-    t1 = wp.cw_mul(hi - o, inv_d)
-    t_near = wp.max(wp.max(wp.min(t0[0], t1[0]), wp.min(t0[1], t1[1])), wp.max(wp.min(t0[2], t1[2]), 0.0))
-    t_far = wp.min(wp.min(wp.max(t0[0], t1[0]), wp.max(t0[1], t1[1])), wp.max(t0[2], t1[2])) * SLAB_WIDEN
+    near = wp.vec3(0.0)
+    far = wp.vec3(wp.inf)
+    for k in range(3):
+        if inv_d[k] == INV_ZERO:
+            if o[k] < lo[k] or o[k] > hi[k]:
+                return t_max
+        else:
+            t0 = (lo[k] - o[k]) * inv_d[k]
+            t1 = (hi[k] - o[k]) * inv_d[k]
+            near[k] = wp.min(t0, t1)
+            far[k] = wp.max(t0, t1)
+    t_near = wp.max(wp.max(near[0], near[1]), wp.max(near[2], 0.0))
+    t_far = wp.min(wp.min(far[0], far[1]), far[2]) * SLAB_WIDEN
     if t_near <= t_far and t_near < t_max:
         return t_near
     return t_max

@@ -3,7 +3,8 @@
 Radiance of a pixel sample is ``base_color * |cos theta|`` of the first surface hit, theta between
 its normal and the ray (a readable picture, not a physical one; lights are ignored), and 0 on a
 miss. ``base_color`` is the albedo of diffuse and Phong materials, the reflectance of mirrors and
-the transmittance of dielectrics.
+the transmittance of dielectrics. Recording (``raycast_record``) sees only the camera rays,
+which the shared pixel loop records.
 """
 import warp as wp
 
@@ -11,12 +12,24 @@ from .film import facing_normal
 from .integrator import IntegratorSettings, make_render_kernel
 from .lights import LightData
 from .materials import MaterialData
+from .record import RayRecord
 from .traverse import NO_HIT, SceneData, prim_shape
 
 
 @wp.func
 def raycast_radiance(
-    scene: SceneData, materials: MaterialData, lights: LightData, settings: IntegratorSettings, o: wp.vec3, d: wp.vec3, t: float, prim: wp.int32
+    scene: SceneData,
+    materials: MaterialData,
+    lights: LightData,
+    settings: IntegratorSettings,
+    o: wp.vec3,
+    d: wp.vec3,
+    t: float,
+    prim: wp.int32,
+    rec: RayRecord,
+    pixel: wp.int32,
+    sample: wp.int32,
+    parent: wp.int32,
 ) -> wp.vec3:
     """``base_color * |dot(n, d)|`` at the hit of unit ray ``o + t d``, black on a miss."""
     if prim == NO_HIT:
@@ -27,3 +40,4 @@ def raycast_radiance(
 
 
 raycast = make_render_kernel(raycast_radiance)
+raycast_record = make_render_kernel(raycast_radiance, record=True)

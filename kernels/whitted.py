@@ -30,6 +30,14 @@ dielectrics overlap the higher priority owns the overlap (a glass sphere half in
 glass priority 1). A ray leaving a shape it never entered (a camera inside glass) refracts from
 that shape's ior into the current medium.
 
+Recording: ``whitted_record`` is the same integrator with every traced ray appended to a
+``kernels.record.RayRecord``: each segment traced in the loop (kind ``REFLECTED``,
+``REFRACTED``, ``TOTAL_INTERNAL`` or ``STRAIGHT`` through a false interface) and each shadow ray
+(``SHADOW_LIT`` to the light, or ``SHADOW_BLOCKED`` ending where it was stopped). Branches that
+are cut (depth, throughput, stack bound) are not traced and so not recorded. The decisions are
+the render variant's; only a blocked shadow ray needs one extra closest-hit query, because the
+any-hit query that decides visibility does not say where the blocker is.
+
 References
 ----------
 T. Whitted, "An Improved Illumination Model for Shaded Display", CACM 23(6), 1980.
@@ -41,6 +49,7 @@ from .integrator import IntegratorSettings, make_render_kernel
 from .lights import LightData, light_incident
 from .materials import DIELECTRIC, DIFFUSE, MIRROR, PHONG, MaterialData, beer_lambert, eval_brdf
 from .optics import fresnel_dielectric, reflect, refract
+from .record import REFLECTED, REFRACTED, SHADOW_BLOCKED, SHADOW_LIT, STRAIGHT, TOTAL_INTERNAL, RayRecord, record_ray
 from .spawn import hit_error, spawn_origin
 from .traverse import NO_HIT, SceneData, any_hit, closest_hit, geometric_normal, prim_shape
 
@@ -145,175 +154,259 @@ def shadow_transmittance(
 
 
 @wp.func
-def direct_light(
-    scene: SceneData,
-    materials: MaterialData,
-    lights: LightData,
-    settings: IntegratorSettings,
-    m: wp.int32,
-    p: wp.vec3,
-    n: wp.vec3,
-    err: float,
-    wo: wp.vec3,
-) -> wp.vec3:
-    """Reflected radiance (W/(m^2 sr)) toward ``wo`` at ``p`` (unit normal ``n`` on ``wo``'s side)
-    from all delta lights: sum of BRDF * irradiance * cos * shadow transmittance."""
-    total = wp.vec3(0.0)
-    for i in range(lights.type.shape[0]):
-        wi, dist, irradiance = light_incident(lights, i, p)
-        cos_theta = wp.dot(n, wi)
-        if cos_theta > 0.0 and max_component(irradiance) > 0.0:
-            visible = shadow_transmittance(scene, materials, settings, spawn_origin(p, n, err, wi), wi, dist)
-            total += wp.cw_mul(wp.cw_mul(eval_brdf(materials, m, n, wo, wi), irradiance), visible) * cos_theta
-    return total
+def shadow_blocker(scene: SceneData, materials: MaterialData, settings: IntegratorSettings, o: wp.vec3, w: wp.vec3, t_max: float):
+    """Recording only: ``(t, prim)`` of the surface that stopped a blocked shadow ray from ``o``
+    along unit ``w``: the first surface hit, or with filtered shadows the first one that is not a
+    dielectric (``NO_HIT`` and ``t_max`` if there is none)."""
+    t_total = float(0.0)
+    for _k in range(SHADOW_CROSSINGS):
+        t, prim = closest_hit(scene, o, w, 0.0, t_max - t_total)
+        if prim == NO_HIT or settings.filtered_shadows == 0:
+            return t_total + t, prim
+        if materials.type[materials.shape_material[prim_shape(scene, prim)]] != DIELECTRIC:
+            return t_total + t, prim
+        p = o + t * w
+        o = spawn_origin(p, geometric_normal(scene, prim, p), hit_error(o, p, t), w)
+        t_total += t
+    return t_max, NO_HIT
 
 
-@wp.func
-def whitted_radiance(
-    scene: SceneData, materials: MaterialData, lights: LightData, settings: IntegratorSettings, o: wp.vec3, d: wp.vec3, t: float, prim: wp.int32
-) -> wp.vec3:
-    """Radiance (W/(m^2 sr)) arriving at ``o`` from direction ``-d``; ``(t, prim)`` is the ray's first hit."""
-    radiance = wp.vec3(0.0)
-    throughput = wp.vec3(1.0)
-    depth = int(1)
-    media = Media(-1, -1, -1, -1)
-    n_media = int(0)
-    pending_origin = BranchVec3()
-    pending_dir = BranchVec3()
-    pending_throughput = BranchVec3()
-    pending_depth = BranchInt()
-    pending_media = BranchMedia()
-    pending_n_media = BranchInt()
-    n_pending = int(0)
-    traced = bool(True)
-    for _segment in range(MAX_SEGMENTS):
-        if not traced:
-            t, prim = closest_hit(scene, o, d, 0.0, wp.inf)
-        traced = False
-        slot = current_medium(materials, media, n_media)
-        if slot >= 0:  # absorption along the segment just travelled (infinite if it escapes)
-            throughput = wp.cw_mul(throughput, beer_lambert(materials.sigma[materials.shape_material[media[slot]]], t))
-        go_on = bool(False)
-        if prim == NO_HIT:
-            radiance += wp.cw_mul(throughput, settings.background)
-        else:
-            p = o + t * d
-            n = geometric_normal(scene, prim, p)
-            shape = prim_shape(scene, prim)
-            m = materials.shape_material[shape]
-            entering = wp.dot(d, n) < 0.0
-            n_facing = n
-            if not entering:
-                n_facing = -n
+def make_direct_light(record: bool):
+    """``direct_light``, recording its shadow rays when ``record`` (compiled out otherwise)."""
+
+    @wp.func
+    def direct_light(
+        scene: SceneData,
+        materials: MaterialData,
+        lights: LightData,
+        settings: IntegratorSettings,
+        m: wp.int32,
+        p: wp.vec3,
+        n: wp.vec3,
+        err: float,
+        wo: wp.vec3,
+        rec: RayRecord,
+        pixel: wp.int32,
+        sample: wp.int32,
+        parent: wp.int32,
+        depth: wp.int32,
+        throughput: wp.vec3,
+    ) -> wp.vec3:
+        """Reflected radiance (W/(m^2 sr)) toward ``wo`` at ``p`` (unit normal ``n`` on ``wo``'s side)
+        from all delta lights: sum of BRDF * irradiance * cos * shadow transmittance.
+
+        Recording: each shadow ray is a segment of ``depth`` (the segment count it brings the path
+        to) whose parent is record ``parent``, carrying ``throughput`` times its transmittance.
+        """
+        total = wp.vec3(0.0)
+        for i in range(lights.type.shape[0]):
+            wi, dist, irradiance = light_incident(lights, i, p)
+            cos_theta = wp.dot(n, wi)
+            if cos_theta > 0.0 and max_component(irradiance) > 0.0:
+                o_shadow = spawn_origin(p, n, err, wi)
+                visible = shadow_transmittance(scene, materials, settings, o_shadow, wi, dist)
+                total += wp.cw_mul(wp.cw_mul(eval_brdf(materials, m, n, wo, wi), irradiance), visible) * cos_theta
+                if wp.static(record):
+                    if max_component(visible) > 0.0:
+                        record_ray(rec, scene, pixel, sample, SHADOW_LIT, o_shadow, wi, dist, NO_HIT, wp.cw_mul(throughput, visible), depth, parent)
+                    else:
+                        t_block, prim_block = shadow_blocker(scene, materials, settings, o_shadow, wi, dist)
+                        record_ray(rec, scene, pixel, sample, SHADOW_BLOCKED, o_shadow, wi, t_block, prim_block, wp.vec3(0.0), depth, parent)
+        return total
+
+    return direct_light
+
+
+def make_whitted_radiance(record: bool):
+    """``whitted_radiance``, recording every ray it traces when ``record`` (compiled out otherwise)."""
+    direct_light = make_direct_light(record)
+
+    @wp.func
+    def whitted_radiance(
+        scene: SceneData,
+        materials: MaterialData,
+        lights: LightData,
+        settings: IntegratorSettings,
+        o: wp.vec3,
+        d: wp.vec3,
+        t: float,
+        prim: wp.int32,
+        rec: RayRecord,
+        pixel: wp.int32,
+        sample: wp.int32,
+        parent: wp.int32,
+    ) -> wp.vec3:
+        """Radiance (W/(m^2 sr)) arriving at ``o`` from direction ``-d``; ``(t, prim)`` is the ray's
+        first hit, ``parent`` its record index (recording only)."""
+        radiance = wp.vec3(0.0)
+        throughput = wp.vec3(1.0)
+        depth = int(1)
+        media = Media(-1, -1, -1, -1)
+        n_media = int(0)
+        pending_origin = BranchVec3()
+        pending_dir = BranchVec3()
+        pending_throughput = BranchVec3()
+        pending_depth = BranchInt()
+        pending_media = BranchMedia()
+        pending_n_media = BranchInt()
+        n_pending = int(0)
+        traced = bool(True)
+        current = parent  # record index of the segment being followed
+        if wp.static(record):  # how the next segment to trace was spawned, and from which record
+            segment_kind = int(REFLECTED)  # set again before every trace (the pixel loop records the camera ray)
+            segment_parent = parent
+            pending_kind = BranchInt()
+            pending_parent = BranchInt()
+        for _segment in range(MAX_SEGMENTS):
+            if not traced:
+                t, prim = closest_hit(scene, o, d, 0.0, wp.inf)
+                if wp.static(record):
+                    current = record_ray(rec, scene, pixel, sample, segment_kind, o, d, t, prim, throughput, depth, segment_parent)
+            traced = False
+            slot = current_medium(materials, media, n_media)
+            if slot >= 0:  # absorption along the segment just travelled (infinite if it escapes)
+                throughput = wp.cw_mul(throughput, beer_lambert(materials.sigma[materials.shape_material[media[slot]]], t))
+            go_on = bool(False)
+            if prim == NO_HIT:
+                radiance += wp.cw_mul(throughput, settings.background)
             else:
-                radiance += wp.cw_mul(throughput, materials.emission[m])
-            err = hit_error(o, p, t)
-            kind = materials.type[m]
-            if kind == DIFFUSE or kind == PHONG:
-                local = wp.cw_mul(settings.ambient, materials.albedo[m])
-                if depth < settings.max_depth:
-                    local += direct_light(scene, materials, lights, settings, m, p, n_facing, err, -d)
-                radiance += wp.cw_mul(throughput, local)
-            elif kind == MIRROR:
-                throughput = wp.cw_mul(throughput, materials.reflectance[m])
-                if depth < settings.max_depth and max_component(throughput) >= settings.min_throughput:
-                    d = reflect(d, n_facing)
-                    o = spawn_origin(p, n, err, d)
-                    depth += 1
-                    go_on = True
-            elif kind == DIELECTRIC:
-                # which media are on either side, and is this a real interface?
-                inside = find_medium(media, n_media, shape)
-                media_t = media
-                n_media_t = n_media
-                real = bool(True)
-                n1 = float(1.0)
-                n2 = float(1.0)
-                if entering:
-                    n1 = medium_ior(materials, settings, media, slot)
-                    n2 = materials.ior[m]
-                    if slot >= 0 and shape_priority(materials, media[slot]) > materials.priority[m]:
-                        real = False
-                    if n_media < MEDIA:
-                        media_t[n_media] = shape
-                        n_media_t = n_media + 1
-                elif inside < 0:  # leaving a shape never entered: the ray started inside it
-                    n1 = materials.ior[m]
-                    n2 = medium_ior(materials, settings, media, slot)
+                p = o + t * d
+                n = geometric_normal(scene, prim, p)
+                shape = prim_shape(scene, prim)
+                m = materials.shape_material[shape]
+                entering = wp.dot(d, n) < 0.0
+                n_facing = n
+                if not entering:
+                    n_facing = -n
                 else:
-                    media_t = remove_medium(media, n_media, inside)
-                    n_media_t = n_media - 1
-                    if inside != slot:
-                        real = False
-                    n1 = materials.ior[m]
-                    n2 = medium_ior(materials, settings, media_t, current_medium(materials, media_t, n_media_t))
-                if not real:
-                    o = spawn_origin(p, n, err, d)
-                    media = media_t
-                    n_media = n_media_t
-                    go_on = True
-                elif depth < settings.max_depth:
-                    eta = n1 / n2
-                    fresnel = fresnel_dielectric(-wp.dot(d, n_facing), eta)
-                    ok, wt = refract(d, n_facing, eta)
-                    if not ok:
-                        fresnel = 1.0
-                    wr = reflect(d, n_facing)
-                    reflected = throughput * fresnel
-                    transmitted = throughput * (1.0 - fresnel)
-                    keep_r = max_component(reflected) >= settings.min_throughput
-                    keep_t = ok and max_component(transmitted) >= settings.min_throughput
-                    # Follow the heavier branch now and defer the lighter one. A full stack
-                    # evicts its lightest entry if the new one is heavier, else drops the new one.
-                    if keep_r and keep_t:
-                        defer_reflected = max_component(reflected) < max_component(transmitted)
-                        weight = wp.min(max_component(reflected), max_component(transmitted))
-                        slot_new = n_pending
-                        if n_pending == BRANCHES:
-                            slot_new = lightest_branch(pending_throughput, n_pending)
-                            if max_component(pending_throughput[slot_new]) >= weight:
-                                slot_new = -1
-                        else:
-                            n_pending += 1
-                        if slot_new >= 0:
-                            if defer_reflected:
-                                pending_origin[slot_new] = spawn_origin(p, n, err, wr)
-                                pending_dir[slot_new] = wr
-                                pending_throughput[slot_new] = reflected
-                                pending_media[slot_new] = media
-                                pending_n_media[slot_new] = n_media
-                            else:
-                                pending_origin[slot_new] = spawn_origin(p, n, err, wt)
-                                pending_dir[slot_new] = wt
-                                pending_throughput[slot_new] = transmitted
-                                pending_media[slot_new] = media_t
-                                pending_n_media[slot_new] = n_media_t
-                            pending_depth[slot_new] = depth + 1
-                        keep_r = not defer_reflected
-                        keep_t = defer_reflected
-                    if keep_r:
-                        d = wr
-                        throughput = reflected
-                    elif keep_t:
-                        d = wt
-                        throughput = transmitted
-                        media = media_t
-                        n_media = n_media_t
-                    if keep_r or keep_t:
+                    radiance += wp.cw_mul(throughput, materials.emission[m])
+                err = hit_error(o, p, t)
+                kind = materials.type[m]
+                if kind == DIFFUSE or kind == PHONG:
+                    local = wp.cw_mul(settings.ambient, materials.albedo[m])
+                    if depth < settings.max_depth:
+                        local += direct_light(
+                            scene, materials, lights, settings, m, p, n_facing, err, -d, rec, pixel, sample, current, depth + 1, throughput
+                        )
+                    radiance += wp.cw_mul(throughput, local)
+                elif kind == MIRROR:
+                    throughput = wp.cw_mul(throughput, materials.reflectance[m])
+                    if depth < settings.max_depth and max_component(throughput) >= settings.min_throughput:
+                        d = reflect(d, n_facing)
                         o = spawn_origin(p, n, err, d)
                         depth += 1
                         go_on = True
-        if not go_on:
-            if n_pending == 0:
-                break
-            n_pending -= 1
-            o = pending_origin[n_pending]
-            d = pending_dir[n_pending]
-            throughput = pending_throughput[n_pending]
-            depth = pending_depth[n_pending]
-            media = pending_media[n_pending]
-            n_media = pending_n_media[n_pending]
-    return radiance
+                        if wp.static(record):
+                            segment_kind = REFLECTED
+                            segment_parent = current
+                elif kind == DIELECTRIC:
+                    # which media are on either side, and is this a real interface?
+                    inside = find_medium(media, n_media, shape)
+                    media_t = media
+                    n_media_t = n_media
+                    real = bool(True)
+                    n1 = float(1.0)
+                    n2 = float(1.0)
+                    if entering:
+                        n1 = medium_ior(materials, settings, media, slot)
+                        n2 = materials.ior[m]
+                        if slot >= 0 and shape_priority(materials, media[slot]) > materials.priority[m]:
+                            real = False
+                        if n_media < MEDIA:
+                            media_t[n_media] = shape
+                            n_media_t = n_media + 1
+                    elif inside < 0:  # leaving a shape never entered: the ray started inside it
+                        n1 = materials.ior[m]
+                        n2 = medium_ior(materials, settings, media, slot)
+                    else:
+                        media_t = remove_medium(media, n_media, inside)
+                        n_media_t = n_media - 1
+                        if inside != slot:
+                            real = False
+                        n1 = materials.ior[m]
+                        n2 = medium_ior(materials, settings, media_t, current_medium(materials, media_t, n_media_t))
+                    if not real:
+                        o = spawn_origin(p, n, err, d)
+                        media = media_t
+                        n_media = n_media_t
+                        go_on = True
+                        if wp.static(record):
+                            segment_kind = STRAIGHT
+                            segment_parent = current
+                    elif depth < settings.max_depth:
+                        eta = n1 / n2
+                        fresnel = fresnel_dielectric(-wp.dot(d, n_facing), eta)
+                        ok, wt = refract(d, n_facing, eta)
+                        if not ok:
+                            fresnel = 1.0
+                        wr = reflect(d, n_facing)
+                        reflected = throughput * fresnel
+                        transmitted = throughput * (1.0 - fresnel)
+                        keep_r = max_component(reflected) >= settings.min_throughput
+                        keep_t = ok and max_component(transmitted) >= settings.min_throughput
+                        # Follow the heavier branch now and defer the lighter one. A full stack
+                        # evicts its lightest entry if the new one is heavier, else drops the new one.
+                        if keep_r and keep_t:
+                            defer_reflected = max_component(reflected) < max_component(transmitted)
+                            weight = wp.min(max_component(reflected), max_component(transmitted))
+                            slot_new = n_pending
+                            if n_pending == BRANCHES:
+                                slot_new = lightest_branch(pending_throughput, n_pending)
+                                if max_component(pending_throughput[slot_new]) >= weight:
+                                    slot_new = -1
+                            else:
+                                n_pending += 1
+                            if slot_new >= 0:
+                                if defer_reflected:
+                                    pending_origin[slot_new] = spawn_origin(p, n, err, wr)
+                                    pending_dir[slot_new] = wr
+                                    pending_throughput[slot_new] = reflected
+                                    pending_media[slot_new] = media
+                                    pending_n_media[slot_new] = n_media
+                                else:
+                                    pending_origin[slot_new] = spawn_origin(p, n, err, wt)
+                                    pending_dir[slot_new] = wt
+                                    pending_throughput[slot_new] = transmitted
+                                    pending_media[slot_new] = media_t
+                                    pending_n_media[slot_new] = n_media_t
+                                pending_depth[slot_new] = depth + 1
+                                if wp.static(record):
+                                    pending_kind[slot_new] = wp.where(defer_reflected, REFLECTED, REFRACTED)
+                                    pending_parent[slot_new] = current
+                            keep_r = not defer_reflected
+                            keep_t = defer_reflected
+                        if keep_r:
+                            d = wr
+                            throughput = reflected
+                        elif keep_t:
+                            d = wt
+                            throughput = transmitted
+                            media = media_t
+                            n_media = n_media_t
+                        if keep_r or keep_t:
+                            o = spawn_origin(p, n, err, d)
+                            depth += 1
+                            go_on = True
+                            if wp.static(record):
+                                segment_kind = wp.where(keep_r, wp.where(ok, REFLECTED, TOTAL_INTERNAL), REFRACTED)
+                                segment_parent = current
+            if not go_on:
+                if n_pending == 0:
+                    break
+                n_pending -= 1
+                o = pending_origin[n_pending]
+                d = pending_dir[n_pending]
+                throughput = pending_throughput[n_pending]
+                depth = pending_depth[n_pending]
+                media = pending_media[n_pending]
+                n_media = pending_n_media[n_pending]
+                if wp.static(record):
+                    segment_kind = pending_kind[n_pending]
+                    segment_parent = pending_parent[n_pending]
+        return radiance
+
+    return whitted_radiance
 
 
-whitted = make_render_kernel(whitted_radiance)
+whitted = make_render_kernel(make_whitted_radiance(False))
+whitted_record = make_render_kernel(make_whitted_radiance(True), record=True)

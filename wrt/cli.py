@@ -83,6 +83,37 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("a", metavar="A", help="image to score (.exr or .png)")
     c.add_argument("b", metavar="B", help="reference image")
     c.add_argument("--threshold", type=float, help="exit 1 when SSIM is below this")
+
+    rays = verbs.add_parser(
+        "rays",
+        help="show the rays traced for chosen pixels in 3D",
+        description="Trace chosen pixels with the scene's integrator, recording every ray the render kernels trace "
+        "(camera, shadow, reflected, refracted, totally internally reflected), and draw the ray trees with pyvista "
+        "over the scene geometry, or export them as a VTK multiblock. See docs/rays.md.",
+    )
+    rays.add_argument("scene", help="scene file (.toml)")
+    rays.add_argument("--pixel", nargs=2, type=int, action="append", default=[], metavar=("X", "Y"), help="a pixel to trace (row 0 at the top); repeatable")
+    rays.add_argument("--grid", nargs=2, type=int, metavar=("NX", "NY"), help="also trace the centre pixels of an NX x NY grid over the image")
+    rays.add_argument("--samples", type=int, default=1, help="samples per pixel (default 1: the pixel centre)")
+    rays.add_argument("--depth", type=int, help="max_depth: ray segments per path, camera ray included (default: the scene's)")
+    shown = rays.add_mutually_exclusive_group(required=True)
+    shown.add_argument("-o", "--output", help="render the view off screen to this .png")
+    shown.add_argument("--interactive", action="store_true", help="open a window (needs a display)")
+    shown.add_argument("--export", help="write a VTK multiblock (.vtm) for ParaView or pyvista.read")
+    rays.add_argument("--view", nargs=2, type=float, metavar=("AZIMUTH", "ELEVATION"), help="view angles in degrees relative to the scene camera (default: automatic)")
+    rays.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
+    rays.add_argument("--capacity", type=int, default=1 << 18, help="segments the record buffer holds (default 262144)")
+
+    st = verbs.add_parser(
+        "stress",
+        help="run the numerical stress suite",
+        description="Shoot adversarial rays through the real kernels (watertightness, self-intersection, sphere "
+        "precision, float32 vs float64, grazing and degenerate geometry, refraction, NaN/Inf) and print a table: "
+        "case, rays, failures, worst error, bound. Exit 0 when every case passes, 1 otherwise. See docs/stress.md.",
+    )
+    st.add_argument("--rays", type=int, default=10**6, help="rays per ray-batch case (default 1000000)")
+    st.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    st.add_argument("--report", metavar="DIR", help="also write the table as DIR/stress.json and DIR/stress.md")
     return parser
 
 
@@ -148,7 +179,26 @@ def _compare(args) -> int:
     return commands.compare(args.a, args.b, args.threshold)
 
 
-VERBS = {"render": _render, "matrix": _matrix, "refs": _refs, "compare": _compare}
+def _rays(args) -> int:
+    from harness import rayview
+
+    if not args.pixel and not args.grid:
+        raise WrtError("give at least one --pixel X Y or a --grid NX NY")
+    return rayview.run(
+        args.scene, [tuple(p) for p in args.pixel], grid=args.grid, samples=args.samples, max_depth=args.depth, output=args.output,
+        interactive=args.interactive, export_path=args.export, view=args.view, device=args.device, capacity=args.capacity,
+    )
+
+
+def _stress(args) -> int:
+    from harness import stress
+
+    if args.rays < 1:
+        raise WrtError(f"--rays {args.rays}: must be >= 1")
+    return stress.command(args.rays, args.seed, args.report)
+
+
+VERBS = {"render": _render, "matrix": _matrix, "refs": _refs, "compare": _compare, "rays": _rays, "stress": _stress}
 
 
 def main(argv: list[str] | None = None) -> int:

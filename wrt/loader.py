@@ -42,6 +42,7 @@ LIGHT_TYPES = ("point", "directional", "spot", "area", "sphere", "environment")
 DEFAULT_MATERIAL = Material(name="default", type="diffuse", albedo=(0.5, 0.5, 0.5))
 MAX_IMAGE_SIDE = 16384
 MAX_SPP = 1 << 20
+FLOAT32_MAX = float(np.finfo(np.float32).max)
 _REQUIRED = object()
 
 
@@ -71,8 +72,8 @@ class _Table:
         kinds = (int,) if integer else (int, float)
         if isinstance(value, bool) or not isinstance(value, kinds):
             raise self.error(key, "must be an integer" if integer else "must be a number", value)
-        if not math.isfinite(value):
-            raise self.error(key, "must be finite", value)
+        if not integer:
+            _check_float32(self, key, (value,), value)
         below = value <= lo if lo_open else value < lo
         above = value >= hi if hi_open else value > hi
         if below or above:
@@ -120,9 +121,21 @@ class _Table:
 def _vec3(table: _Table, key: str, v, shown) -> tuple[float, float, float]:
     if not isinstance(v, list) or len(v) != 3 or any(isinstance(c, bool) or not isinstance(c, (int, float)) for c in v):
         raise table.error(key, "must be 3 numbers [x, y, z]", shown)
-    if not all(math.isfinite(c) for c in v):
-        raise table.error(key, "components must be finite", shown)
+    _check_float32(table, key, v, shown)
     return (float(v[0]), float(v[1]), float(v[2]))
+
+
+def _check_float32(table: _Table, key: str, numbers, shown) -> None:
+    """Numbers go to the device as float32: each must be finite there (|x| <= FLOAT32_MAX)."""
+    for c in numbers:
+        try:
+            c = float(c)
+        except OverflowError:  # an integer beyond float64
+            raise table.error(key, f"must fit in float32 (|x| <= {FLOAT32_MAX:.4g})", shown) from None
+        if not math.isfinite(c):
+            raise table.error(key, "components must be finite" if len(numbers) > 1 else "must be finite", shown)
+        if abs(c) > FLOAT32_MAX:
+            raise table.error(key, f"must fit in float32 (|x| <= {FLOAT32_MAX:.4g})", shown)
 
 
 def _array_of_tables(file: str, doc: Mapping, key: str) -> list:
@@ -237,6 +250,8 @@ def _mesh(t: _Table, scene_dir: str, material: int) -> Mesh:
     except MeshFileError as e:
         raise t.error("file", str(e), name) from None
     vertices = apply_transform(vertices, translate=translate, scale=scale, rotate=rotate)
+    if not np.all(np.abs(vertices) <= FLOAT32_MAX):
+        raise t.error("file", f"vertices (after the transform) must fit in float32 (|x| <= {FLOAT32_MAX:.4g})", name)
     return Mesh(file=path, vertices=vertices, faces=faces, material=material)
 
 

@@ -185,14 +185,24 @@ def _read_with_vtk(path):
     with pv.vtk_verbosity("off"), pv.VtkErrorCatcher(send_to_logging=False) as catcher:
         reader = pv.get_reader(str(path)).reader
         reader.Update()
-    if catcher.error_events:
-        own = [e for e in catcher.events if e.name == reader.GetClassName()]
-        detail = re.sub(r" \(0x[0-9a-fA-F]+\)", "", (own or catcher.error_events)[0].alert.splitlines()[0])
+    # Errors, and warnings that report a read error: VTK's legacy reader only warns ("Error reading
+    # binary data!") on a file truncated in its attribute data, and returns what it read.
+    failed = [e for e in catcher.events if e in catcher.error_events or "error" in e.alert.lower()]
+    if failed:
+        own = [e for e in failed if e.name == reader.GetClassName()]
+        detail = _vtk_message((own or failed)[0].alert)
         raise MeshFileError(f"{path}: not a readable mesh ({detail})")
     dataset = pv.wrap(reader.GetOutputDataObject(0))
     if isinstance(dataset, pv.MultiBlock):
         return dataset.combine()
     return dataset
+
+
+def _vtk_message(alert):
+    """The informative line of a VTK alert, without object addresses or "In file.cxx, line N"."""
+    lines = [line.strip() for line in alert.splitlines() if line.strip()]
+    useful = [line for line in lines if not re.search(r"\.cxx, line \d+", line)] or lines
+    return re.sub(r" \(0x[0-9a-fA-F]+\)", "", useful[0])
 
 
 def _triangles(dataset, path):

@@ -1,0 +1,363 @@
+"""Ray trees in 3D with pyvista: draw a ``wrt.rays.RayTree`` over its scene, or export it as VTK.
+
+``ray_blocks(tree)`` turns a recording into a ``pyvista.MultiBlock`` (world space):
+
+=========== ======================================================================================
+block       contents
+=========== ======================================================================================
+geometry    one surface per ``[[shape]]`` (named ``shape[i] TYPE``; planes as a finite patch around
+            the rays), cell data ``color`` (RGB, 0-255)
+segments    one line per segment that ends (on a surface or at a light), cell data ``row`` (the
+            segment's row in the tree), ``kind``, ``pixel_x``, ``pixel_y``, ``sample``, ``depth``,
+            ``parent``, ``shape``, ``entering``, ``throughput`` (3), ``color`` (RGB, 0-255);
+            field data ``kind_names``
+misses      one line per escaped segment, drawn to ``miss_length``, point data ``rgba`` fading from
+            the kind's colour to transparent; cell data as ``segments``
+hits        the hit points, point data ``normal`` (unit geometric normal), ``facing_normal`` (flipped
+            to the side the ray came from), ``kind``, ``shape``, ``entering``, ``row``
+lights      point and spot lights as points (vertices); directional lights as a line along the
+            direction they travel
+camera      the camera position and its view pyramid (lines to the image corners)
+=========== ======================================================================================
+
+``draw`` puts them in a plotter: geometry semi-transparent, segments coloured by kind with a
+legend, hit points as small spheres, normals as short arrows on the side the ray came from (the
+normal reflection and refraction use), misses fading out. ``save_view``
+renders off screen to a PNG (EGL when there is no display), ``show`` opens a window, ``export``
+writes the blocks to a ``.vtm`` that ParaView and ``pyvista.read`` open.
+"""
+from __future__ import annotations
+
+import os
+import sys
+
+import numpy as np
+import pyvista as pv
+
+from wrt.errors import WrtError
+from wrt.loader import load_scene
+from wrt.rays import DEFAULT_CAPACITY, RayTree, grid_pixels, trace_rays
+from wrt.scene import DirectionalLight, Mesh, Plane, PointLight, Polygon, Sphere, SpotLight, Triangle
+
+# colour of each kind (indices of kernels.record.KIND_NAMES)
+KIND_COLORS = ("#1f5fbf", "#f0a202", "#c1121f", "#2a9d3f", "#8e44ad", "#e056b5", "#16a3b8")
+GEOMETRY_OPACITY = 0.25
+PLANE_OPACITY = 0.12  # planes are large: fainter, so they do not veil the rays
+NORMAL_COLOR = "#404040"
+LIGHT_COLOR = "#ffd000"
+MISS_FRACTION = 0.25  # misses are drawn this fraction of the scene's size long
+HIT_FRACTION = 0.006  # radius of the hit spheres
+NORMAL_FRACTION = 0.06  # length of the normal arrows
+BACKGROUND = "white"
+
+
+def _rgb255(hex_color: str) -> np.ndarray:
+    return np.array([int(hex_color[k : k + 2], 16) for k in (1, 3, 5)], dtype=np.uint8)
+
+
+def _material_color(scene, shape) -> np.ndarray:
+    """Linear base colour of a shape, shown as is (0-255): albedo, or a fixed tint for mirrors and glass."""
+    mat = scene.materials[shape.material]
+    if mat.type == "mirror":
+        return np.array([190, 195, 205], dtype=np.uint8)
+    if mat.type == "dielectric":
+        return np.array([150, 200, 230], dtype=np.uint8)
+    return (np.clip(mat.albedo, 0, 1) * 255).astype(np.uint8)
+
+
+def _bounds(tree: RayTree) -> tuple[np.ndarray, np.ndarray]:
+    """World-space box around the camera, every segment end that is not a miss, and the bounded shapes."""
+    points = [np.asarray(tree.scene.camera.origin, dtype=np.float64)[None], tree.origin, tree.end[~tree.escaped]]
+    for shape in tree.scene.shapes:
+        if isinstance(shape, Sphere):
+            c = np.asarray(shape.center)
+            points.append(np.stack([c - shape.radius, c + shape.radius]))
+        elif isinstance(shape, (Triangle, Polygon, Mesh)):
+            points.append(np.asarray(shape.vertices, dtype=np.float64).reshape(-1, 3))
+    points = np.concatenate([np.asarray(p, dtype=np.float64).reshape(-1, 3) for p in points])
+    return points.min(axis=0), points.max(axis=0)
+
+
+def _shape_mesh(shape, centre: np.ndarray, size: float) -> pv.PolyData:
+    if isinstance(shape, Sphere):
+        return pv.Sphere(radius=shape.radius, center=shape.center, theta_resolution=48, phi_resolution=32)
+    if isinstance(shape, Plane):
+        n = np.asarray(shape.normal)
+        on_plane = centre - np.dot(centre - np.asarray(shape.point), n) * n
+        return pv.Plane(center=on_plane, direction=n, i_size=size, j_size=size, i_resolution=1, j_resolution=1)
+    if isinstance(shape, Mesh):
+        faces = np.hstack([np.full((len(shape.faces), 1), 3), shape.faces]).ravel()
+        return pv.PolyData(np.asarray(shape.vertices, dtype=np.float64), faces)
+    verts = np.asarray(shape.vertices, dtype=np.float64)  # triangle or polygon (non-convex: triangulated)
+    return pv.PolyData(verts, np.concatenate([[len(verts)], np.arange(len(verts))])).triangulate()
+
+
+def _lines(starts: np.ndarray, ends: np.ndarray) -> pv.PolyData:
+    n = len(starts)
+    points = np.empty((2 * n, 3), dtype=np.float64)
+    points[0::2], points[1::2] = starts, ends
+    lines = np.column_stack([np.full(n, 2), 2 * np.arange(n), 2 * np.arange(n) + 1]).ravel()
+    return pv.PolyData(points, lines=lines) if n else pv.PolyData()
+
+
+def _segment_data(mesh: pv.PolyData, tree: RayTree, rows: np.ndarray) -> None:
+    if not len(rows):
+        return
+    mesh.cell_data["row"] = rows
+    mesh.cell_data["kind"] = tree.kind[rows]
+    mesh.cell_data["pixel_x"] = tree.pixel[rows, 0]
+    mesh.cell_data["pixel_y"] = tree.pixel[rows, 1]
+    mesh.cell_data["sample"] = tree.sample[rows]
+    mesh.cell_data["depth"] = tree.depth[rows]
+    mesh.cell_data["parent"] = tree.parent[rows]
+    mesh.cell_data["shape"] = tree.shape[rows]
+    mesh.cell_data["entering"] = tree.entering[rows].astype(np.uint8)
+    mesh.cell_data["throughput"] = tree.throughput[rows]
+    mesh.cell_data["color"] = np.array([_rgb255(KIND_COLORS[k]) for k in tree.kind[rows]], dtype=np.uint8).reshape(-1, 3)
+    mesh.field_data["kind_names"] = np.array(RayTree.KIND_NAMES)
+
+
+def ray_blocks(tree: RayTree) -> pv.MultiBlock:
+    """The recording and its scene as named pyvista blocks (see the module docstring)."""
+    lo, hi = _bounds(tree)
+    centre, size = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) or 1.0
+    scene = tree.scene
+
+    geometry = pv.MultiBlock()
+    for i, shape in enumerate(scene.shapes):
+        mesh = _shape_mesh(shape, centre, 1.2 * size)
+        mesh.cell_data["color"] = np.tile(_material_color(scene, shape), (mesh.n_cells, 1))
+        geometry[f"shape[{i}] {type(shape).__name__.lower()}"] = mesh
+
+    ends = np.flatnonzero(~tree.escaped)
+    segments = _lines(tree.origin[ends], tree.end[ends])
+    _segment_data(segments, tree, ends)
+
+    escaped = np.flatnonzero(tree.escaped)
+    misses = _lines(tree.origin[escaped], tree.origin[escaped] + MISS_FRACTION * size * tree.direction[escaped])
+    _segment_data(misses, tree, escaped)
+    if len(escaped):
+        rgba = np.repeat(misses.cell_data["color"], 2, axis=0)
+        misses.point_data["rgba"] = np.column_stack([rgba, np.tile([255, 0], len(escaped))]).astype(np.uint8)
+
+    hit_rows = np.flatnonzero(tree.hit)
+    hits = pv.PolyData(tree.end[hit_rows].astype(np.float64)) if len(hit_rows) else pv.PolyData()
+    if len(hit_rows):
+        hits.point_data["normal"] = tree.normal[hit_rows]
+        hits.point_data["facing_normal"] = np.where(tree.entering[hit_rows, None], 1, -1) * tree.normal[hit_rows]
+        hits.point_data["kind"] = tree.kind[hit_rows]
+        hits.point_data["shape"] = tree.shape[hit_rows]
+        hits.point_data["entering"] = tree.entering[hit_rows].astype(np.uint8)
+        hits.point_data["row"] = hit_rows
+
+    light_points, verts, lines = [], [], []
+    for light in scene.lights:
+        if isinstance(light, (PointLight, SpotLight)):
+            verts += [1, len(light_points)]
+            light_points.append(light.position)
+        elif isinstance(light, DirectionalLight):
+            d = np.asarray(light.direction) / np.linalg.norm(light.direction)
+            lines += [2, len(light_points), len(light_points) + 1]
+            light_points += [centre - 0.6 * size * d, centre - 0.45 * size * d]
+    lights = pv.PolyData()
+    if light_points:
+        lights = pv.PolyData(np.asarray(light_points, dtype=np.float64), verts=np.array(verts, dtype=np.int64), lines=np.array(lines, dtype=np.int64))
+
+    cam = scene.camera
+    forward, right, up = cam.basis()
+    half_h = np.tan(np.radians(cam.fov) / 2)
+    half_w = half_h * scene.render.width / scene.render.height
+    depth = 0.08 * size
+    origin = np.asarray(cam.origin, dtype=np.float64)
+    corners = [origin + depth * (forward + sx * half_w * right + sy * half_h * up) for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+    pyramid = np.array([origin, *corners])
+    camera = pv.PolyData(pyramid, lines=np.array([2, 0, 1, 2, 0, 2, 2, 0, 3, 2, 0, 4, 5, 1, 2, 3, 4, 1]))
+
+    blocks = pv.MultiBlock()
+    blocks["geometry"] = geometry
+    blocks["segments"] = segments
+    blocks["misses"] = misses
+    blocks["hits"] = hits
+    blocks["lights"] = lights
+    blocks["camera"] = camera
+    return blocks
+
+
+def _auto_view(tree: RayTree, forward: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit direction toward the eye and view-up that show the ray trees flattest on screen: the
+    normal of the plane the segments lie closest to (least principal axis of their points), from
+    above; a side view when they lie on one line."""
+    points = np.concatenate([tree.origin, tree.end[~tree.escaped], tree.origin + tree.direction]).astype(np.float64)
+    _, spread, axes = np.linalg.svd(points - points.mean(axis=0), full_matrices=False)
+    if len(spread) < 3 or spread[1] < 1e-3 * spread[0]:  # one line: look from its side, level with it
+        line = axes[0]
+        normal = np.cross(line, up)
+        normal = normal if np.linalg.norm(normal) > 1e-6 else np.cross(line, forward)
+    else:
+        normal = axes[2]
+    normal /= np.linalg.norm(normal)
+    if np.dot(normal, up) < -1e-6 or (abs(np.dot(normal, up)) <= 1e-6 and np.dot(normal, forward) > 0):
+        normal = -normal
+    view_up = up - np.dot(up, normal) * normal
+    if np.linalg.norm(view_up) < 0.2:  # looking down: the scene camera's forward points up the picture
+        view_up = forward - np.dot(forward, normal) * normal
+    return normal, view_up / np.linalg.norm(view_up)
+
+
+def draw(plotter: pv.Plotter, tree: RayTree, view: tuple[float, float] | None = None) -> None:
+    """Add the recording to ``plotter`` and aim its camera at the rays.
+
+    ``view``: ``(azimuth, elevation)`` in degrees relative to the scene camera: azimuth around its
+    up axis (0 = from behind it, 90 = from its right), elevation above its horizon. Default: the
+    view that shows the ray tree flattest (see ``_auto_view``).
+    """
+    blocks = ray_blocks(tree)
+    lo, hi = _bounds(tree)
+    size = float(np.linalg.norm(hi - lo)) or 1.0
+    plotter.set_background(BACKGROUND)
+    for name, mesh in zip(blocks["geometry"].keys(), blocks["geometry"]):
+        opacity = PLANE_OPACITY if name.endswith("plane") else GEOMETRY_OPACITY
+        plotter.add_mesh(mesh, scalars="color", rgb=True, opacity=opacity, show_scalar_bar=False, smooth_shading=True)
+    segments, misses, hits = blocks["segments"], blocks["misses"], blocks["hits"]
+    if segments.n_cells:
+        plotter.add_mesh(segments, scalars="color", rgb=True, line_width=4, render_lines_as_tubes=True, show_scalar_bar=False, lighting=False)
+    if misses.n_cells:
+        plotter.add_mesh(misses, scalars="rgba", rgb=True, line_width=4, render_lines_as_tubes=True, show_scalar_bar=False, lighting=False)
+    if hits.n_points:
+        colors = np.array([_rgb255(KIND_COLORS[k]) for k in hits.point_data["kind"]], dtype=np.uint8)
+        balls = hits.glyph(geom=pv.Sphere(radius=HIT_FRACTION * size, theta_resolution=12, phi_resolution=12), orient=False, scale=False)
+        balls.point_data["color"] = np.repeat(colors, balls.n_points // hits.n_points, axis=0)
+        plotter.add_mesh(balls, scalars="color", rgb=True, show_scalar_bar=False)
+        arrow = pv.Arrow(tip_length=0.3, tip_radius=0.08, shaft_radius=0.025, scale=NORMAL_FRACTION * size)
+        plotter.add_mesh(hits.glyph(orient="facing_normal", scale=False, geom=arrow), color=NORMAL_COLOR)
+    lights = blocks["lights"]
+    if lights.n_points:
+        plotter.add_mesh(lights, color=LIGHT_COLOR, point_size=20, render_points_as_spheres=True, line_width=6, render_lines_as_tubes=True)
+    plotter.add_mesh(blocks["camera"], color="#303030", line_width=2)
+    legend = [[RayTree.KIND_NAMES[k], KIND_COLORS[k]] for k in sorted(set(tree.kind.tolist()))]
+    if tree.hit.any():
+        legend.append(["surface normal", NORMAL_COLOR])
+    if lights.n_points:
+        legend.append(["light", LIGHT_COLOR])
+    width, height = 0.011 * max(len(label) for label, _ in legend) + 0.04, 0.032 * len(legend)
+    box = plotter.add_legend(legend, bcolor="white", border=True, size=(width, height), face="rectangle")
+    box.SetPosition(0.99 - width, 0.95 - height)  # upper right (pyvista's loc offsets x by the height)
+    px = ", ".join(f"({x}, {y})" for x, y in tree.pixels[:4]) + (f" and {len(tree.pixels) - 4} more" if len(tree.pixels) > 4 else "")
+    title = f"{os.path.basename(tree.scene.path)}: pixel{'s' if len(tree.pixels) > 1 else ''} {px}, {tree.samples} sample{'s' if tree.samples > 1 else ''}, max_depth {tree.scene.render.max_depth}"
+    if tree.truncated:
+        title += f"\n(truncated: {len(tree)} of {tree.recorded} segments recorded)"
+    plotter.add_text(title, position="upper_left", font_size=10, color="black")
+
+    forward, right, up = tree.scene.camera.basis()
+    if view is None:
+        towards_eye, view_up = _auto_view(tree, forward, up)
+    else:
+        az, el = np.radians(view[0]), np.radians(view[1])
+        towards_eye, view_up = np.cos(el) * (-np.cos(az) * forward + np.sin(az) * right) + np.sin(el) * up, up
+    finite = np.concatenate([tree.origin, tree.end[~tree.escaped]])
+    ray_lo, ray_hi = finite.min(axis=0), finite.max(axis=0)
+    focus = (ray_lo + ray_hi) / 2
+    plotter.camera.focal_point = focus
+    plotter.camera.position = focus + towards_eye * size
+    plotter.camera.up = view_up
+    plotter.reset_camera(bounds=np.column_stack([ray_lo, ray_hi]).ravel())
+    plotter.camera.zoom(1.1)
+
+
+def _folder_of(path: str) -> tuple[str, str]:
+    """``(folder, file name)`` of an output path whose folder must exist (else ``WrtError``)."""
+    folder, name = os.path.split(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise WrtError(f"{path}: folder {folder} does not exist")
+    return folder, name
+
+
+def _has_display() -> bool:
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def _require_display() -> None:
+    if not _has_display():
+        raise WrtError("an interactive window needs a display, and neither DISPLAY nor WAYLAND_DISPLAY is set (use -o view.png or --export rays.vtm)")
+
+
+def _offscreen_backend() -> None:
+    """Without a display, VTK must render through EGL (docs/install-notes.md)."""
+    if not _has_display():
+        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+
+
+def save_view(tree: RayTree, path: str, size: tuple[int, int] = (1280, 960), view: tuple[float, float] | None = None) -> None:
+    """Render the recording off screen to the PNG ``path`` (``view``: see ``draw``), atomically: to a
+    temporary file beside it, renamed into place once complete."""
+    folder, name = _folder_of(path)
+    tmp = os.path.join(folder, f".{name}.{os.getpid()}.png")
+    _offscreen_backend()
+    plotter = pv.Plotter(off_screen=True, window_size=list(size))
+    try:
+        draw(plotter, tree, view)
+        plotter.screenshot(tmp)
+        os.replace(tmp, path)
+    finally:
+        plotter.close()
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def show(tree: RayTree, view: tuple[float, float] | None = None) -> None:
+    """Open an interactive window (needs a display)."""
+    _require_display()
+    plotter = pv.Plotter(window_size=[1280, 960])
+    draw(plotter, tree, view)
+    plotter.show()
+
+
+def export(tree: RayTree, path: str) -> None:
+    """Write the blocks of ``ray_blocks`` to a VTK multiblock file (``.vtm`` plus a folder of pieces)."""
+    _folder_of(path)
+    ray_blocks(tree).save(path)
+
+
+def run(
+    scene_file: str,
+    pixels: list[tuple[int, int]],
+    grid: tuple[int, int] | None = None,
+    samples: int = 1,
+    max_depth: int | None = None,
+    output: str | None = None,
+    interactive: bool = False,
+    export_path: str | None = None,
+    view: tuple[float, float] | None = None,
+    device: str = "cpu",
+    capacity: int = DEFAULT_CAPACITY,
+) -> int:
+    """``wrt rays``: trace the pixels (and a grid of pixels) of a scene file, then draw, show or export."""
+    if output is not None:
+        if os.path.splitext(output)[1].lower() != ".png":
+            raise WrtError(f"{output}: -o writes a picture, use a .png name")
+        _folder_of(output)
+    if export_path is not None:
+        if os.path.splitext(export_path)[1].lower() != ".vtm":
+            raise WrtError(f"{export_path}: --export writes a VTK multiblock, use a .vtm name")
+        _folder_of(export_path)
+    if interactive:
+        _require_display()
+    scene = load_scene(scene_file)
+    chosen = list(pixels)
+    if grid is not None:
+        chosen += grid_pixels(scene.render.width, scene.render.height, *grid)
+    tree = trace_rays(scene, chosen, samples=samples, max_depth=max_depth, device=device, capacity=capacity)
+    counts = np.bincount(tree.kind, minlength=len(RayTree.KIND_NAMES))
+    summary = ", ".join(f"{n} {name}" for name, n in zip(RayTree.KIND_NAMES, counts) if n)
+    print(f"{scene_file}: {len(tree.pixels)} pixel{'s' if len(tree.pixels) > 1 else ''} x {samples} sample{'s' if samples > 1 else ''}: {len(tree)} segments ({summary})")
+    if tree.truncated:
+        print(f"wrt: warning: the record buffer was full: kept {len(tree)} of {tree.recorded} segments (raise --capacity)", file=sys.stderr)
+    if export_path is not None:
+        export(tree, export_path)
+        print(f"wrote {export_path}")
+    if output is not None:
+        save_view(tree, output, view=view)
+        print(f"wrote {output}")
+    if interactive:
+        show(tree, view=view)
+    return 0

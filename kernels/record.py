@@ -1,0 +1,129 @@
+"""Ray recording: the buffer the render kernels fill with every segment they trace, when asked.
+
+The integrators are compiled in two variants (``kernels.integrator.make_render_kernel(...,
+record=...)``). In the recording variant each ray the kernel traces is appended here, in the
+order the thread traced it, through an atomic counter; in the rendering variant the calls are
+compiled out (``wp.static``) and the buffer is never touched.
+
+A ``Segment`` is one straight piece of a ray (world space, float32):
+
+========== ========= ==============================================================================
+field      type      meaning
+========== ========= ==============================================================================
+pixel      int32     pixel index ``y * width + x`` (row 0 at the top)
+sample     int32     sample index within the pixel (0 with ``spp = 1``: the pixel centre)
+kind       int32     how the ray was spawned: ``CAMERA``, ``SHADOW_LIT``, ``SHADOW_BLOCKED``,
+                     ``REFLECTED``, ``REFRACTED``, ``TOTAL_INTERNAL``, ``STRAIGHT``
+flags      int32     ``HIT``: ends on a surface; ``ENTERING``: hits it from its front side (against
+                     ``normal``); ``ESCAPED``: left the scene (a miss, or a shadow ray toward a
+                     directional light): ``end = origin + direction``, unit length
+origin     vec3      where the ray starts (offset off the surface it leaves, as traced)
+end        vec3      hit point ``origin + t direction``; the light's position for a shadow ray that
+                     reaches a point or spot light; ``origin + direction`` when ``ESCAPED``
+normal     vec3      unit geometric normal at the hit (outward for spheres and closed meshes, the
+                     winding normal for triangles, the given normal for planes and polygons), not
+                     flipped toward the ray; 0 without ``HIT``
+shape      int32     ``object_id`` of the surface hit, -1 without ``HIT``
+throughput vec3      path weight the segment carries (1 for the camera ray; a shadow ray: the path
+                     weight at its origin times the shadow transmittance, 0 when blocked)
+depth      int32     ray segments of the path up to and including this one (camera ray = 1), the
+                     ``max_depth`` counting
+parent     int32     buffer index of the segment whose end this one starts from, -1 for a camera ray
+========== ========= ==============================================================================
+
+Kinds: ``STRAIGHT`` is a ray continuing unbent through a false interface (the surface of a
+dielectric that does not own the space, see ``kernels.whitted``); ``TOTAL_INTERNAL`` is a
+reflection at a dielectric past the critical angle. Later integrators add kinds at the end.
+
+Capacity: ``count[0]`` counts every append, stored or not; segments beyond ``segments.shape[0]``
+are dropped (a truncated recording), and their children still name them as parents.
+"""
+import warp as wp
+
+from .traverse import NO_HIT, SceneData, geometric_normal, prim_shape
+
+CAMERA = wp.constant(0)
+SHADOW_LIT = wp.constant(1)
+SHADOW_BLOCKED = wp.constant(2)
+REFLECTED = wp.constant(3)
+REFRACTED = wp.constant(4)
+TOTAL_INTERNAL = wp.constant(5)
+STRAIGHT = wp.constant(6)
+KIND_NAMES = ("camera", "shadow to light", "shadow blocked", "reflected", "refracted", "total internal reflection", "straight through")
+
+HIT = wp.constant(1)
+ENTERING = wp.constant(2)
+ESCAPED = wp.constant(4)
+
+
+@wp.struct
+class Segment:
+    pixel: wp.int32
+    sample: wp.int32
+    kind: wp.int32
+    flags: wp.int32
+    origin: wp.vec3
+    end: wp.vec3
+    normal: wp.vec3
+    shape: wp.int32
+    throughput: wp.vec3
+    depth: wp.int32
+    parent: wp.int32
+
+
+@wp.struct
+class RayRecord:
+    """The record buffer: ``count`` (one int32, appends so far) and ``segments`` (the capacity)."""
+
+    count: wp.array(dtype=wp.int32)
+    segments: wp.array(dtype=Segment)
+
+
+@wp.func
+def record_ray(
+    rec: RayRecord,
+    scene: SceneData,
+    pixel: wp.int32,
+    sample: wp.int32,
+    kind: wp.int32,
+    o: wp.vec3,
+    d: wp.vec3,
+    t: float,
+    prim: wp.int32,
+    throughput: wp.vec3,
+    depth: wp.int32,
+    parent: wp.int32,
+) -> wp.int32:
+    """Append the segment of unit ray ``o + s d`` that ended at ``(t, prim)`` as a trace returned it;
+    returns its buffer index.
+
+    ``prim == NO_HIT`` with finite ``t``: the ray ran its whole interval (a shadow ray reaching its
+    light at distance ``t``); with ``t = inf`` it escaped the scene.
+    """
+    i = wp.atomic_add(rec.count, 0, 1)
+    if i < rec.segments.shape[0]:
+        s = Segment()
+        s.pixel = pixel
+        s.sample = sample
+        s.kind = kind
+        s.origin = o
+        s.throughput = throughput
+        s.depth = depth
+        s.parent = parent
+        s.shape = -1
+        s.normal = wp.vec3(0.0)
+        if prim != NO_HIT:
+            s.end = o + t * d
+            s.normal = geometric_normal(scene, prim, s.end)
+            s.shape = prim_shape(scene, prim)
+            s.flags = HIT
+            if wp.dot(d, s.normal) < 0.0:
+                s.flags = HIT | ENTERING
+        elif t < wp.inf:
+            s.end = o + t * d
+            s.flags = 0
+        else:
+            s.end = o + d
+            s.flags = ESCAPED
+        rec.segments[i] = s
+    return i

@@ -1,0 +1,242 @@
+"""Ray recording (kernels/record.py, wrt/rays.py) against closed forms, and `wrt rays` (harness/rayview.py)."""
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import pyvista as pv
+from skimage.io import imread
+
+import wrt
+from conftest import make_scene
+from harness import rayview
+from kernels.record import CAMERA, REFLECTED, REFRACTED, SHADOW_BLOCKED, SHADOW_LIT, STRAIGHT, TOTAL_INTERNAL
+from wrt.cli import main
+from wrt.rays import trace_rays
+
+GLASS = {"name": "glass", "type": "dielectric", "ior": 1.5}
+HEAD_ON = {"origin": [0, 0, 5], "look_at": [0, 0, 0], "fov": 30}  # odd image size: the centre pixel looks down -z exactly
+
+
+def whitted_scene(shapes, materials, lights=(), camera=HEAD_ON, size=(33, 33), **render):
+    settings = {"width": size[0], "height": size[1], "integrator": "whitted", **render}
+    return make_scene(shapes, materials=materials, lights=list(lights), camera=camera, render=settings)
+
+
+def only(rows):
+    assert len(rows) == 1, rows
+    return rows[0]
+
+
+def test_glass_sphere_head_on_passes_straight_through():
+    scene = whitted_scene([{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "glass"}], [GLASS])
+    tree = trace_rays(scene, [(16, 16)])
+    F = (0.5 / 2.5) ** 2  # Fresnel reflectance at normal incidence, ior 1.5
+    down = np.array([0.0, 0.0, -1.0])
+
+    camera = only(np.flatnonzero(tree.kind == CAMERA))
+    assert tree.hit[camera] and tree.entering[camera] and tree.shape[camera] == 0
+    np.testing.assert_allclose(tree.end[camera], [0, 0, 1], atol=1e-5)
+    np.testing.assert_allclose(tree.normal[camera], [0, 0, 1], atol=1e-6)
+
+    inside = only([i for i in tree.children(camera) if tree.kind[i] == REFRACTED])
+    np.testing.assert_allclose(tree.direction[inside], down, atol=1e-6)
+    np.testing.assert_allclose(tree.end[inside], [0, 0, -1], atol=1e-5)
+    assert tree.hit[inside] and not tree.entering[inside] and tree.depth[inside] == 2
+    np.testing.assert_allclose(tree.throughput[inside], 1 - F, rtol=1e-6)
+
+    back = only([i for i in tree.children(camera) if tree.kind[i] == REFLECTED])
+    np.testing.assert_allclose(tree.direction[back], -down, atol=1e-6)
+    assert tree.escaped[back]
+    np.testing.assert_allclose(tree.throughput[back], F, rtol=1e-5)
+
+    out = only([i for i in tree.children(inside) if tree.kind[i] == REFRACTED])
+    assert tree.escaped[out] and tree.depth[out] == 3
+    np.testing.assert_allclose(tree.direction[out], down, atol=1e-6)  # the exit ray continues along the same line
+    np.testing.assert_allclose(tree.origin[out][:2], [0, 0], atol=1e-6)
+    np.testing.assert_allclose(tree.throughput[out], (1 - F) ** 2, rtol=1e-5)
+
+    on_sphere = tree.hit & (tree.shape == 0)
+    assert on_sphere.sum() >= 3  # entry, exit, and the internal reflection's hits
+    np.testing.assert_allclose(np.linalg.norm(tree.end[on_sphere].astype(np.float64), axis=1), 1.0, atol=1e-5)
+    for i in range(len(tree)):  # every segment starts where its parent ended (up to the spawn offset)
+        if tree.parent[i] >= 0:
+            np.testing.assert_allclose(tree.origin[i], tree.end[tree.parent[i]], atol=1e-5)
+
+
+def test_total_internal_reflection_is_marked():
+    """A camera inside a glass sphere (r = 10) at height 9 looking sideways meets the surface at
+    asin(0.9) = 64 degrees, past the critical angle asin(1/1.5) = 42: one reflected branch only."""
+    scene = whitted_scene(
+        [{"type": "sphere", "center": [0, 0, 0], "radius": 10.0, "material": "glass"}],
+        [GLASS],
+        camera={"origin": [0, 9, 0], "look_at": [1, 9, 0], "fov": 30},
+        max_depth=2,
+    )
+    tree = trace_rays(scene, [(16, 16)])
+    camera = only(np.flatnonzero(tree.kind == CAMERA))
+    assert not tree.entering[camera]
+    child = only(tree.children(camera))
+    assert tree.kind[child] == TOTAL_INTERNAL
+    np.testing.assert_allclose(tree.throughput[child], 1.0)
+
+
+def test_false_interface_goes_straight_at_the_same_depth():
+    """Inside glass of priority 1, the surface of overlapping water (priority 0) is no interface."""
+    scene = whitted_scene(
+        [{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "glass"}, {"type": "sphere", "center": [0, 0, -1], "radius": 1.0, "material": "water"}],
+        [{**GLASS, "priority": 1}, {"name": "water", "type": "dielectric", "ior": 1.33}],
+        max_depth=3,
+    )
+    tree = trace_rays(scene, [(16, 16)])
+    inside = only([i for i in tree.children(0) if tree.kind[i] == REFRACTED])
+    assert tree.shape[inside] == 1 and tree.entering[inside]  # meets the water's surface at z = 0
+    straight = only(tree.children(inside))
+    assert tree.kind[straight] == STRAIGHT and tree.depth[straight] == tree.depth[inside]
+    np.testing.assert_allclose(tree.direction[straight], [0, 0, -1], atol=1e-6)
+    np.testing.assert_allclose(tree.end[straight], [0, 0, -1], atol=1e-5)
+
+
+def test_mirror_reflects_by_the_law_of_reflection():
+    scene = whitted_scene(
+        [{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "mirror"}],
+        [{"name": "mirror", "type": "mirror", "reflectance": [0.9, 0.8, 0.7]}],
+        camera={"origin": [0, 3, 4], "look_at": [0, 0, 0], "fov": 40},
+        size=(32, 24),
+    )
+    tree = trace_rays(scene, [(5, 20), (27, 14)])
+    for camera in np.flatnonzero(tree.kind == CAMERA):
+        reflected = only(tree.children(camera))
+        assert tree.kind[reflected] == REFLECTED and tree.escaped[reflected]
+        V, N = tree.direction[camera].astype(np.float64), tree.normal[camera].astype(np.float64)
+        np.testing.assert_allclose(tree.direction[reflected], V - 2 * np.dot(V, N) * N, atol=1e-6)
+        np.testing.assert_allclose(tree.throughput[reflected], [0.9, 0.8, 0.7], rtol=1e-6)
+        assert abs(tree.origin[reflected][1]) < 1e-5
+
+
+def test_shadow_ray_is_blocked_at_the_occluder():
+    """Floor point (0, 0, 0) under a sphere at (0, 2, 0), r = 0.5: the light above it at (0, 4, 0) is
+    blocked where the shadow ray meets the sphere, (0, 1.5, 0); the light at (3, 4, 0) is seen."""
+    scene = whitted_scene(
+        [
+            {"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0]},
+            {"type": "sphere", "center": [0, 2, 0], "radius": 0.5},
+        ],
+        [],
+        [{"type": "point", "position": [0, 4, 0], "intensity": [5, 5, 5]}, {"type": "point", "position": [3, 4, 0], "intensity": [5, 5, 5]}],
+        camera={"origin": [0, 3, 4], "look_at": [0, 0, 0], "fov": 30},
+    )
+    tree = trace_rays(scene, [(16, 16)])
+    camera = only(np.flatnonzero(tree.kind == CAMERA))
+    np.testing.assert_allclose(tree.end[camera], [0, 0, 0], atol=1e-5)
+    blocked = only([i for i in tree.children(camera) if tree.kind[i] == SHADOW_BLOCKED])
+    assert tree.hit[blocked] and tree.shape[blocked] == 1 and tree.entering[blocked]
+    np.testing.assert_allclose(tree.end[blocked], [0, 1.5, 0], atol=1e-5)
+    np.testing.assert_allclose(tree.normal[blocked], [0, -1, 0], atol=1e-5)
+    np.testing.assert_allclose(tree.throughput[blocked], 0.0)
+    lit = only([i for i in tree.children(camera) if tree.kind[i] == SHADOW_LIT])
+    assert not tree.hit[lit] and not tree.escaped[lit] and tree.depth[lit] == 2
+    np.testing.assert_allclose(tree.end[lit], [3, 4, 0], atol=1e-5)
+
+
+MIXED = [
+    {"type": "plane", "point": [0, -1, 0], "normal": [0, 1, 0], "material": "floor"},
+    {"type": "sphere", "center": [-0.8, 0, 0], "radius": 0.7, "material": "glass"},
+    {"type": "sphere", "center": [0.9, 0, -0.5], "radius": 0.6, "material": "mirror"},
+    {"type": "triangle", "vertices": [[-1, -1, -2], [1.5, -1, -2], [0, 1.5, -2]], "material": "floor"},
+]
+MIXED_MATERIALS = [GLASS, {"name": "mirror", "type": "mirror"}, {"name": "floor", "albedo": [0.6, 0.5, 0.4]}]
+
+
+@pytest.mark.parametrize("integrator, samples", [("whitted", 1), ("whitted", 3), ("raycast", 1)])
+def test_recording_matches_the_render(integrator, samples):
+    """Recorded camera hits equal the `position` AOV (spp 1: the pixel-centre ray) bit for bit, and
+    the recording launch computes the very radiance `wrt.render` does, at any spp."""
+    scene = make_scene(
+        MIXED,
+        materials=MIXED_MATERIALS,
+        lights=[{"type": "point", "position": [2, 3, 3], "intensity": [10, 10, 10]}],
+        render={"width": 40, "height": 30, "integrator": integrator, "spp": samples, "seed": 3},
+    )
+    image = wrt.render(scene)
+    pixels = [(x, y) for y in range(1, 30, 4) for x in range(2, 40, 5)]
+    tree = trace_rays(scene, pixels, samples=samples)
+    assert not tree.truncated
+    np.testing.assert_array_equal(tree.rgb, np.array([image.rgb[y, x] for x, y in pixels]))
+    for k, (x, y) in enumerate(pixels):
+        cameras = np.flatnonzero((tree.kind == CAMERA) & (tree.pixel[:, 0] == x) & (tree.pixel[:, 1] == y))
+        assert tree.sample[cameras].tolist() == list(range(samples))
+        if samples == 1:
+            c = cameras[0]
+            assert tree.shape[c] == image.aovs["object_id"][y, x]
+            if tree.hit[c]:
+                np.testing.assert_array_equal(tree.end[c], image.aovs["position"][y, x])
+            np.testing.assert_array_equal(tree.position[k], image.aovs["position"][y, x])
+    if integrator == "raycast":
+        assert (tree.kind == CAMERA).all()
+    else:
+        assert {REFLECTED, REFRACTED, SHADOW_LIT} <= set(tree.kind.tolist())
+
+
+def test_truncation_is_reported():
+    scene = whitted_scene([{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "glass"}], [GLASS])
+    tree = trace_rays(scene, [(16, 16)], capacity=2)
+    assert tree.truncated and len(tree) == 2 and tree.recorded > 2
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--pixel", "33", "0"], "pixel (33, 0) is outside the 33 x 33 image"),
+    (["--pixel", "0", "-1"], "pixel (0, -1) is outside"),
+    (["--pixel", "0", "0", "--depth", "0"], "max_depth"),
+    (["--pixel", "0", "0", "--samples", "0"], "samples must be >= 1"),
+    ([], "give at least one --pixel"),
+])
+def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, argv, message):
+    path = tmp_path / "s.toml"
+    path.write_text('[render]\nwidth = 33\nheight = 33\nintegrator = "whitted"\n[camera]\norigin = [0, 0, 5]\nlook_at = [0, 0, 0]\n'
+                    '[[shape]]\ntype = "sphere"\ncenter = [0, 0, 0]\nradius = 1.0\n')
+    assert main(["rays", str(path), *argv, "-o", str(tmp_path / "v.png")]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1 and err.startswith("wrt: error: ")
+    assert not (tmp_path / "v.png").exists()
+
+
+def test_unknown_scene_is_exit_2(tmp_path, capsys):
+    assert main(["rays", str(tmp_path / "missing.toml"), "--pixel", "0", "0", "--export", str(tmp_path / "r.vtm")]) == 2
+    assert capsys.readouterr().err.startswith("wrt: error: ")
+
+
+def test_export_reopens_with_pyvista(tmp_path):
+    scene = whitted_scene(
+        [{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "glass"}, {"type": "plane", "point": [0, -1, 0], "normal": [0, 1, 0]}],
+        [GLASS],
+        [{"type": "point", "position": [0, 4, 4], "intensity": [5, 5, 5]}],
+    )
+    tree = trace_rays(scene, [(16, 16), (10, 20)])
+    rayview.export(tree, str(tmp_path / "rays.vtm"))
+    blocks = pv.read(tmp_path / "rays.vtm")
+    assert list(blocks.keys()) == ["geometry", "segments", "misses", "hits", "lights", "camera"]
+    assert list(blocks["geometry"].keys()) == ["shape[0] sphere", "shape[1] plane"]
+    ends, escaped = np.flatnonzero(~tree.escaped), np.flatnonzero(tree.escaped)
+    assert blocks["segments"].n_cells == len(ends) and blocks["misses"].n_cells == len(escaped)
+    np.testing.assert_array_equal(blocks["segments"].cell_data["kind"], tree.kind[ends])
+    np.testing.assert_array_equal(blocks["segments"].cell_data["parent"], tree.parent[ends])
+    np.testing.assert_allclose(blocks["hits"].points, tree.end[tree.hit], atol=1e-6)
+    np.testing.assert_allclose(blocks["lights"].points, [[0, 4, 4]])
+
+
+def test_view_png_off_screen_is_not_blank(tmp_path):
+    """`wrt rays -o` in a child process (a missing GL library crashes VTK rather than raising)."""
+    out = tmp_path / "view.png"
+    scene = os.path.join(os.path.dirname(__file__), "..", "examples", "spheres.toml")
+    proc = subprocess.run(
+        [sys.executable, "-m", "wrt.cli", "rays", scene, "--grid", "3", "2", "--depth", "3", "-o", str(out)],
+        capture_output=True, text=True, timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    img = imread(out)[..., :3]
+    assert img.shape[:2] == (960, 1280)
+    assert len(np.unique(img.reshape(-1, 3), axis=0)) > 50
+    camera_blue = np.array([int(rayview.KIND_COLORS[CAMERA][k : k + 2], 16) for k in (1, 3, 5)])
+    assert (np.abs(img.astype(int) - camera_blue).max(axis=-1) <= 8).sum() > 200, "no camera ray drawn"

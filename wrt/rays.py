@@ -1,0 +1,201 @@
+"""Trace chosen pixels with the scene's integrator and return every ray it traced: the ray trees.
+
+The rays come from the render kernels themselves, in their recording variant
+(``wrt.renderer.RECORD_KERNELS``, see ``kernels.record``), launched over the chosen pixels with
+the same set-up as ``wrt.render``: same camera rays, same samples for the same seed, same
+decisions. Nothing is re-implemented in Python.
+
+>>> import wrt
+>>> from wrt.rays import trace_rays
+>>> scene = wrt.load_scene("examples/whitted/refraction.toml")
+>>> tree = trace_rays(scene, [(130, 200)])
+>>> tree.kind_name(0), tree.end[0], tree.children(0)
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import warp as wp
+
+from kernels.record import ENTERING, ESCAPED, HIT, KIND_NAMES, RayRecord, Segment
+
+from .device import resolve_device
+from .errors import WrtError
+from .loader import override_render
+from .renderer import RECORD_KERNELS, prepare
+from .scene import Scene
+
+DEFAULT_CAPACITY = 1 << 18  # segments (about 30 MB); a whitted camera ray is at most 512 plus its shadow rays
+
+
+@dataclass
+class RayTree:
+    """Segments recorded by the render kernels for some pixels (world space, float32 unless said).
+
+    One row per ray segment, in the order each pixel's thread traced them (depth first), pixels
+    in the order asked, samples in order. ``parent[i]`` is the row whose end segment ``i`` starts
+    from (-1 for a camera ray), so the tree of each (pixel, sample) is recoverable.
+
+    Attributes
+    ----------
+    scene : Scene
+        The scene traced (with ``max_depth`` as overridden).
+    pixels : (P, 2) int
+        The pixels asked for, (x, y), row 0 at the top.
+    rgb : (P, 3) float32
+        Their radiance (W/(m^2 sr)) from the recording launch: what ``wrt.render`` gives with
+        ``spp = samples``.
+    position : (P, 3) float32
+        Their ``position`` AOV (pixel-centre ray; 0 on a miss).
+    samples : int
+        Samples per pixel traced (1: the pixel centre).
+    pixel : (N, 2) int
+        (x, y) of each segment's pixel.
+    sample, kind, depth, parent, shape : (N,) int
+        Sample index; kind (an index into ``KIND_NAMES``); ray segments of the path up to this one
+        (camera ray = 1, the ``max_depth`` counting); parent row or -1; ``object_id`` of the
+        surface hit or -1.
+    origin, end, direction, normal, throughput : (N, 3)
+        Start; end (hit point, the light for a shadow ray reaching a point or spot light, or
+        ``origin + direction`` for an escaped ray); unit direction; unit geometric normal at the
+        hit (outward / winding normal, not flipped; 0 without a hit); path weight carried.
+    hit, entering, escaped : (N,) bool
+        Ends on a surface; hits it from its front side (against ``normal``); left the scene.
+    recorded : int
+        Segments the kernels produced; more than ``N`` when the buffer's capacity cut the
+        recording short (``truncated``), in which case some ``parent`` rows are >= N.
+    """
+
+    scene: Scene
+    pixels: np.ndarray
+    rgb: np.ndarray
+    position: np.ndarray
+    samples: int
+    pixel: np.ndarray
+    sample: np.ndarray
+    kind: np.ndarray
+    depth: np.ndarray
+    parent: np.ndarray
+    shape: np.ndarray
+    origin: np.ndarray
+    end: np.ndarray
+    direction: np.ndarray
+    normal: np.ndarray
+    throughput: np.ndarray
+    hit: np.ndarray
+    entering: np.ndarray
+    escaped: np.ndarray
+    recorded: int
+
+    KIND_NAMES = KIND_NAMES
+
+    def __len__(self) -> int:
+        return len(self.kind)
+
+    @property
+    def truncated(self) -> bool:
+        return self.recorded > len(self)
+
+    def kind_name(self, i: int) -> str:
+        return KIND_NAMES[self.kind[i]]
+
+    def children(self, i: int) -> np.ndarray:
+        """Rows whose parent is row ``i``."""
+        return np.flatnonzero(self.parent == i)
+
+    def select(self, x: int, y: int, sample: int = 0) -> np.ndarray:
+        """Rows of the tree of pixel (x, y), sample ``sample``."""
+        return np.flatnonzero((self.pixel[:, 0] == x) & (self.pixel[:, 1] == y) & (self.sample == sample))
+
+
+def grid_pixels(width: int, height: int, nx: int, ny: int) -> list[tuple[int, int]]:
+    """The centre pixels of an ``nx`` x ``ny`` grid of equal cells over a ``width`` x ``height`` image."""
+    if nx < 1 or ny < 1 or nx > width or ny > height:
+        raise WrtError(f"grid {nx} x {ny}: must be between 1 x 1 and the image size {width} x {height}")
+    return [(int((i + 0.5) * width / nx), int((j + 0.5) * height / ny)) for j in range(ny) for i in range(nx)]
+
+
+def trace_rays(
+    scene: Scene,
+    pixels,
+    samples: int = 1,
+    max_depth: int | None = None,
+    device: str | None = "cpu",
+    capacity: int = DEFAULT_CAPACITY,
+) -> RayTree:
+    """Trace pixels of ``scene`` with its integrator, recording every ray segment.
+
+    Parameters
+    ----------
+    scene : Scene
+        From ``wrt.load_scene``.
+    pixels : sequence of (x, y)
+        Pixels to trace (row 0 at the top); repeats are traced once.
+    samples : int
+        Samples per pixel, as ``spp`` of a render with the scene's seed: 1 traces the pixel
+        centre, more spread the samples over the pixel.
+    max_depth : int, optional
+        Override ``[render] max_depth`` (ray segments per path, the camera ray included).
+    device : str
+        Warp device, "cpu" or "cuda".
+    capacity : int
+        Segments the record buffer holds; a recording that needs more is cut (``truncated``).
+
+    Raises
+    ------
+    WrtError
+        A pixel outside the image, ``samples`` or ``capacity`` < 1, ``max_depth`` out of range.
+    """
+    scene = override_render(scene, source="max_depth override", max_depth=max_depth)
+    w, h = scene.render.width, scene.render.height
+    chosen = list(dict.fromkeys((int(x), int(y)) for x, y in pixels))
+    if not chosen:
+        raise WrtError("no pixel to trace: give at least one")
+    for x, y in chosen:
+        if not (0 <= x < w and 0 <= y < h):
+            raise WrtError(f"pixel ({x}, {y}) is outside the {w} x {h} image (x in [0, {w - 1}], y in [0, {h - 1}])")
+    if samples < 1:
+        raise WrtError(f"samples must be >= 1, got {samples}")
+    if capacity < 1:
+        raise WrtError(f"capacity must be >= 1, got {capacity}")
+    dev = resolve_device(device)
+    kernel = RECORD_KERNELS[scene.render.integrator]
+    wp.load_module(kernel.module, device=dev)
+    frame = prepare(scene, dev)
+    rec = RayRecord()
+    rec.count = wp.zeros(1, dtype=wp.int32, device=dev)
+    rec.segments = wp.zeros(capacity, dtype=Segment, device=dev)
+    for x, y in chosen:  # one thread per launch: each pixel's segments stay together, in order
+        frame.launch(kernel, y * w + x, 1, samples, scene.render.seed, rec)
+    recorded = int(rec.count.numpy()[0])
+    seg = rec.segments.numpy()[: min(recorded, capacity)]
+    flags = seg["flags"]
+    origin, end = seg["origin"], seg["end"]
+    direction = end - origin
+    direction /= np.maximum(np.linalg.norm(direction, axis=1, keepdims=True), np.finfo(np.float32).tiny)
+    index = np.array([y * w + x for x, y in chosen])
+    rgb = frame.film.rgb.numpy()[index]
+    position = frame.film.position.numpy()[index]
+    return RayTree(
+        scene=scene,
+        pixels=np.array(chosen, dtype=np.int64).reshape(-1, 2),
+        rgb=rgb,
+        position=position,
+        samples=samples,
+        pixel=np.stack([seg["pixel"] % w, seg["pixel"] // w], axis=1),
+        sample=seg["sample"],
+        kind=seg["kind"],
+        depth=seg["depth"],
+        parent=seg["parent"],
+        shape=seg["shape"],
+        origin=origin,
+        end=end,
+        direction=direction,
+        normal=seg["normal"],
+        throughput=seg["throughput"],
+        hit=(flags & HIT) != 0,
+        entering=(flags & ENTERING) != 0,
+        escaped=(flags & ESCAPED) != 0,
+        recorded=recorded,
+    )
