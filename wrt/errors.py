@@ -30,10 +30,17 @@ class SceneError(WrtError):
 
     def __init__(self, file, table, key, problem, value=_NO_VALUE):
         self.file, self.table, self.key, self.problem, self.value = file, table, key, problem, value
-        where = ".".join(part for part in (table, key) if part)
+        where = ".".join(_printable(part) for part in (table, key) if part)
         if value is not SceneError._NO_VALUE:
             where += f" = {value!r}"
+        file = _printable(str(file))
         super().__init__(f"{file}: {where}: {problem}" if where else f"{file}: {problem}")
+
+
+def _printable(name: str) -> str:
+    """``name`` as is, or quoted with escapes when it holds a newline or another control character,
+    so that an error stays one line."""
+    return name if name.isprintable() else repr(name)
 
 
 class MeshFileError(WrtError):
