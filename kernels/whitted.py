@@ -16,10 +16,15 @@ Per camera ray, a ray tree is traced depth first with an explicit stack of pendi
 Depth: the camera ray is segment 1, each reflected, refracted or shadow ray one more; nothing is
 traced past ``max_depth`` segments (so direct light needs ``max_depth >= 2``). A branch whose
 throughput falls below ``min_throughput`` (largest channel) is cut. At a dielectric the heavier
-branch is followed first and the lighter one deferred on the stack; at most ``BRANCHES`` wait,
-and when the stack is full the lightest branch (deferred or new) is dropped, so the energy lost
-to the stack bound is the smallest available. A camera ray's whole tree stops at
-``MAX_SEGMENTS`` segments (reached only with ``min_throughput = 0`` and a deep ``max_depth``).
+branch is followed first and the lighter one deferred; when a path ends, the heaviest deferred
+branch is resumed. At most ``BRANCHES`` wait, and when they are full the lightest branch
+(deferred or new) is dropped, so the energy lost to the bound is the smallest available. A camera
+ray's whole tree stops at ``MAX_SEGMENTS`` segments (light trapped by total internal reflection
+with a tiny ``min_throughput`` can reach it; what is left then is the lightest).
+
+A ray that goes straight on through a surface (a false interface between media, or an
+index-matched one) keeps its origin and direction: only its ``t_min`` moves past the hit by the
+hit's error bound, so an ior-1.0 object is exactly invisible at any distance from the origin.
 
 Media: each branch carries a small stack of the dielectric shapes it is inside. The current
 medium is the entry of highest ``priority``, ties going to the most recently entered. A surface
@@ -53,9 +58,9 @@ from .record import REFLECTED, REFRACTED, SHADOW_BLOCKED, SHADOW_LIT, STRAIGHT, 
 from .spawn import hit_error, spawn_origin
 from .traverse import NO_HIT, SceneData, any_hit, closest_hit, geometric_normal, prim_shape
 
-BRANCHES = 16  # pending branches per camera ray
+BRANCHES = 32  # pending branches per camera ray
 MEDIA = 4  # nested dielectrics a ray can be inside at once
-MAX_SEGMENTS = wp.constant(512)  # hard stop per camera ray, whatever happens
+MAX_SEGMENTS = wp.constant(4096)  # hard stop per camera ray, whatever happens (deferred branches: heaviest first)
 SHADOW_CROSSINGS = wp.constant(16)  # dielectric surfaces a filtered shadow ray may pass
 BranchVec3 = wp.types.matrix(shape=(BRANCHES, 3), dtype=float)
 BranchMedia = wp.types.matrix(shape=(BRANCHES, MEDIA), dtype=wp.int32)
@@ -74,6 +79,16 @@ def lightest_branch(throughput: BranchVec3, count: wp.int32) -> wp.int32:
     best = int(0)
     for k in range(1, count):
         if max_component(throughput[k]) < max_component(throughput[best]):
+            best = k
+    return best
+
+
+@wp.func
+def heaviest_branch(throughput: BranchVec3, count: wp.int32) -> wp.int32:
+    """Index of the deferred branch with the largest throughput (largest channel)."""
+    best = int(0)
+    for k in range(1, count):
+        if max_component(throughput[k]) > max_component(throughput[best]):
             best = k
     return best
 
@@ -251,6 +266,12 @@ def make_whitted_radiance(record: bool):
         pending_n_media = BranchInt()
         n_pending = int(0)
         traced = bool(True)
+        # The ray being followed is o + s d for s > t_from; t_last is where its current segment
+        # began. A ray that goes straight on through a surface (a false interface, or an
+        # index-matched one) keeps its origin and line, and only t_from moves past the hit:
+        # re-spawning it off the surface would shift it sideways by the offset.
+        t_from = float(0.0)
+        t_last = float(0.0)
         current = parent  # record index of the segment being followed
         if wp.static(record):  # how the next segment to trace was spawned, and from which record
             segment_kind = int(REFLECTED)  # set again before every trace (the pixel loop records the camera ray)
@@ -259,13 +280,13 @@ def make_whitted_radiance(record: bool):
             pending_parent = BranchInt()
         for _segment in range(MAX_SEGMENTS):
             if not traced:
-                t, prim = closest_hit(scene, o, d, 0.0, wp.inf)
+                t, prim = closest_hit(scene, o, d, t_from, wp.inf)
                 if wp.static(record):
-                    current = record_ray(rec, scene, pixel, sample, segment_kind, o, d, t, prim, throughput, depth, segment_parent)
+                    current = record_ray(rec, scene, pixel, sample, segment_kind, o + t_last * d, d, t - t_last, prim, throughput, depth, segment_parent)
             traced = False
             slot = current_medium(materials, media, n_media)
             if slot >= 0:  # absorption along the segment just travelled (infinite if it escapes)
-                throughput = wp.cw_mul(throughput, beer_lambert(materials.sigma[materials.shape_material[media[slot]]], t))
+                throughput = wp.cw_mul(throughput, beer_lambert(materials.sigma[materials.shape_material[media[slot]]], t - t_last))
             go_on = bool(False)
             if prim == NO_HIT:
                 radiance += wp.cw_mul(throughput, settings.background)
@@ -294,6 +315,8 @@ def make_whitted_radiance(record: bool):
                     if depth < settings.max_depth and max_component(throughput) >= settings.min_throughput:
                         d = reflect(d, n_facing)
                         o = spawn_origin(p, n, err, d)
+                        t_from = 0.0
+                        t_last = 0.0
                         depth += 1
                         go_on = True
                         if wp.static(record):
@@ -326,7 +349,8 @@ def make_whitted_radiance(record: bool):
                         n1 = materials.ior[m]
                         n2 = medium_ior(materials, settings, media_t, current_medium(materials, media_t, n_media_t))
                     if not real:
-                        o = spawn_origin(p, n, err, d)
+                        t_from = t + err
+                        t_last = t
                         media = media_t
                         n_media = n_media_t
                         go_on = True
@@ -342,8 +366,8 @@ def make_whitted_radiance(record: bool):
                         wr = reflect(d, n_facing)
                         reflected = throughput * fresnel
                         transmitted = throughput * (1.0 - fresnel)
-                        keep_r = max_component(reflected) >= settings.min_throughput
-                        keep_t = ok and max_component(transmitted) >= settings.min_throughput
+                        keep_r = max_component(reflected) > 0.0 and max_component(reflected) >= settings.min_throughput
+                        keep_t = ok and max_component(transmitted) > 0.0 and max_component(transmitted) >= settings.min_throughput
                         # Follow the heavier branch now and defer the lighter one. A full stack
                         # evicts its lightest entry if the new one is heavier, else drops the new one.
                         if keep_r and keep_t:
@@ -383,8 +407,14 @@ def make_whitted_radiance(record: bool):
                             throughput = transmitted
                             media = media_t
                             n_media = n_media_t
-                        if keep_r or keep_t:
+                        if keep_t and eta == 1.0:  # index-matched: straight on (refract returned d)
+                            t_from = t + err
+                            t_last = t
+                        elif keep_r or keep_t:
                             o = spawn_origin(p, n, err, d)
+                            t_from = 0.0
+                            t_last = 0.0
+                        if keep_r or keep_t:
                             depth += 1
                             go_on = True
                             if wp.static(record):
@@ -393,16 +423,30 @@ def make_whitted_radiance(record: bool):
             if not go_on:
                 if n_pending == 0:
                     break
-                n_pending -= 1
-                o = pending_origin[n_pending]
-                d = pending_dir[n_pending]
-                throughput = pending_throughput[n_pending]
-                depth = pending_depth[n_pending]
-                media = pending_media[n_pending]
-                n_media = pending_n_media[n_pending]
+                # resume the heaviest deferred branch, so that what the segment budget may leave
+                # untraced is the lightest light; the last entry fills its slot
+                k = heaviest_branch(pending_throughput, n_pending)
+                o = pending_origin[k]
+                d = pending_dir[k]
+                t_from = 0.0
+                t_last = 0.0
+                throughput = pending_throughput[k]
+                depth = pending_depth[k]
+                media = pending_media[k]
+                n_media = pending_n_media[k]
                 if wp.static(record):
-                    segment_kind = pending_kind[n_pending]
-                    segment_parent = pending_parent[n_pending]
+                    segment_kind = pending_kind[k]
+                    segment_parent = pending_parent[k]
+                n_pending -= 1
+                pending_origin[k] = pending_origin[n_pending]
+                pending_dir[k] = pending_dir[n_pending]
+                pending_throughput[k] = pending_throughput[n_pending]
+                pending_depth[k] = pending_depth[n_pending]
+                pending_media[k] = pending_media[n_pending]
+                pending_n_media[k] = pending_n_media[n_pending]
+                if wp.static(record):
+                    pending_kind[k] = pending_kind[n_pending]
+                    pending_parent[k] = pending_parent[n_pending]
         return radiance
 
     return whitted_radiance

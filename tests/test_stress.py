@@ -70,11 +70,6 @@ def test_ior_one_is_invisible_at_the_origin():
     assert run("ior-one")["refraction: ior 1.0 is invisible (origin)"].passed
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="kernels/whitted.py re-spawns a ray passing an ior-1.0 (or false) interface from the hit point offset "
-    "along the normal: 1e4 units from the origin that shifts it sideways by ~0.02 units (docs/stress.md)",
-)
 def test_ior_one_is_invisible_far_from_the_origin():
     assert run("ior-one")["refraction: ior 1.0 is invisible (1e4 from origin)"].passed
 
@@ -83,11 +78,6 @@ def test_high_ior_furnace_two_spheres():
     assert run("high-ior")["refraction: ior 4.0 furnace, two spheres"].passed
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="kernels/whitted.py: light trapped between an air bubble and ior-4 glass uses up the tree's segment "
-    "budget (MAX_SEGMENTS) before heavier deferred branches are traced; pixels lose up to 92% (docs/stress.md)",
-)
 def test_high_ior_furnace_air_bubble():
     assert run("high-ior")["refraction: ior 4.0 furnace, air bubble in a sphere"].passed
 
