@@ -6,7 +6,8 @@ AOVs (arbitrary output variables) describe the primary ray through the pixel CEN
 
 - ``depth``     distance t along the unit camera ray to the first hit (world units), +inf on a miss
 - ``normal``    unit geometric normal at the hit, world space, flipped to face the camera; 0 on a miss
-- ``object_id`` index of the hit shape in the scene file's ``[[shape]]`` list, -1 on a miss
+- ``object_id`` index of the hit shape in the scene file's ``[[shape]]`` list, -1 on a miss,
+  ``-2 - k`` on the surface of light k (area and sphere lights are not shapes)
 - ``position``  world-space hit point; 0 on a miss
 """
 import warp as wp
@@ -44,5 +45,8 @@ def write_aovs(film: Film, scene: SceneData, pixel: wp.int32, o: wp.vec3, d: wp.
         p = o + t * d
         film.depth[pixel] = t
         film.normal[pixel] = facing_normal(scene, prim, p, d)
-        film.object_id[pixel] = prim_shape(scene, prim)
+        surface = prim_shape(scene, prim)
+        if surface >= scene.num_shapes:  # the surface of light k is not a shape: -2 - k
+            surface = scene.num_shapes - 2 - surface
+        film.object_id[pixel] = surface
         film.position[pixel] = p

@@ -41,7 +41,10 @@ class IntegratorSettings:
 
 def make_render_kernel(radiance, record: bool = False):
     """A render kernel around the ``@wp.func``
-    ``radiance(scene, materials, lights, settings, o, d, t, prim, rec, pixel, sample, parent) -> vec3``.
+    ``radiance(scene, materials, lights, settings, o, d, t, prim, rec, seed, pixel, sample, parent) -> vec3``.
+
+    ``seed``, ``pixel`` and ``sample`` also key the random numbers of integrators that sample
+    (``kernels.sampling.sample_1d``; dimensions 0 and 1 are the position in the pixel).
 
     ``rec``, ``pixel``, ``sample`` and ``parent`` (the record index of the camera ray) are for
     recording: with ``record=False`` the kernel passes an empty ``rec`` and ``radiance`` must not
@@ -71,7 +74,7 @@ def make_render_kernel(radiance, record: bool = False):
         if spp == 1:
             if wp.static(record):
                 parent = record_ray(rec, scene, pixel, 0, CAMERA, cam.origin, d, t, prim, wp.vec3(1.0), 1, -1)
-            film.rgb[pixel] = radiance(scene, materials, lights, settings, cam.origin, d, t, prim, rec, pixel, 0, parent)
+            film.rgb[pixel] = radiance(scene, materials, lights, settings, cam.origin, d, t, prim, rec, seed, pixel, 0, parent)
             return
         total = wp.vec3(0.0)
         for s in range(spp):
@@ -79,7 +82,7 @@ def make_render_kernel(radiance, record: bool = False):
             ts, prim_s = closest_hit(scene, cam.origin, ds, 0.0, wp.inf)
             if wp.static(record):
                 parent = record_ray(rec, scene, pixel, s, CAMERA, cam.origin, ds, ts, prim_s, wp.vec3(1.0), 1, -1)
-            total += radiance(scene, materials, lights, settings, cam.origin, ds, ts, prim_s, rec, pixel, s, parent)
+            total += radiance(scene, materials, lights, settings, cam.origin, ds, ts, prim_s, rec, seed, pixel, s, parent)
         film.rgb[pixel] = total / float(spp)
 
     return render_pixels

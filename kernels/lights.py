@@ -1,6 +1,8 @@
-"""Delta lights (point, directional, spot): the radiance they deliver to a point.
+"""Lights on the device, and what delta lights (point, directional, spot) deliver to a point.
 
-Units: point and spot ``intensity`` in W/sr, directional ``irradiance`` in W/m^2 (RGB).
+Every light of the scene is one row of ``LightData``; area, sphere and environment lights are
+sampled by ``kernels.emitters``. Units: point and spot ``intensity`` in W/sr, directional
+``irradiance`` in W/m^2, area/sphere/environment ``radiance`` in W/(m^2 sr) (RGB).
 A point light at distance d delivers irradiance ``I / d^2`` on a surface facing it; the
 integrator multiplies by the BRDF and the cosine at the receiver.
 """
@@ -9,14 +11,20 @@ import warp as wp
 POINT = wp.constant(0)
 DIRECTIONAL = wp.constant(1)
 SPOT = wp.constant(2)
+AREA = wp.constant(3)
+SPHERE_LIGHT = wp.constant(4)
+ENVIRONMENT = wp.constant(5)
 
 
 @wp.struct
 class LightData:
     type: wp.array(dtype=wp.int32)
-    position: wp.array(dtype=wp.vec3)
+    position: wp.array(dtype=wp.vec3)  # point/spot position, parallelogram corner, sphere centre
     direction: wp.array(dtype=wp.vec3)  # unit, the way the light travels
-    power: wp.array(dtype=wp.vec3)  # intensity (W/sr) or irradiance (W/m^2)
+    power: wp.array(dtype=wp.vec3)  # intensity (W/sr), irradiance (W/m^2) or radiance (W/(m^2 sr))
+    edge_u: wp.array(dtype=wp.vec3)  # parallelogram edges from the corner
+    edge_v: wp.array(dtype=wp.vec3)
+    radius: wp.array(dtype=float)  # sphere light
     cos_cutoff: wp.array(dtype=float)  # spot: cos of the cone's half-angle
     cutoff: wp.array(dtype=float)  # spot: half-angle, radians
     beam: wp.array(dtype=float)  # spot: half-angle of full intensity, radians
@@ -43,6 +51,8 @@ def light_incident(lights: LightData, i: wp.int32, p: wp.vec3):
     kind = lights.type[i]
     if kind == DIRECTIONAL:
         return -lights.direction[i], wp.inf, lights.power[i]
+    if kind > SPOT:  # not a delta light: see kernels.emitters
+        return wp.vec3(0.0, 0.0, 1.0), 0.0, wp.vec3(0.0)
     to_light = lights.position[i] - p
     dist2 = wp.dot(to_light, to_light)
     if dist2 == 0.0:

@@ -27,6 +27,7 @@ def raycast_radiance(
     t: float,
     prim: wp.int32,
     rec: RayRecord,
+    seed: wp.int32,
     pixel: wp.int32,
     sample: wp.int32,
     parent: wp.int32,

@@ -56,6 +56,7 @@ class SceneData:
     plane_point: wp.array(dtype=wp.vec3)
     plane_normal: wp.array(dtype=wp.vec3)  # unit
     plane_shape: wp.array(dtype=wp.int32)
+    num_shapes: wp.int32  # surfaces from here on are the surfaces of lights (see wrt.geometry)
 
 
 @wp.func
@@ -185,7 +186,8 @@ def closest_hit_brute_force(scene: SceneData, o: wp.vec3, d: wp.vec3, t_min: flo
 
 @wp.func
 def prim_shape(scene: SceneData, prim: wp.int32) -> wp.int32:
-    """Index of the scene-file ``[[shape]]`` a primitive belongs to (-1 for ``NO_HIT``)."""
+    """Surface a primitive belongs to: its ``[[shape]]`` index, or ``num_shapes + k`` on the
+    surface of light k (-1 for ``NO_HIT``)."""
     if prim == NO_HIT:
         return -1
     kind = prim & 3

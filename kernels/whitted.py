@@ -26,14 +26,8 @@ A ray that goes straight on through a surface (a false interface between media, 
 index-matched one) keeps its origin and direction: only its ``t_min`` moves past the hit by the
 hit's error bound, so an ior-1.0 object is exactly invisible at any distance from the origin.
 
-Media: each branch carries a small stack of the dielectric shapes it is inside. The current
-medium is the entry of highest ``priority``, ties going to the most recently entered. A surface
-of a shape that does not win (entering a lower-priority medium, or leaving a shape that is not the
-current medium) is a false interface: the ray continues straight, only the stack changes. So
-nested objects need no priorities (an air bubble in glass, a glass sphere in water), and where
-dielectrics overlap the higher priority owns the overlap (a glass sphere half in water: give the
-glass priority 1). A ray leaving a shape it never entered (a camera inside glass) refracts from
-that shape's ior into the current medium.
+Media: each branch carries the stack of dielectrics it is inside (``kernels.media``): nested
+and overlapping dielectrics, with ``priority`` for overlaps.
 
 Recording: ``whitted_record`` is the same integrator with every traced ray appended to a
 ``kernels.record.RayRecord``: each segment traced in the loop (kind ``REFLECTED``,
@@ -52,25 +46,19 @@ import warp as wp
 
 from .integrator import IntegratorSettings, make_render_kernel
 from .lights import LightData, light_incident
-from .materials import DIELECTRIC, DIFFUSE, MIRROR, PHONG, MaterialData, beer_lambert, eval_brdf
+from .materials import DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, PHONG, MaterialData, beer_lambert, eval_brdf
+from .media import MEDIA, Media, current_medium, dielectric_interface, max_component
 from .optics import fresnel_dielectric, reflect, refract
 from .record import REFLECTED, REFRACTED, SHADOW_BLOCKED, SHADOW_LIT, STRAIGHT, TOTAL_INTERNAL, RayRecord, record_ray
 from .spawn import hit_error, spawn_origin
 from .traverse import NO_HIT, SceneData, any_hit, closest_hit, geometric_normal, prim_shape
 
 BRANCHES = 32  # pending branches per camera ray
-MEDIA = 4  # nested dielectrics a ray can be inside at once
 MAX_SEGMENTS = wp.constant(4096)  # hard stop per camera ray, whatever happens (deferred branches: heaviest first)
 SHADOW_CROSSINGS = wp.constant(16)  # dielectric surfaces a filtered shadow ray may pass
 BranchVec3 = wp.types.matrix(shape=(BRANCHES, 3), dtype=float)
 BranchMedia = wp.types.matrix(shape=(BRANCHES, MEDIA), dtype=wp.int32)
 BranchInt = wp.types.vector(length=BRANCHES, dtype=wp.int32)
-Media = wp.types.vector(length=MEDIA, dtype=wp.int32)
-
-
-@wp.func
-def max_component(v: wp.vec3) -> float:
-    return wp.max(wp.max(v[0], v[1]), v[2])
 
 
 @wp.func
@@ -91,49 +79,6 @@ def heaviest_branch(throughput: BranchVec3, count: wp.int32) -> wp.int32:
         if max_component(throughput[k]) > max_component(throughput[best]):
             best = k
     return best
-
-
-@wp.func
-def shape_priority(materials: MaterialData, shape: wp.int32) -> wp.int32:
-    return materials.priority[materials.shape_material[shape]]
-
-
-@wp.func
-def current_medium(materials: MaterialData, media: Media, count: wp.int32) -> wp.int32:
-    """Slot of the medium the ray is in: highest priority, ties to the latest entered; -1 = exterior."""
-    best = int(-1)
-    for k in range(count):
-        if best < 0:
-            best = k
-        elif shape_priority(materials, media[k]) >= shape_priority(materials, media[best]):
-            best = k
-    return best
-
-
-@wp.func
-def medium_ior(materials: MaterialData, settings: IntegratorSettings, media: Media, slot: wp.int32) -> float:
-    if slot < 0:
-        return settings.exterior_ior
-    return materials.ior[materials.shape_material[media[slot]]]
-
-
-@wp.func
-def find_medium(media: Media, count: wp.int32, shape: wp.int32) -> wp.int32:
-    """Slot of the latest entry of ``shape`` in the stack, or -1."""
-    found = int(-1)
-    for k in range(count):
-        if media[k] == shape:
-            found = k
-    return found
-
-
-@wp.func
-def remove_medium(media: Media, count: wp.int32, slot: wp.int32) -> Media:
-    out = media
-    for k in range(slot, count - 1):
-        out[k] = media[k + 1]
-    out[count - 1] = -1
-    return out
 
 
 @wp.func
@@ -247,6 +192,7 @@ def make_whitted_radiance(record: bool):
         t: float,
         prim: wp.int32,
         rec: RayRecord,
+        seed: wp.int32,
         pixel: wp.int32,
         sample: wp.int32,
         parent: wp.int32,
@@ -303,7 +249,7 @@ def make_whitted_radiance(record: bool):
                     radiance += wp.cw_mul(throughput, materials.emission[m])
                 err = hit_error(o, p, t)
                 kind = materials.type[m]
-                if kind == DIFFUSE or kind == PHONG:
+                if kind == DIFFUSE or kind == PHONG or kind == GLOSSY:
                     local = wp.cw_mul(settings.ambient, materials.albedo[m])
                     if depth < settings.max_depth:
                         local += direct_light(
@@ -323,31 +269,7 @@ def make_whitted_radiance(record: bool):
                             segment_kind = REFLECTED
                             segment_parent = current
                 elif kind == DIELECTRIC:
-                    # which media are on either side, and is this a real interface?
-                    inside = find_medium(media, n_media, shape)
-                    media_t = media
-                    n_media_t = n_media
-                    real = bool(True)
-                    n1 = float(1.0)
-                    n2 = float(1.0)
-                    if entering:
-                        n1 = medium_ior(materials, settings, media, slot)
-                        n2 = materials.ior[m]
-                        if slot >= 0 and shape_priority(materials, media[slot]) > materials.priority[m]:
-                            real = False
-                        if n_media < MEDIA:
-                            media_t[n_media] = shape
-                            n_media_t = n_media + 1
-                    elif inside < 0:  # leaving a shape never entered: the ray started inside it
-                        n1 = materials.ior[m]
-                        n2 = medium_ior(materials, settings, media, slot)
-                    else:
-                        media_t = remove_medium(media, n_media, inside)
-                        n_media_t = n_media - 1
-                        if inside != slot:
-                            real = False
-                        n1 = materials.ior[m]
-                        n2 = medium_ior(materials, settings, media_t, current_medium(materials, media_t, n_media_t))
+                    real, n1, n2, media_t, n_media_t = dielectric_interface(materials, settings, media, n_media, shape, entering)
                     if not real:
                         t_from = t + err
                         t_last = t

@@ -99,7 +99,9 @@ BAD = [
     ("zero light direction", GOOD + '[[light]]\ntype = "directional"\ndirection = [0, 0, 0]\nirradiance = [1, 1, 1]\n', "light[0].direction", "zero vector"),
     ("spot beam wider than cutoff", GOOD + '[[light]]\ntype = "spot"\nposition = [0, 1, 0]\ndirection = [0, -1, 0]\nintensity = [1, 1, 1]\ncutoff_angle = 10\nbeam_width = 20\n', "light[0].beam_width = 20", "must be in [0, 10]"),
     ("unknown light key", GOOD + '[[light]]\ntype = "point"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\ncolor = [1, 1, 1]\n', "light[0].color", "unknown key"),
-    ("area light in whitted", GOOD.replace("spp = 1", 'integrator = "whitted"') + '[[light]]\ntype = "area"\n', "light[0].type = 'area'", "point, directional and spot"),
+    ("area light in whitted", GOOD.replace("spp = 1", 'integrator = "whitted"') + '[[light]]\ntype = "area"\ncorner = [0, 2, 0]\nedge_u = [1, 0, 0]\nedge_v = [0, 0, 1]\nradiance = [1, 1, 1]\n', "light[0].type = 'area'", "point, directional and spot"),
+    ("flat area light", GOOD + '[[light]]\ntype = "area"\ncorner = [0, 2, 0]\nedge_u = [1, 0, 0]\nedge_v = [2, 0, 0]\nradiance = [1, 1, 1]\n', "light[0].edge_v = [2.0, 0.0, 0.0]", "parallel to edge_u"),
+    ("unplanned sampler", GOOD.replace("spp = 1", 'sampler = "sobol"'), "render.sampler = 'sobol'", "must be one of independent"),
     ("bad dielectric shadows", GOOD.replace("spp = 1", 'dielectric_shadows = "glass"'), "render.dielectric_shadows = 'glass'", "opaque, filtered"),
     ("triangle with 4 points", GOOD + '[[shape]]\ntype = "triangle"\nvertices = [[0,0,0],[1,0,0],[0,1,0],[1,1,0]]\n', "shape[1].vertices", "list of 3"),
 ]

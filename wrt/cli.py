@@ -29,7 +29,8 @@ def _parser() -> argparse.ArgumentParser:
         description="Render a TOML scene file to an EXR (linear float RGB plus optional AOV channels) or PNG "
         "(tone mapped: clipped to [0, 1], sRGB, 8 bit). Options override the scene's [render] table.",
     )
-    r.add_argument("scene", help="scene file (.toml); see docs/scene-format.md")
+    r.add_argument("scene", help="scene file: .toml (docs/scene-format.md) or Mitsuba 3 .xml (docs/mitsuba.md)")
+    r.add_argument("--strict", action="store_true", help="Mitsuba XML: unsupported elements are errors, not warnings")
     r.add_argument("-o", "--output", required=True, help="output image, .exr or .png (written atomically)")
     r.add_argument("--spp", type=int, help="samples per pixel (default: the scene's [render] spp)")
     r.add_argument("--seed", type=int, help="random seed (default: the scene's [render] seed)")
@@ -134,7 +135,7 @@ def _render(args) -> int:
     messages = init_warp()
     if args.device.startswith("cuda") and messages:
         print(messages, end="", file=sys.stderr)
-    scene = override_render(load_scene(args.scene), width=args.width, height=args.height, spp=args.spp, seed=args.seed)
+    scene = override_render(load_scene(args.scene, strict=args.strict), width=args.width, height=args.height, spp=args.spp, seed=args.seed)
     result = render(scene, device=args.device, threads=args.threads)
     metadata = {
         "version": __version__,

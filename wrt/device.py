@@ -15,15 +15,27 @@ import warp as wp
 
 from kernels.camera import CameraData
 from kernels.integrator import IntegratorSettings
-from kernels.lights import DIRECTIONAL, POINT, SPOT, LightData
-from kernels.materials import DIELECTRIC, DIFFUSE, MIRROR, PHONG, MaterialData
+from kernels.lights import AREA, DIRECTIONAL, ENVIRONMENT, POINT, SPHERE_LIGHT, SPOT, LightData
+from kernels.materials import DIELECTRIC, DIFFUSE, EMITTER, GLOSSY, MIRROR, PHONG, MaterialData
 from kernels.traverse import BvhNode, SceneData
 
 from .errors import WrtError
 from .geometry import Primitives, polygon_projection
-from .scene import Camera, DirectionalLight, PointLight, RenderSettings, Scene, SpotLight
+from .scene import (
+    SURFACE_LIGHTS,
+    AreaLight,
+    Camera,
+    DirectionalLight,
+    EnvironmentLight,
+    Material,
+    PointLight,
+    RenderSettings,
+    Scene,
+    SphereLight,
+    SpotLight,
+)
 
-MATERIAL_CODES = {"diffuse": DIFFUSE, "phong": PHONG, "mirror": MIRROR, "dielectric": DIELECTRIC}
+MATERIAL_CODES = {"diffuse": DIFFUSE, "phong": PHONG, "mirror": MIRROR, "dielectric": DIELECTRIC, "glossy": GLOSSY, "emitter": EMITTER}
 
 
 def init_warp() -> str:
@@ -111,19 +123,33 @@ def upload_geometry(p: Primitives, device) -> SceneData:
     s.plane_point = _vec3(p.plane_point, device)
     s.plane_normal = _vec3(p.plane_normal, device)
     s.plane_shape = _int(p.plane_shape, device)
+    s.num_shapes = p.num_shapes
     return s
 
 
 def _base_color(mat) -> tuple:
     """The colour the raycast integrator shows for a material."""
-    return {"mirror": mat.reflectance, "dielectric": mat.transmittance}.get(mat.type, mat.albedo)
+    return {"mirror": mat.reflectance, "glossy": mat.reflectance, "dielectric": mat.transmittance, "emitter": mat.emission}.get(mat.type, mat.albedo)
+
+
+def surface_materials(scene: Scene) -> tuple[list[int], list[Material]]:
+    """Material index of every surface (the shapes, then the surfaces of area and sphere lights)
+    and the material list they index: the scene's, then one black emitter per surface light,
+    emitting the light's radiance from its front."""
+    materials = list(scene.materials)
+    surfaces = [shape.material for shape in scene.shapes]
+    for k, light in enumerate(scene.lights):
+        surfaces.append(len(materials) if isinstance(light, SURFACE_LIGHTS) else -1)
+        if isinstance(light, SURFACE_LIGHTS):
+            materials.append(Material(name=f"light[{k}]", type="emitter", albedo=(0.0, 0.0, 0.0), emission=light.radiance))
+    return surfaces, materials
 
 
 def upload_materials(scene: Scene, device) -> MaterialData:
-    """Per-shape material index and every material's parameters (linear RGB colours)."""
-    mats = scene.materials
+    """Per-surface material index and every material's parameters (linear RGB colours)."""
+    surfaces, mats = surface_materials(scene)
     m = MaterialData()
-    m.shape_material = _int([shape.material for shape in scene.shapes] or [0], device)
+    m.shape_material = _int(surfaces or [0], device)
     m.type = _int([MATERIAL_CODES[mat.type] for mat in mats], device)
     m.base_color = _vec3([_base_color(mat) for mat in mats], device)
     m.albedo = _vec3([mat.albedo for mat in mats], device)
@@ -134,29 +160,42 @@ def upload_materials(scene: Scene, device) -> MaterialData:
     with np.errstate(divide="ignore"):
         m.sigma = _vec3([np.minimum(-np.log(mat.transmittance), 1e30) for mat in mats], device)
     m.priority = _int([mat.priority for mat in mats], device)
+    m.roughness = _float([mat.roughness for mat in mats], device)
     m.emission = _vec3([mat.emission for mat in mats], device)
     return m
 
 
 def upload_lights(scene: Scene, device) -> LightData:
-    """The scene's point, directional and spot lights (other light types are not delta lights)."""
+    """Every light of the scene, one row each in file order (see ``kernels.lights.LightData``):
+    the surface of light k is surface ``num_shapes + k`` of the geometry."""
     rows = []
     for light in scene.lights:
+        row = {"position": (0.0, 0.0, 0.0), "direction": (0.0, 0.0, 1.0), "edge_u": (0.0, 0.0, 0.0), "edge_v": (0.0, 0.0, 0.0), "radius": 0.0, "cutoff": 180.0, "beam": 180.0}
         if isinstance(light, PointLight):
-            rows.append((POINT, light.position, (0.0, 0.0, 1.0), light.intensity, 180.0, 180.0))
+            row.update(type=POINT, position=light.position, power=light.intensity)
         elif isinstance(light, DirectionalLight):
-            rows.append((DIRECTIONAL, (0.0, 0.0, 0.0), light.direction, light.irradiance, 180.0, 180.0))
+            row.update(type=DIRECTIONAL, direction=light.direction, power=light.irradiance)
         elif isinstance(light, SpotLight):
-            rows.append((SPOT, light.position, light.direction, light.intensity, light.cutoff_angle, light.beam_width))
-    cutoff = np.radians([r[4] for r in rows])
+            row.update(type=SPOT, position=light.position, direction=light.direction, power=light.intensity, cutoff=light.cutoff_angle, beam=light.beam_width)
+        elif isinstance(light, AreaLight):
+            row.update(type=AREA, position=light.corner, edge_u=light.edge_u, edge_v=light.edge_v, power=light.radiance)
+        elif isinstance(light, SphereLight):
+            row.update(type=SPHERE_LIGHT, position=light.center, radius=light.radius, power=light.radiance)
+        elif isinstance(light, EnvironmentLight):
+            row.update(type=ENVIRONMENT, power=light.radiance)
+        rows.append(row)
+    cutoff = np.radians([r["cutoff"] for r in rows])
     lights = LightData()
-    lights.type = _int([r[0] for r in rows], device)
-    lights.position = _vec3([r[1] for r in rows], device)
-    lights.direction = _vec3([r[2] for r in rows], device)
-    lights.power = _vec3([r[3] for r in rows], device)
+    lights.type = _int([r["type"] for r in rows], device)
+    lights.position = _vec3([r["position"] for r in rows], device)
+    lights.direction = _vec3([r["direction"] for r in rows], device)
+    lights.power = _vec3([r["power"] for r in rows], device)
+    lights.edge_u = _vec3([r["edge_u"] for r in rows], device)
+    lights.edge_v = _vec3([r["edge_v"] for r in rows], device)
+    lights.radius = _float([r["radius"] for r in rows], device)
     lights.cos_cutoff = _float(np.cos(cutoff), device)
     lights.cutoff = _float(cutoff, device)
-    lights.beam = _float(np.radians([r[5] for r in rows]), device)
+    lights.beam = _float(np.radians([r["beam"] for r in rows]), device)
     return lights
 
 

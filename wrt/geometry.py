@@ -1,7 +1,9 @@
 """Scene shapes flattened into primitive arrays (host, float64), and their BVH, ready for upload.
 
 Every ``[[shape]]`` becomes primitives of one kind: a sphere, a plane, a triangle, a polygon, or
-a mesh's triangles; each primitive remembers its shape index (the ``object_id``). Bounded
+a mesh's triangles; each primitive remembers its surface: the shape's index (the ``object_id``),
+or for the surface of light k (a parallelogram is a polygon, a sphere light a sphere)
+``n_shapes + k``. Bounded
 primitives go into one BVH with mixed kinds; planes are unbounded and stay outside it. After the
 build each kind's arrays are reordered to the order the leaves visit them, for memory locality.
 """
@@ -14,7 +16,7 @@ import numpy as np
 from kernels.traverse import PLANE, POLYGON, SPHERE, TRIANGLE
 
 from .bvh import Bvh, build_bvh
-from .scene import Mesh, Plane, Polygon, Scene, Sphere, Triangle
+from .scene import AreaLight, Mesh, Plane, Polygon, Scene, Sphere, SphereLight, Triangle
 
 
 @dataclass
@@ -32,6 +34,7 @@ class Primitives:
     plane_point: np.ndarray  # (L, 3)
     plane_normal: np.ndarray  # (L, 3) unit
     plane_shape: np.ndarray
+    num_shapes: int = 0  # surfaces numbered from here on belong to lights
     bvh: Bvh | None = None  # over the bounded primitives, see ``bounded_ids``
     prims: np.ndarray | None = None  # (N,) packed ids in leaf order
 
@@ -79,6 +82,14 @@ def flatten(scene: Scene) -> Primitives:
         elif isinstance(shape, Mesh):
             tri_blocks.append(shape.vertices[shape.faces])
             tri_shape_blocks.append(np.full(len(shape.faces), i, dtype=np.int32))
+    for k, light in enumerate(scene.lights):
+        surface = len(scene.shapes) + k
+        if isinstance(light, SphereLight):
+            spheres.append((light.center, light.radius, surface))
+        elif isinstance(light, AreaLight):
+            c, u, v = (np.asarray(x, dtype=np.float64) for x in (light.corner, light.edge_u, light.edge_v))
+            normal = np.cross(u, v)
+            polys.append(([c, c + u, c + u + v, c + v], tuple(normal / np.linalg.norm(normal)), surface))
     tri_blocks.insert(0, np.asarray([v for v, _ in tris], dtype=np.float64).reshape(-1, 3, 3))
     tri_shape_blocks.insert(0, np.asarray([s for _, s in tris], dtype=np.int32))
     return Primitives(
@@ -93,6 +104,7 @@ def flatten(scene: Scene) -> Primitives:
         plane_point=np.asarray([p for p, _, _ in planes], dtype=np.float64).reshape(-1, 3),
         plane_normal=np.asarray([n for _, n, _ in planes], dtype=np.float64).reshape(-1, 3),
         plane_shape=np.asarray([s for _, _, s in planes], dtype=np.int32),
+        num_shapes=len(scene.shapes),
     )
 
 

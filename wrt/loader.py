@@ -10,6 +10,7 @@ import dataclasses
 import difflib
 import math
 import os
+import sys
 import tomllib
 from collections.abc import Mapping
 
@@ -19,11 +20,14 @@ from .errors import MeshFileError, SceneError, WrtError
 from .meshio import apply_transform, load_mesh
 from .scene import (
     DIELECTRIC_SHADOWS,
+    FILTERS,
     INTEGRATORS,
+    SAMPLERS,
     MATERIAL_TYPES,
     Camera,
+    AreaLight,
     DirectionalLight,
-    Light,
+    EnvironmentLight,
     Material,
     Mesh,
     Plane,
@@ -32,6 +36,7 @@ from .scene import (
     RenderSettings,
     Scene,
     Sphere,
+    SphereLight,
     SpotLight,
     Triangle,
 )
@@ -160,6 +165,8 @@ def _render(file: str, data) -> RenderSettings:
         exterior_ior=t.number("exterior_ior", d.exterior_ior, lo=1.0, hi=10.0),
         dielectric_shadows=t.string("dielectric_shadows", d.dielectric_shadows, DIELECTRIC_SHADOWS),
         min_throughput=t.number("min_throughput", d.min_throughput, lo=0.0, hi=1.0),
+        sampler=t.string("sampler", d.sampler, SAMPLERS),
+        filter=t.string("filter", d.filter, FILTERS),
     )
     t.finish()
     return settings
@@ -188,6 +195,7 @@ _MATERIAL_KEYS = {
     "phong": ("albedo", "specular", "exponent"),
     "mirror": ("reflectance",),
     "dielectric": ("ior", "transmittance", "priority"),
+    "glossy": ("roughness", "reflectance"),
 }
 
 
@@ -203,6 +211,7 @@ def _material(file: str, index: int, data) -> Material:
         "ior": lambda: t.number("ior", Material.ior, lo=1.0, hi=10.0),
         "transmittance": lambda: t.vec3("transmittance", Material.transmittance, lo=0.0, hi=1.0),
         "priority": lambda: t.number("priority", Material.priority, integer=True, lo=-1000, hi=1000),
+        "roughness": lambda: t.number("roughness", Material.roughness, lo=1e-3, hi=1.0),
     }
     for key in _MATERIAL_KEYS[kind]:
         values[key] = readers[key]()
@@ -303,8 +312,14 @@ def _light(file: str, index: int, data):
             cutoff_angle=cutoff,
             beam_width=t.number("beam_width", 0.75 * cutoff, lo=0.0, hi=cutoff),
         )
-    else:  # parameters belong to the path integrator
-        return Light(type=kind, params={k: v for k, v in t.data.items() if k != "type"})
+    elif kind == "area":
+        light = AreaLight(corner=t.vec3("corner"), edge_u=t.vec3("edge_u", nonzero=True), edge_v=t.vec3("edge_v", nonzero=True), radiance=t.vec3("radiance", lo=0.0))
+        if not np.any(np.cross(light.edge_u, light.edge_v)):
+            raise t.error("edge_v", "is parallel to edge_u (the light has no area)", list(light.edge_v))
+    elif kind == "sphere":
+        light = SphereLight(center=t.vec3("center"), radius=t.number("radius", lo=0.0, lo_open=True), radiance=t.vec3("radiance", lo=0.0))
+    else:
+        light = EnvironmentLight(radiance=t.vec3("radiance", lo=0.0))
     t.finish()
     return light
 
@@ -334,13 +349,15 @@ def parse_scene(doc: Mapping, file: str = "<memory>", scene_dir: str = ".") -> S
     lights = [_light(file, i, l) for i, l in enumerate(_array_of_tables(file, doc, "light"))]
     if render.integrator == "whitted":
         for i, light in enumerate(lights):
-            if isinstance(light, Light):
-                raise SceneError(file, f"light[{i}]", "type", "the whitted integrator takes point, directional and spot lights", light.type)
+            if isinstance(light, (AreaLight, SphereLight, EnvironmentLight)):
+                raise SceneError(file, f"light[{i}]", "type", "the whitted integrator takes point, directional and spot lights (area, sphere and environment lights need integrator = \"path\")", light.type)
     return Scene(render=render, camera=camera, materials=tuple(materials), shapes=tuple(shapes), lights=tuple(lights), path=file)
 
 
-def load_scene(path: str | os.PathLike) -> Scene:
-    """Read and validate a TOML scene file.
+def load_scene(path: str | os.PathLike, strict: bool = False) -> Scene:
+    """Read and validate a scene file: TOML, or Mitsuba 3 XML (``.xml``, the subset of
+    ``wrt.mitsuba_xml``; unsupported elements are warned about on stderr, or with ``strict`` are
+    errors).
 
     Raises
     ------
@@ -350,6 +367,13 @@ def load_scene(path: str | os.PathLike) -> Scene:
         It is not valid TOML, or a table, key or value is wrong (the message names them).
     """
     path = os.fspath(path)
+    if path.lower().endswith(".xml"):
+        from .mitsuba_xml import load_mitsuba
+
+        doc, warnings = load_mitsuba(path, strict=strict)
+        for warning in warnings:
+            print(f"wrt: warning: {warning}", file=sys.stderr)
+        return parse_scene(doc, file=path, scene_dir=os.path.dirname(os.path.abspath(path)))
     try:
         with open(path, "rb") as f:
             doc = tomllib.load(f)

@@ -22,6 +22,7 @@ import warp as wp
 from kernels.film import Film
 from kernels.raycast import raycast, raycast_record
 from kernels.record import RayRecord
+from kernels.path import path
 from kernels.whitted import whitted, whitted_record
 
 from .device import camera_data, integrator_settings, resolve_device, upload_geometry, upload_lights, upload_materials
@@ -29,7 +30,7 @@ from .errors import WrtError
 from .geometry import build
 from .scene import Scene
 
-INTEGRATOR_KERNELS = {"raycast": raycast, "whitted": whitted}
+INTEGRATOR_KERNELS = {"raycast": raycast, "whitted": whitted, "path": path}
 RECORD_KERNELS = {"raycast": raycast_record, "whitted": whitted_record}
 TILE_PIXELS = 4096  # pixels per CPU launch: small enough to balance two threads, large enough to amortise a launch
 AOV_NAMES = ("depth", "normal", "object_id", "position")

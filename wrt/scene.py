@@ -10,7 +10,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-INTEGRATORS = ("raycast", "whitted")
+INTEGRATORS = ("raycast", "whitted", "path")
+SAMPLERS = ("independent",)  # "stratified" and "sobol" are planned (issue 4)
+FILTERS = ("box",)  # "gaussian" and "tent" are planned (issue 4)
 DIELECTRIC_SHADOWS = ("opaque", "filtered")
 
 
@@ -32,6 +34,8 @@ class RenderSettings:
     exterior_ior: float = 1.0  # index of refraction of the medium filling the scene
     dielectric_shadows: str = "opaque"  # or "filtered": shadow rays pass dielectrics, Beer-attenuated
     min_throughput: float = 1e-4  # whitted branches whose throughput falls below this are cut
+    sampler: str = "independent"  # random numbers: a counter-based hash per (seed, pixel, sample, dimension)
+    filter: str = "box"  # pixel reconstruction filter
 
 
 @dataclass(frozen=True)
@@ -52,7 +56,7 @@ class Camera:
         return forward, right, np.cross(right, forward)
 
 
-MATERIAL_TYPES = ("diffuse", "phong", "mirror", "dielectric")
+MATERIAL_TYPES = ("diffuse", "phong", "mirror", "dielectric", "glossy")
 
 
 @dataclass(frozen=True)
@@ -60,7 +64,8 @@ class Material:
     """``[[material]]``: a named surface description. Colours are linear RGB.
 
     ``albedo``: diffuse reflectance (diffuse, phong); ``specular`` and ``exponent``: the
-    energy-normalised Phong lobe; ``reflectance``: mirror colour; ``ior``, ``transmittance``
+    energy-normalised Phong lobe; ``reflectance``: mirror colour, or the constant Fresnel factor
+    of a glossy (GGX) conductor of ``roughness`` alpha; ``ior``, ``transmittance``
     (fraction left after one scene unit inside, Beer-Lambert) and ``priority`` (which medium wins
     where dielectrics overlap): dielectric; ``emission``: radiance in W/(m^2 sr) leaving the front side.
     """
@@ -74,6 +79,7 @@ class Material:
     ior: float = 1.5
     transmittance: tuple[float, float, float] = (1.0, 1.0, 1.0)
     priority: int = 0
+    roughness: float = 0.2
     emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
@@ -152,13 +158,36 @@ class SpotLight:
 
 
 @dataclass(frozen=True)
-class Light:
-    """A light type of a later integrator (area, sphere, environment): kept as given."""
+class AreaLight:
+    """Parallelogram light ``corner + u edge_u + v edge_v`` (u, v in [0, 1]) emitting ``radiance``
+    (W/(m^2 sr)) from the side of ``cross(edge_u, edge_v)`` only; a surface that reflects nothing."""
 
-    type: str
-    params: dict = field(default_factory=dict)
+    corner: tuple[float, float, float]
+    edge_u: tuple[float, float, float]
+    edge_v: tuple[float, float, float]
+    radiance: tuple[float, float, float]
+    type: str = "area"
 
 
+@dataclass(frozen=True)
+class SphereLight:
+    """Sphere emitting ``radiance`` (W/(m^2 sr)) outward; a surface that reflects nothing."""
+
+    center: tuple[float, float, float]
+    radius: float
+    radiance: tuple[float, float, float]
+    type: str = "sphere"
+
+
+@dataclass(frozen=True)
+class EnvironmentLight:
+    """Constant ``radiance`` (W/(m^2 sr)) arriving from every direction, seen by rays that leave."""
+
+    radiance: tuple[float, float, float]
+    type: str = "environment"
+
+
+SURFACE_LIGHTS = (AreaLight, SphereLight)
 DELTA_LIGHTS = (PointLight, DirectionalLight, SpotLight)
 
 

@@ -1,0 +1,105 @@
+"""Media along a ray: which dielectric the ray is inside, and what a dielectric surface it meets
+separates (shared by the whitted and path integrators).
+
+Each ray (or branch) carries a small stack of the dielectric shapes it is inside, up to
+``MEDIA`` deep (an entry past that is not recorded). The current medium is the entry of highest
+``priority``, ties going to the most recently entered; outside every dielectric the ray is in the
+scene's exterior medium (``exterior_ior``). A surface of a shape that does not own the space is a
+false interface: the ray goes straight on and only the stack changes. So nested objects need no
+priorities, and where dielectrics overlap the higher priority owns the overlap.
+
+References
+----------
+C. Schmidt, B. Budge, "Simple Nested Dielectrics in Ray Traced Images", JGT 7(2), 2002.
+"""
+import warp as wp
+
+from .integrator import IntegratorSettings
+from .materials import MaterialData
+
+MEDIA = 4  # nested dielectrics a ray can be inside at once
+Media = wp.types.vector(length=MEDIA, dtype=wp.int32)
+
+
+@wp.func
+def max_component(v: wp.vec3) -> float:
+    return wp.max(wp.max(v[0], v[1]), v[2])
+
+
+@wp.func
+def shape_priority(materials: MaterialData, shape: wp.int32) -> wp.int32:
+    return materials.priority[materials.shape_material[shape]]
+
+
+@wp.func
+def current_medium(materials: MaterialData, media: Media, count: wp.int32) -> wp.int32:
+    """Slot of the medium the ray is in: highest priority, ties to the latest entered; -1 = exterior."""
+    best = int(-1)
+    for k in range(count):
+        if best < 0:
+            best = k
+        elif shape_priority(materials, media[k]) >= shape_priority(materials, media[best]):
+            best = k
+    return best
+
+
+@wp.func
+def medium_ior(materials: MaterialData, settings: IntegratorSettings, media: Media, slot: wp.int32) -> float:
+    if slot < 0:
+        return settings.exterior_ior
+    return materials.ior[materials.shape_material[media[slot]]]
+
+
+@wp.func
+def find_medium(media: Media, count: wp.int32, shape: wp.int32) -> wp.int32:
+    """Slot of the latest entry of ``shape`` in the stack, or -1."""
+    found = int(-1)
+    for k in range(count):
+        if media[k] == shape:
+            found = k
+    return found
+
+
+@wp.func
+def remove_medium(media: Media, count: wp.int32, slot: wp.int32) -> Media:
+    out = media
+    for k in range(slot, count - 1):
+        out[k] = media[k + 1]
+    out[count - 1] = -1
+    return out
+
+
+@wp.func
+def dielectric_interface(materials: MaterialData, settings: IntegratorSettings, media: Media, n_media: wp.int32, shape: wp.int32, entering: bool):
+    """What the surface of dielectric ``shape`` separates for a ray with media stack ``media``:
+    ``(real, n1, n2, media_t, n_media_t)``: whether it is a real interface, the ior on the
+    incident and on the far side, and the stack of a ray that crosses it. A ray leaving a shape
+    it never entered (a camera inside glass) refracts from that shape's ior into the current medium.
+    """
+    m = materials.shape_material[shape]
+    slot = current_medium(materials, media, n_media)
+    inside = find_medium(media, n_media, shape)
+    media_t = media
+    n_media_t = n_media
+    real = bool(True)
+    n1 = float(1.0)
+    n2 = float(1.0)
+    if entering:
+        n1 = medium_ior(materials, settings, media, slot)
+        n2 = materials.ior[m]
+        if slot >= 0 and shape_priority(materials, media[slot]) > materials.priority[m]:
+            real = False
+        if n_media < MEDIA:
+            media_t[n_media] = shape
+            n_media_t = n_media + 1
+    elif inside < 0:
+        n1 = materials.ior[m]
+        n2 = medium_ior(materials, settings, media, slot)
+    else:
+        media_t = remove_medium(media, n_media, inside)
+        n_media_t = n_media - 1
+        if inside != slot:
+            real = False
+        n1 = materials.ior[m]
+        n2 = medium_ior(materials, settings, media_t, current_medium(materials, media_t, n_media_t))
+    return real, n1, n2, media_t, n_media_t

@@ -1,0 +1,74 @@
+"""GGX microfacet reflection (a rough conductor), in a local shading frame.
+
+Local frame: the normal is +z; ``wo`` and ``wi`` are unit vectors pointing away from the surface.
+``alpha`` is the GGX roughness (the scene's ``roughness``); ``reflectance`` is a constant Fresnel
+factor, so reflectance 1 is a lossless rough mirror up to the energy lost to single scattering.
+Masking-shadowing is separable Smith: ``G = G1(wo) G1(wi)``.
+
+References
+----------
+B. Walter, S. Marschner, H. Li, K. Torrance, "Microfacet Models for Refraction through Rough
+Surfaces", EGSR 2007 (GGX D and Smith G1).
+E. Heitz, "Sampling the GGX Distribution of Visible Normals", JCGT 7(4), 2018.
+"""
+import warp as wp
+
+
+@wp.func
+def ggx_d(h: wp.vec3, alpha: float) -> float:
+    """GGX normal distribution D(h) (1/sr), normalised so that the integral of D cos(theta_h) is 1."""
+    cos2 = h[2] * h[2]
+    if cos2 <= 0.0:
+        return 0.0
+    a2 = alpha * alpha
+    denom = cos2 * (a2 - 1.0) + 1.0
+    return a2 / (wp.pi * denom * denom)
+
+
+@wp.func
+def ggx_g1(w: wp.vec3, alpha: float) -> float:
+    """Smith masking of direction ``w`` for GGX."""
+    cos2 = w[2] * w[2]
+    if cos2 <= 0.0:
+        return 0.0
+    tan2 = (1.0 - cos2) / cos2
+    return 2.0 / (1.0 + wp.sqrt(1.0 + alpha * alpha * tan2))
+
+
+@wp.func
+def ggx_sample_visible_normal(wo: wp.vec3, alpha: float, u1: float, u2: float) -> wp.vec3:
+    """A microfacet normal drawn with density ``G1(wo) max(0, wo.h) D(h) / wo.z`` (Heitz 2018)."""
+    # stretch to the hemisphere configuration
+    vh = wp.normalize(wp.vec3(alpha * wo[0], alpha * wo[1], wo[2]))
+    lensq = vh[0] * vh[0] + vh[1] * vh[1]
+    t1 = wp.vec3(1.0, 0.0, 0.0)
+    if lensq > 0.0:
+        t1 = wp.vec3(-vh[1], vh[0], 0.0) / wp.sqrt(lensq)
+    t2 = wp.cross(vh, t1)
+    r = wp.sqrt(u1)
+    phi = 2.0 * wp.pi * u2
+    p1 = r * wp.cos(phi)
+    p2 = r * wp.sin(phi)
+    s = 0.5 * (1.0 + vh[2])
+    p2 = (1.0 - s) * wp.sqrt(wp.max(0.0, 1.0 - p1 * p1)) + s * p2
+    nh = p1 * t1 + p2 * t2 + wp.sqrt(wp.max(0.0, 1.0 - p1 * p1 - p2 * p2)) * vh
+    return wp.normalize(wp.vec3(alpha * nh[0], alpha * nh[1], wp.max(1e-7, nh[2])))
+
+
+@wp.func
+def ggx_eval(wo: wp.vec3, wi: wp.vec3, alpha: float) -> float:
+    """BRDF value without the Fresnel factor: ``D(h) G1(wo) G1(wi) / (4 wo.z wi.z)`` (1/sr)."""
+    if wo[2] <= 0.0 or wi[2] <= 0.0:
+        return 0.0
+    h = wp.normalize(wo + wi)
+    return ggx_d(h, alpha) * ggx_g1(wo, alpha) * ggx_g1(wi, alpha) / (4.0 * wo[2] * wi[2])
+
+
+@wp.func
+def ggx_pdf(wo: wp.vec3, wi: wp.vec3, alpha: float) -> float:
+    """Solid-angle density of ``wi`` when sampled by reflecting ``wo`` about a visible normal:
+    ``G1(wo) D(h) / (4 wo.z)``."""
+    if wo[2] <= 0.0 or wi[2] <= 0.0:
+        return 0.0
+    h = wp.normalize(wo + wi)
+    return ggx_g1(wo, alpha) * ggx_d(h, alpha) / (4.0 * wo[2])
