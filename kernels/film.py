@@ -17,7 +17,8 @@ from .traverse import NO_HIT, SceneData, geometric_normal, prim_shape
 
 @wp.struct
 class Film:
-    rgb: wp.array(dtype=wp.vec3)  # linear radiance, W/(m^2 sr)
+    rgb: wp.array(dtype=wp.vec3)  # linear radiance, W/(m^2 sr): rgb_sum / samples so far
+    rgb_sum: wp.array(dtype=wp.vec3)  # running float32 sum of the samples so far, in sample order
     depth: wp.array(dtype=float)
     normal: wp.array(dtype=wp.vec3)
     object_id: wp.array(dtype=wp.int32)

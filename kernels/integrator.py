@@ -6,6 +6,12 @@ pixel-centre camera ray, writes the AOVs (``kernels.film``), and averages ``radi
 filter) otherwise. ``radiance`` receives the camera ray and its first hit already found, so a
 one-sample render traces each primary ray once.
 
+A launch takes the samples ``first_sample .. first_sample + pass_spp - 1`` of a render of ``spp``
+samples (a progressive render is several launches, or passes). It continues the pixel's running
+float32 sum ``film.rgb_sum`` in sample order and writes ``film.rgb = rgb_sum / samples so far``;
+the AOVs are written by the pass with ``first_sample == 0``. The additions happen in the same
+order however the samples are cut into passes, so the image is bit-identical to a one-pass render.
+
 ``make_render_kernel(radiance, record=True)`` builds the recording variant of the same loop: it
 also appends every camera ray of a sample to a ``kernels.record.RayRecord`` and hands its index
 to ``radiance`` as the parent of what follows (the pixel-centre AOV ray of a render with
@@ -16,13 +22,14 @@ recompiles the module.
 """
 import warp as wp
 
-from .camera import CameraData, camera_ray_direction
+from .camera import CameraData, camera_ray_direction, thin_lens_ray
 from .film import Film, write_aovs
 from .lights import LightData
 from .materials import MaterialData
 from .record import CAMERA, RayRecord, record_ray
 from .sampling import sample_1d
 from .traverse import SceneData, closest_hit
+from .warps import concentric_disk
 
 RECORD_MODULE = "kernels.record_variants"
 
@@ -59,6 +66,8 @@ def make_render_kernel(radiance, record: bool = False):
         settings: IntegratorSettings,
         cam: CameraData,
         spp: wp.int32,
+        first_sample: wp.int32,
+        pass_spp: wp.int32,
         seed: wp.int32,
         first_pixel: wp.int32,
         film: Film,
@@ -67,22 +76,29 @@ def make_render_kernel(radiance, record: bool = False):
         pixel = first_pixel + wp.tid()
         x = pixel % cam.width
         y = pixel // cam.width
-        d = camera_ray_direction(cam, x, y, 0.5, 0.5)
-        t, prim = closest_hit(scene, cam.origin, d, 0.0, wp.inf)
-        write_aovs(film, scene, pixel, cam.origin, d, t, prim)
         parent = int(-1)
-        if spp == 1:
-            if wp.static(record):
-                parent = record_ray(rec, scene, pixel, 0, CAMERA, cam.origin, d, t, prim, wp.vec3(1.0), 1, -1)
-            film.rgb[pixel] = radiance(scene, materials, lights, settings, cam.origin, d, t, prim, rec, seed, pixel, 0, parent)
-            return
         total = wp.vec3(0.0)
-        for s in range(spp):
-            ds = camera_ray_direction(cam, x, y, sample_1d(seed, pixel, s, 0), sample_1d(seed, pixel, s, 1))
-            ts, prim_s = closest_hit(scene, cam.origin, ds, 0.0, wp.inf)
+        if first_sample == 0:
+            d = camera_ray_direction(cam, x, y, 0.5, 0.5)
+            t, prim = closest_hit(scene, cam.origin, d, 0.0, wp.inf)
+            write_aovs(film, scene, pixel, cam.origin, d, t, prim)
+            if spp == 1:
+                if wp.static(record):
+                    parent = record_ray(rec, scene, pixel, 0, CAMERA, cam.origin, d, t, prim, wp.vec3(1.0), 1, -1)
+                total = radiance(scene, materials, lights, settings, cam.origin, d, t, prim, rec, seed, pixel, 0, parent)
+                film.rgb_sum[pixel] = total
+                film.rgb[pixel] = total
+                return
+        else:
+            total = film.rgb_sum[pixel]
+        for s in range(first_sample, first_sample + pass_spp):
+            pinhole = camera_ray_direction(cam, x, y, sample_1d(seed, pixel, s, 0), sample_1d(seed, pixel, s, 1))
+            o_s, ds = thin_lens_ray(cam, pinhole, concentric_disk(sample_1d(seed, pixel, s, 2), sample_1d(seed, pixel, s, 3)))
+            ts, prim_s = closest_hit(scene, o_s, ds, 0.0, wp.inf)
             if wp.static(record):
-                parent = record_ray(rec, scene, pixel, s, CAMERA, cam.origin, ds, ts, prim_s, wp.vec3(1.0), 1, -1)
-            total += radiance(scene, materials, lights, settings, cam.origin, ds, ts, prim_s, rec, seed, pixel, s, parent)
-        film.rgb[pixel] = total / float(spp)
+                parent = record_ray(rec, scene, pixel, s, CAMERA, o_s, ds, ts, prim_s, wp.vec3(1.0), 1, -1)
+            total += radiance(scene, materials, lights, settings, o_s, ds, ts, prim_s, rec, seed, pixel, s, parent)
+        film.rgb_sum[pixel] = total
+        film.rgb[pixel] = total / float(first_sample + pass_spp)
 
     return render_pixels

@@ -420,12 +420,7 @@ def test_examples_convert_without_warnings(path):
     assert warnings == [] and doc["render"]["integrator"] == "path" and doc["render"]["filter"] == "box"
 
 
-THIN_LENS_PENDING = pytest.mark.xfail(strict=True, reason="the thin-lens camera (aperture_radius, focus_distance) is not implemented yet (issue 4)")
-
-
-@pytest.mark.parametrize(
-    "path", [pytest.param(p, marks=THIN_LENS_PENDING) if p.stem == "thin_lens" else p for p in EXAMPLE_FILES], ids=lambda p: p.stem
-)
+@pytest.mark.parametrize("path", EXAMPLE_FILES, ids=lambda p: p.stem)
 def test_examples_are_valid_wrt_scenes(path):
     from wrt.loader import parse_scene
 

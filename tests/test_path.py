@@ -96,3 +96,21 @@ def test_error_falls_as_one_over_sqrt_spp():
     errors = [np.sqrt(np.mean((path(shapes, mats, lights, camera=cam, spp=n).rgb - reference) ** 2)) for n in (4, 16, 64)]
     slope = np.polyfit(np.log([4, 16, 64]), np.log(errors), 1)[0]
     assert -0.6 < slope < -0.4
+
+
+def test_thin_lens_blur_matches_the_circle_of_confusion():
+    """A small emitting sphere off the plane of focus images as a disk whose radius on the focus
+    plane is aperture * |z - f| / z; points on the plane of focus stay sharp."""
+    aperture, focus, z = 0.2, 4.0, 8.0
+    light = [{"type": "sphere", "center": [0, 0, -z], "radius": 0.02, "radiance": [100, 100, 100]}]
+    cam = {"origin": [0, 0, 0], "look_at": [0, 0, -1], "fov": 10, "aperture_radius": aperture, "focus_distance": focus}
+    r = path([], [], light, camera=cam, size=(64, 64), spp=256, max_depth=1)
+    img = r.rgb[..., 0].astype(np.float64)
+    y, x = np.mgrid[0:64, 0:64] + 0.5
+    w = img / img.sum()
+    r2 = (w * ((x - 32) ** 2 + (y - 32) ** 2)).sum()  # uniform disk of radius R: mean r^2 = R^2 / 2
+    radius_px = aperture * abs(z - focus) / z / (focus * np.tan(np.radians(5))) * 32
+    assert np.sqrt(2 * r2) == pytest.approx(radius_px, rel=0.1)
+    cam["focus_distance"] = z
+    sharp = path([], [], light, camera=cam, size=(64, 64), spp=64, max_depth=1).rgb[..., 0]
+    assert np.count_nonzero(sharp > 0) < 16

@@ -2,8 +2,11 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
+import signal
 import sys
+import threading
 
 from .errors import WrtError
 
@@ -27,7 +30,9 @@ def _parser() -> argparse.ArgumentParser:
         "render",
         help="render a scene file to an image",
         description="Render a TOML scene file to an EXR (linear float RGB plus optional AOV channels) or PNG "
-        "(tone mapped: clipped to [0, 1], sRGB, 8 bit). Options override the scene's [render] table.",
+        "(tone mapped: clipped to [0, 1], sRGB, 8 bit). Options override the scene's [render] table. With spp > 1 "
+        "it renders in passes of about a second, with a progress bar on a terminal; Ctrl-C stops after the running "
+        "pass and writes the samples done (exit code 130; Ctrl-C again aborts without writing).",
     )
     r.add_argument("scene", help="scene file: .toml (docs/scene-format.md) or Mitsuba 3 .xml (docs/mitsuba.md)")
     r.add_argument("--strict", action="store_true", help="Mitsuba XML: unsupported elements are errors, not warnings")
@@ -46,6 +51,12 @@ def _parser() -> argparse.ArgumentParser:
         "position (P.X,P.Y,P.Z), or all",
     )
     r.add_argument("--half", action="store_true", help="store EXR RGB as half floats (AOVs stay float32)")
+    r.add_argument(
+        "--checkpoint-every",
+        type=int,
+        metavar="N",
+        help="also write the image to the output every N samples per pixel (its metadata spp: the samples done)",
+    )
 
     m = verbs.add_parser(
         "matrix",
@@ -118,7 +129,26 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+@contextlib.contextmanager
+def _stop_on_ctrl_c():
+    """Within: the first Ctrl-C (SIGINT) sets the event yielded instead of raising, a second one
+    raises ``KeyboardInterrupt`` as usual."""
+    stop = threading.Event()
+
+    def first_ctrl_c(signum, frame):
+        stop.set()
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+    previous = signal.signal(signal.SIGINT, first_ctrl_c)
+    try:
+        yield stop
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def _render(args) -> int:
+    from tqdm import tqdm
+
     from . import __version__
     from .device import init_warp
     from .imageio import write_image
@@ -127,6 +157,8 @@ def _render(args) -> int:
 
     if args.threads is not None and args.threads < 1:
         raise WrtError(f"--threads {args.threads}: must be >= 1")
+    if args.checkpoint_every is not None and args.checkpoint_every < 1:
+        raise WrtError(f"--checkpoint-every {args.checkpoint_every}: must be >= 1")
     ext = os.path.splitext(args.output)[1].lower()
     if ext not in (".exr", ".png"):
         raise WrtError(f"{args.output}: unsupported output format {ext or '(none)'!r} (use .exr or .png)")
@@ -136,23 +168,50 @@ def _render(args) -> int:
     if args.device.startswith("cuda") and messages:
         print(messages, end="", file=sys.stderr)
     scene = override_render(load_scene(args.scene, strict=args.strict), width=args.width, height=args.height, spp=args.spp, seed=args.seed)
-    result = render(scene, device=args.device, threads=args.threads)
-    metadata = {
-        "version": __version__,
-        "scene": os.path.abspath(args.scene),
-        "spp": result.spp,
-        "seed": result.seed,
-        "integrator": result.integrator,
-        "device": result.device,
-        "render_time_s": result.render_time_s,
-    }
-    write_image(args.output, result.rgb, aovs={k: result.aovs[k] for k in args.aov}, metadata=metadata, half=args.half)
+    pixels = scene.render.width * scene.render.height
+
+    def write(result) -> None:
+        metadata = {
+            "version": __version__,
+            "scene": os.path.abspath(args.scene),
+            "spp": result.spp,
+            "seed": result.seed,
+            "integrator": result.integrator,
+            "device": result.device,
+            "render_time_s": result.render_time_s,
+        }
+        write_image(args.output, result.rgb, aovs={k: result.aovs[k] for k in args.aov}, metadata=metadata, half=args.half)
+
+    bar = tqdm(
+        total=scene.render.spp,
+        desc="rendering",
+        bar_format="{desc} {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} spp{postfix}",
+        file=sys.stderr,
+        disable=True if scene.render.spp == 1 else None,  # None: shown on a terminal only
+    )
+    with bar, _stop_on_ctrl_c() as stop:
+
+        def on_pass(done: int, spp: int, elapsed: float, snapshot) -> bool:
+            rate = done / max(elapsed, 1e-9)  # spp per second
+            eta = tqdm.format_interval((spp - done) / rate)
+            bar.set_postfix_str(f"{tqdm.format_interval(elapsed)}<{eta}, {rate * pixels / 1e6:.3g} M samples/s", refresh=False)
+            bar.update(done - bar.n)
+            if args.checkpoint_every and done % args.checkpoint_every == 0 and done < spp and not stop.is_set():
+                write(snapshot())
+            return not stop.is_set()
+
+        result = render(scene, device=args.device, threads=args.threads, progress=on_pass, progress_every=args.checkpoint_every)
+    write(result)
     h, w = result.rgb.shape[:2]
     print(
         f"wrote {args.output}: {w}x{h}, {result.spp} spp, {result.integrator}, {result.device} "
         f"({result.threads} thread{'s' if result.threads > 1 else ''}); BVH {result.build_time_s:.2f} s, "
-        f"kernels {result.compile_time_s:.2f} s, render {result.render_time_s:.3f} s"
+        f"kernels {result.compile_time_s:.2f} s, render {result.render_time_s:.3f} s "
+        f"({result.spp * pixels / max(result.render_time_s, 1e-9) / 1e6:.3g} M samples/s)"
     )
+    if result.spp < scene.render.spp:
+        print(f"wrt: interrupted: wrote the {result.spp} of {scene.render.spp} spp done", file=sys.stderr)
+        return 130
     return 0
 
 

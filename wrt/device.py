@@ -217,6 +217,8 @@ def camera_data(camera: Camera, width: int, height: int) -> CameraData:
     c.origin = wp.vec3(*camera.origin)
     c.forward, c.right, c.up = wp.vec3(*forward), wp.vec3(*right), wp.vec3(*up)
     c.tan_half_fov = math.tan(math.radians(camera.fov) / 2.0)
+    c.aperture_radius = camera.aperture_radius
+    c.focus_distance = camera.focus_distance if camera.focus_distance is not None else float(np.linalg.norm(np.subtract(camera.look_at, camera.origin)))
     c.aspect = width / height
     c.width, c.height = width, height
     return c

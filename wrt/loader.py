@@ -178,6 +178,8 @@ def _camera(file: str, data) -> Camera:
     look_at = t.vec3("look_at")
     up = t.vec3("up", Camera.up, nonzero=True)
     fov = t.number("fov", Camera.fov, lo=0.0, hi=180.0, lo_open=True, hi_open=True)
+    aperture = t.number("aperture_radius", 0.0, lo=0.0)
+    focus = t.number("focus_distance", None, lo=0.0, lo_open=True)
     t.finish()
     forward = np.subtract(look_at, origin)
     if not np.any(forward):
@@ -186,7 +188,7 @@ def _camera(file: str, data) -> Camera:
     sin_angle = np.linalg.norm(np.cross(forward, np.asarray(up) / np.linalg.norm(up)))
     if sin_angle < 1e-6:
         raise t.error("up", "is parallel to the viewing direction (look_at - origin)", list(up))
-    return Camera(origin=origin, look_at=look_at, up=up, fov=fov)
+    return Camera(origin=origin, look_at=look_at, up=up, fov=fov, aperture_radius=aperture, focus_distance=focus)
 
 
 # keys each material type reads, besides name, type and emission

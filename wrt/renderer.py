@@ -5,6 +5,12 @@ tiles of consecutive pixels launched from a thread pool. Every pixel's value dep
 (scene, seed, pixel, sample), never on the tiling or thread count: results are bit-identical
 for any ``threads``. On CUDA the whole image is one launch.
 
+With a ``progress`` callback, ``render`` draws the samples in passes of about ``PASS_SECONDS``
+each (samples ``a .. b - 1`` of every pixel per pass) and reports after each; the film keeps a
+running sum per pixel that every pass continues in sample order, so the image is bit-identical to
+a one-pass render whatever the passes, and a render stopped early holds exactly the image of a
+render with the samples done.
+
 ``prepare`` is the one set-up path (BVH build, uploads, film) for every launch of an integrator
 kernel: ``render`` launches the rendering variants over the image, ``wrt.rays`` the recording
 variants (``RECORD_KERNELS``) over chosen pixels.
@@ -13,8 +19,10 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 import warp as wp
@@ -33,6 +41,7 @@ from .scene import Scene
 INTEGRATOR_KERNELS = {"raycast": raycast, "whitted": whitted, "path": path}
 RECORD_KERNELS = {"raycast": raycast_record, "whitted": whitted_record}
 TILE_PIXELS = 4096  # pixels per CPU launch: small enough to balance two threads, large enough to amortise a launch
+PASS_SECONDS = 1.0  # wall seconds a pass of a progressive render aims at
 AOV_NAMES = ("depth", "normal", "object_id", "position")
 NO_RECORD = RayRecord()  # what the rendering variants get for the record buffer they never touch
 
@@ -43,8 +52,9 @@ class RenderResult:
 
     ``aovs``: ``depth`` (H, W) float32, distance along the unit camera ray, inf on a miss;
     ``normal`` (H, W, 3) world space, facing the camera; ``object_id`` (H, W) int32, -1 on a miss;
-    ``position`` (H, W, 3) world space. Times are wall seconds: ``build_time_s`` for the BVH,
-    ``compile_time_s`` for loading kernels (near 0 with a warm cache), ``render_time_s`` for the launches.
+    ``position`` (H, W, 3) world space. ``spp``: the samples per pixel in ``rgb`` (fewer than asked
+    when a progress callback stopped the render). Times are wall seconds: ``build_time_s`` for the
+    BVH, ``compile_time_s`` for loading kernels (near 0 with a warm cache), ``render_time_s`` for the launches.
     """
 
     rgb: np.ndarray
@@ -74,9 +84,14 @@ class DeviceScene:
     film: Film
     build_time_s: float  # wall seconds of the BVH build
 
-    def launch(self, kernel, first: int, count: int, spp: int, seed: int, rec: RayRecord | None = None) -> None:
-        """Run ``kernel`` over pixels ``first .. first + count - 1``; ``rec`` only for a recording variant."""
-        inputs = [self.geometry, self.materials, self.lights, self.settings, self.camera, spp, seed, first, self.film, NO_RECORD if rec is None else rec]
+    def launch(
+        self, kernel, first: int, count: int, spp: int, seed: int, rec: RayRecord | None = None, first_sample: int = 0, pass_spp: int | None = None
+    ) -> None:
+        """Run ``kernel`` over pixels ``first .. first + count - 1``, samples ``first_sample ..
+        first_sample + pass_spp - 1`` (default: all ``spp``) of a render of ``spp`` samples;
+        ``rec`` only for a recording variant."""
+        pass_spp = spp - first_sample if pass_spp is None else pass_spp
+        inputs = [self.geometry, self.materials, self.lights, self.settings, self.camera, spp, first_sample, pass_spp, seed, first, self.film, NO_RECORD if rec is None else rec]
         wp.launch(kernel, dim=count, inputs=inputs, device=self.device)
 
     def aovs(self) -> dict[str, np.ndarray]:
@@ -98,6 +113,7 @@ def prepare(scene: Scene, dev: wp.context.Device) -> DeviceScene:
     with wp.ScopedDevice(dev):
         film = Film()
         film.rgb = wp.zeros(w * h, dtype=wp.vec3, device=dev)
+        film.rgb_sum = wp.zeros(w * h, dtype=wp.vec3, device=dev)
         film.depth = wp.zeros(w * h, dtype=wp.float32, device=dev)
         film.normal = wp.zeros(w * h, dtype=wp.vec3, device=dev)
         film.object_id = wp.zeros(w * h, dtype=wp.int32, device=dev)
@@ -122,9 +138,9 @@ def default_threads() -> int:
 
 
 # Memory per pixel, measured (peak RSS of `wrt render` at 2048^2 and 3072^2, EXR with all AOVs
-# and PNG): the film is RGB + depth + normal + object id + position = 11 4-byte values; writing
-# it to an image file (channel copies, tone mapping in float64) peaks at about 100 bytes more.
-FILM_BYTES_PER_PIXEL = 44
+# and PNG): the film is RGB + RGB sum + depth + normal + object id + position = 14 4-byte values;
+# writing it to an image file (channel copies, tone mapping in float64) peaks at about 100 bytes more.
+FILM_BYTES_PER_PIXEL = 56
 WRITE_BYTES_PER_PIXEL = 100
 
 
@@ -169,7 +185,28 @@ def check_memory(scene: Scene, dev) -> None:
             )
 
 
-def render(scene: Scene, spp: int | None = None, seed: int | None = None, device: str | None = "cpu", threads: int | None = None) -> RenderResult:
+def pass_size(spp: int, done: int, elapsed: float, every: int | None) -> int:
+    """Samples of the next pass of a progressive render of ``spp`` samples, ``done`` of them done
+    in ``elapsed`` wall seconds: one first, then about ``PASS_SECONDS`` of work at the rate so far,
+    ending at the next multiple of ``every`` (and at ``spp``)."""
+    n = 1 if done == 0 else max(1, round(PASS_SECONDS * done / max(elapsed, 1e-9)))
+    if every is not None:
+        n = min(n, every - done % every)
+    return min(n, spp - done)
+
+
+Progress = Callable[[int, int, float, Callable[[], "RenderResult"]], "bool | None"]
+
+
+def render(
+    scene: Scene,
+    spp: int | None = None,
+    seed: int | None = None,
+    device: str | None = "cpu",
+    threads: int | None = None,
+    progress: Progress | None = None,
+    progress_every: int | None = None,
+) -> RenderResult:
     """Render ``scene`` with its integrator.
 
     Parameters
@@ -182,11 +219,30 @@ def render(scene: Scene, spp: int | None = None, seed: int | None = None, device
         Warp device: "cpu" or "cuda" (or "cuda:N").
     threads : int, optional
         CPU threads launching tiles (default: all available cores). Ignored on CUDA.
+    progress : callable, optional
+        Render progressively: in passes of about ``PASS_SECONDS`` wall seconds (the first pass is
+        one sample; later ones are sized from the rate so far), calling
+        ``progress(samples_done, spp, elapsed_s, snapshot)`` after each. ``elapsed_s``: wall
+        seconds of the passes so far; ``snapshot()``: a ``RenderResult`` of the samples done
+        (copies). Returning ``False`` stops the render after that pass: the result then holds
+        ``samples_done`` spp. Without it, one pass.
+    progress_every : int, optional
+        With ``progress``: passes also end at every multiple of this many samples, so the callback
+        sees those counts (checkpoints).
+
+    Notes
+    -----
+    Passes never change the image: the kernel continues each pixel's float32 running sum in
+    sample order, so a render in passes is bit-identical to a one-pass render, and one stopped
+    after ``k > 1`` samples to a render with ``spp = k``. With ``spp = 1`` the sample is the pixel
+    centre; with ``spp > 1`` every sample, the first pass's included, is uniform over the pixel.
     """
     spp = scene.render.spp if spp is None else int(spp)
     seed = scene.render.seed if seed is None else int(seed)
     if spp < 1:
         raise WrtError(f"spp must be >= 1, got {spp}")
+    if progress_every is not None and progress_every < 1:
+        raise WrtError(f"progress_every must be >= 1, got {progress_every}")
     dev = resolve_device(device)
     check_memory(scene, dev)
     threads = 1 if dev.is_cuda else max(1, threads or default_threads())
@@ -197,25 +253,44 @@ def render(scene: Scene, spp: int | None = None, seed: int | None = None, device
     wp.load_module(kernel.module, device=dev)
     t1 = time.perf_counter()
     frame = prepare(scene, dev)
-    t2 = time.perf_counter()
-    if dev.is_cuda:
-        frame.launch(kernel, 0, w * h, spp, seed)
-        wp.synchronize_device(dev)
-    else:
-        tiles = [(first, min(TILE_PIXELS, w * h - first)) for first in range(0, w * h, TILE_PIXELS)]
-        with ThreadPoolExecutor(max_workers=threads) as pool:
-            for future in [pool.submit(frame.launch, kernel, first, count, spp, seed) for first, count in tiles]:
+    pool = None if dev.is_cuda else ThreadPoolExecutor(max_workers=threads)
+    tiles = [(first, min(TILE_PIXELS, w * h - first)) for first in range(0, w * h, TILE_PIXELS)]
+
+    def run_pass(first_sample: int, pass_spp: int) -> None:
+        if pool is None:
+            frame.launch(kernel, 0, w * h, spp, seed, first_sample=first_sample, pass_spp=pass_spp)
+            wp.synchronize_device(dev)
+        else:
+            for future in [pool.submit(frame.launch, kernel, first, count, spp, seed, None, first_sample, pass_spp) for first, count in tiles]:
                 future.result()
-    t3 = time.perf_counter()
-    return RenderResult(
-        rgb=frame.film.rgb.numpy().reshape(h, w, 3),
-        aovs=frame.aovs(),
-        spp=spp,
-        seed=seed,
-        integrator=scene.render.integrator,
-        device=str(dev),
-        threads=threads,
-        build_time_s=frame.build_time_s,
-        compile_time_s=t1 - t0,
-        render_time_s=t3 - t2,
-    )
+
+    def result(done: int, elapsed: float, copy: bool) -> RenderResult:
+        take = np.copy if copy else np.asarray
+        return RenderResult(
+            rgb=take(frame.film.rgb.numpy().reshape(h, w, 3)),
+            aovs={name: take(a) for name, a in frame.aovs().items()},
+            spp=done,
+            seed=seed,
+            integrator=scene.render.integrator,
+            device=str(dev),
+            threads=threads,
+            build_time_s=frame.build_time_s,
+            compile_time_s=t1 - t0,
+            render_time_s=elapsed,
+        )
+
+    done, busy = 0, 0.0  # samples per pixel done, wall seconds of passes
+    try:
+        while done < spp:
+            n = spp - done if progress is None else pass_size(spp, done, busy, progress_every)
+            t2 = time.perf_counter()
+            run_pass(done, n)
+            busy += time.perf_counter() - t2
+            done += n
+            if progress is not None and progress(done, spp, busy, partial(result, done, busy, True)) is False:
+                break
+    finally:
+        if pool is not None:
+            pool.shutdown(cancel_futures=True)  # interrupted: drop the tiles not started
+    return result(done, busy, copy=False)
+

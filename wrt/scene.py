@@ -40,12 +40,16 @@ class RenderSettings:
 
 @dataclass(frozen=True)
 class Camera:
-    """``[camera]``: pinhole camera; ``fov`` is the VERTICAL field of view in degrees."""
+    """``[camera]``: ``fov`` is the VERTICAL field of view in degrees; a thin lens of
+    ``aperture_radius`` (world units, 0 = pinhole) focused at ``focus_distance`` from the lens
+    along the viewing direction (None: the distance to ``look_at``)."""
 
     origin: tuple[float, float, float]
     look_at: tuple[float, float, float]
     up: tuple[float, float, float] = (0.0, 1.0, 0.0)
     fov: float = 45.0
+    aperture_radius: float = 0.0
+    focus_distance: float | None = None
 
     def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(forward, right, up')`` unit vectors (float64) of the camera convention."""

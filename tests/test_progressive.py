@@ -1,0 +1,154 @@
+"""Progressive rendering (wrt/renderer.py passes, the integrator's sample offset, `wrt render`'s
+progress bar, --checkpoint-every and Ctrl-C)."""
+import fcntl
+import os
+import pty
+import re
+import select
+import signal
+import struct
+import subprocess
+import sys
+import termios
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import wrt
+import wrt.imageio
+import wrt.renderer
+from conftest import make_scene
+from wrt.cli import main
+from wrt.imageio import read_image
+from wrt.loader import override_render
+from wrt.renderer import pass_size
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def path_scene(spp=13, width=24, height=16):
+    """Soft shadow and glossy bounce under an area light: every sample differs."""
+    shapes = [
+        {"type": "plane", "point": [0, -1, 0], "normal": [0, 1, 0], "material": "grey"},
+        {"type": "sphere", "center": [-0.6, -0.2, 0], "radius": 0.8, "material": "red"},
+        {"type": "sphere", "center": [0.9, -0.5, 0.5], "radius": 0.5, "material": "metal"},
+    ]
+    materials = [
+        {"name": "grey", "albedo": [0.5, 0.5, 0.5]},
+        {"name": "red", "albedo": [0.9, 0.2, 0.1]},
+        {"name": "metal", "type": "glossy", "roughness": 0.3, "reflectance": [0.9, 0.9, 0.9]},
+    ]
+    lights = [{"type": "area", "corner": [-1, 3, -1], "edge_u": [2, 0, 0], "edge_v": [0, 0, 2], "radiance": [4, 4, 4]}]
+    render = {"width": width, "height": height, "spp": spp, "seed": 5, "integrator": "path", "max_depth": 5}
+    return make_scene(shapes, materials=materials, lights=lights, render=render)
+
+
+@pytest.mark.parametrize("every, pass_seconds", [(1, 1.0), (5, 1.0), (None, 1e-5)])
+def test_passes_are_bit_identical_to_one_pass(monkeypatch, every, pass_seconds):
+    scene = path_scene()
+    one = wrt.render(scene, threads=1)
+    monkeypatch.setattr(wrt.renderer, "PASS_SECONDS", pass_seconds)
+    monkeypatch.setattr(wrt.renderer, "TILE_PIXELS", 97)  # tiles that cut rows anywhere
+    for threads in (1, 2, 3):
+        passes = []
+        progressive = wrt.render(scene, threads=threads, progress=lambda done, *_: passes.append(done), progress_every=every)
+        assert len(passes) > 3 and passes[-1] == 13 and progressive.spp == 13
+        assert np.array_equal(one.rgb, progressive.rgb)
+        for name in one.aovs:
+            assert np.array_equal(one.aovs[name], progressive.aovs[name])
+
+
+def test_progress_reports_every_pass_and_stops_when_asked():
+    scene = path_scene(spp=16)
+    calls = []
+
+    def progress(done, spp, elapsed, snapshot):
+        calls.append((done, spp, elapsed, snapshot() if done in (2, 4) else None))
+        return done < 4
+
+    stopped = wrt.render(scene, progress=progress, progress_every=2)
+    done = [c[0] for c in calls]
+    assert done == [1, 2, 4] and all(c[1] == 16 for c in calls)
+    assert 0 < calls[0][2] <= calls[1][2] <= calls[2][2]
+    assert stopped.spp == 4 and stopped.render_time_s == calls[-1][2]
+    # k > 1 samples of a longer render are exactly the render with spp = k; snapshots are copies
+    for k, snapshot in ((2, calls[1][3]), (4, calls[2][3]), (4, stopped)):
+        assert snapshot.spp == k
+        assert np.array_equal(snapshot.rgb, wrt.render(scene, spp=k).rgb)
+
+
+def test_first_pass_of_a_many_sample_render_is_not_the_pixel_centre():
+    """spp = 1 renders the pixel centre; a render of more samples never does, even one stopped after its first sample."""
+    scene = path_scene(spp=8)
+    first = wrt.render(scene, progress=lambda *_: False)
+    centre = wrt.render(scene, spp=1)
+    assert first.spp == 1
+    assert not np.array_equal(first.rgb, centre.rgb)
+    for name in centre.aovs:
+        assert np.array_equal(first.aovs[name], centre.aovs[name])
+
+
+def test_pass_size():
+    assert pass_size(1024, 0, 0.0, None) == 1  # the first pass measures the rate
+    assert pass_size(1024, 10, 0.5, None) == 20  # then about PASS_SECONDS at the rate so far
+    assert pass_size(1024, 10, 0.5, 16) == 6  # ending at the next multiple of `every`
+    assert pass_size(1024, 1020, 0.5, None) == 4  # and at spp
+    assert pass_size(1024, 10, 100.0, None) == 1
+
+
+def test_checkpoints_are_written_every_n_samples(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "c.exr"
+    written = []
+
+    def write_and_read(path, *args, **kwargs):
+        write_image(path, *args, **kwargs)
+        written.append(read_image(path))
+
+    write_image = wrt.imageio.write_image
+    monkeypatch.setattr(wrt.imageio, "write_image", write_and_read)
+    scene_file = str(ROOT / "examples/spheres.toml")
+    args = ["render", scene_file, "-o", str(out), "--width", "40", "--height", "30", "--spp", "7", "--checkpoint-every", "2", "--aov", "depth"]
+    assert main(args) == 0
+    assert [image.metadata["spp"] for image in written] == [2, 4, 6, 7]
+    scene = override_render(wrt.load_scene(scene_file), width=40, height=30)
+    for image in written:
+        assert np.array_equal(image.rgb, wrt.render(scene, spp=image.metadata["spp"]).rgb) and "depth" in image.aovs
+    assert [p.name for p in tmp_path.iterdir()] == ["c.exr"]
+    captured = capsys.readouterr()
+    assert "7 spp" in captured.out and "M samples/s" in captured.out
+    assert "spp" not in captured.err  # no progress bar when stderr is not a terminal
+    assert main(args[:-4] + ["--checkpoint-every", "0"]) == 2
+
+
+def test_ctrl_c_writes_the_samples_done_and_exits_130(tmp_path):
+    """`wrt render` on a terminal: a progress bar; SIGINT mid-render stops after the running pass and writes it."""
+    out = tmp_path / "spheres.exr"
+    spp = 10**6
+    controller, terminal = pty.openpty()
+    fcntl.ioctl(terminal, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 120, 0, 0))  # tqdm draws nothing on 0 columns
+    cmd = [sys.executable, "-m", "wrt.cli", "render", str(ROOT / "examples/spheres.toml"), "-o", str(out), "--width", "64", "--height", "48", "--spp", str(spp)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=terminal, text=True)
+    os.close(terminal)
+    shown, sent, deadline = b"", None, time.monotonic() + 300  # a cold Warp kernel cache compiles first
+    while proc.poll() is None and time.monotonic() < deadline:
+        if select.select([controller], [], [], 0.1)[0]:
+            try:
+                shown += os.read(controller, 4096)
+            except OSError:  # the render ended and closed the terminal
+                break
+        if sent is None and re.search(rb"\b[1-9]\d*/1000000 spp, .*M samples/s", shown):
+            proc.send_signal(signal.SIGINT)  # at least one pass done: the bar shows samples/s and an ETA
+            sent = time.monotonic()
+    if proc.poll() is None:
+        proc.kill()
+    stdout = proc.communicate()[0]
+    os.close(controller)
+    assert sent is not None, shown.decode(errors="replace")
+    assert proc.returncode == 130 and time.monotonic() - sent < 10
+    assert re.search(rb"\d+:\d\d<\d+:\d\d", shown)  # elapsed < ETA
+    image = read_image(out)
+    assert image.rgb.shape == (48, 64, 3) and np.isfinite(image.rgb).all() and image.rgb.max() > 0
+    assert 1 <= image.metadata["spp"] < spp
+    assert f"{image.metadata['spp']} spp" in stdout and f"wrote {out}" in stdout
