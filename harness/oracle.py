@@ -68,10 +68,12 @@ def scene_extent(scene: Scene) -> tuple[np.ndarray, float]:
 
 
 def shape_meshes(scene: Scene, plane_size: float):
-    """pyvista PolyData of every shape, in ``[[shape]]`` order. Planes become square patches of
-    side ``plane_size`` around their point; spheres are finely tessellated."""
+    """pyvista PolyData of every shape, in ``[[shape]]`` order, where it is at mid-shutter (the time
+    of the pixel-centre rays that write the AOVs). Planes become square patches of side
+    ``plane_size`` around their point; spheres are finely tessellated."""
     import pyvista as pv
 
+    mid_shutter = 0.5 * (scene.camera.shutter[0] + scene.camera.shutter[1])
     meshes = []
     for s in scene.shapes:
         if isinstance(s, Sphere):
@@ -87,6 +89,8 @@ def shape_meshes(scene: Scene, plane_size: float):
         else:
             faces = np.column_stack([np.full(len(s.faces), 3), s.faces]).ravel()
             m = pv.PolyData(np.asarray(s.vertices, dtype=float), faces=faces)
+        if any(s.velocity):
+            m = m.translate(np.asarray(s.velocity) * mid_shutter, inplace=False)
         meshes.append(m)
     return meshes
 

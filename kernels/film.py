@@ -26,17 +26,18 @@ class Film:
 
 
 @wp.func
-def facing_normal(scene: SceneData, prim: wp.int32, p: wp.vec3, d: wp.vec3) -> wp.vec3:
+def facing_normal(scene: SceneData, prim: wp.int32, p: wp.vec3, d: wp.vec3, time: float) -> wp.vec3:
     """Unit geometric normal at ``p`` flipped to the side the ray direction ``d`` comes from."""
-    n = geometric_normal(scene, prim, p)
+    n = geometric_normal(scene, prim, p, time)
     if wp.dot(n, d) > 0.0:
         return -n
     return n
 
 
 @wp.func
-def write_aovs(film: Film, scene: SceneData, pixel: wp.int32, o: wp.vec3, d: wp.vec3, t: float, prim: wp.int32):
-    """Record the AOVs of the pixel-centre ray ``o + t d`` (unit ``d``) that hit ``prim`` (or missed)."""
+def write_aovs(film: Film, scene: SceneData, pixel: wp.int32, o: wp.vec3, d: wp.vec3, t: float, prim: wp.int32, time: float):
+    """Record the AOVs of the pixel-centre ray ``o + t d`` (unit ``d``, at ray time ``time``) that hit
+    ``prim`` (or missed)."""
     if prim == NO_HIT:
         film.depth[pixel] = wp.inf
         film.normal[pixel] = wp.vec3(0.0)
@@ -45,7 +46,7 @@ def write_aovs(film: Film, scene: SceneData, pixel: wp.int32, o: wp.vec3, d: wp.
     else:
         p = o + t * d
         film.depth[pixel] = t
-        film.normal[pixel] = facing_normal(scene, prim, p, d)
+        film.normal[pixel] = facing_normal(scene, prim, p, d, time)
         surface = prim_shape(scene, prim)
         if surface >= scene.num_shapes:  # the surface of light k is not a shape: -2 - k
             surface = scene.num_shapes - 2 - surface

@@ -1,9 +1,9 @@
 """The pixel loop shared by every integrator, and the settings they read.
 
 ``make_render_kernel(radiance)`` builds a kernel that, for each pixel of a tile, traces the
-pixel-centre camera ray, writes the AOVs (``kernels.film``), and averages ``radiance(...)`` over
-``spp`` samples: the centre ray itself when ``spp == 1``, uniform positions over the pixel (box
-filter) otherwise. ``radiance`` receives the camera ray and its first hit already found, so a
+pixel-centre camera ray at mid-shutter, writes the AOVs (``kernels.film``), and averages
+``radiance(...)`` over ``spp`` samples: the centre ray itself when ``spp == 1``; otherwise film
+positions drawn from the pixel filter, lens positions and shutter times, from the sampler. ``radiance`` receives the camera ray and its first hit already found, so a
 one-sample render traces each primary ray once.
 
 A launch takes the samples ``first_sample .. first_sample + pass_spp - 1`` of a render of ``spp``
@@ -22,12 +22,12 @@ recompiles the module.
 """
 import warp as wp
 
-from .camera import CameraData, camera_ray_direction, thin_lens_ray
+from .camera import CameraData, camera_ray_direction, film_position, shutter_time, thin_lens_ray
 from .film import Film, write_aovs
 from .lights import LightData
 from .materials import MaterialData
 from .record import CAMERA, RayRecord, record_ray
-from .sampling import sample_1d
+from .sampling import Sampler, sample_1d, sample_2d
 from .traverse import SceneData, closest_hit
 from .warps import concentric_disk
 
@@ -48,10 +48,11 @@ class IntegratorSettings:
 
 def make_render_kernel(radiance, record: bool = False):
     """A render kernel around the ``@wp.func``
-    ``radiance(scene, materials, lights, settings, o, d, t, prim, rec, seed, pixel, sample, parent) -> vec3``.
+    ``radiance(scene, materials, lights, settings, o, d, t, prim, time, rec, sampler, pixel, sample, parent) -> vec3``.
 
-    ``seed``, ``pixel`` and ``sample`` also key the random numbers of integrators that sample
-    (``kernels.sampling.sample_1d``; dimensions 0 and 1 are the position in the pixel).
+    ``sampler``, ``pixel`` and ``sample`` key the random numbers of integrators that sample
+    (``kernels.sampling``); the pixel loop uses dimensions 0-1 (position in the pixel), 2-3 (lens)
+    and 4 (time in the shutter interval); ``time`` is the ray time of the camera ray.
 
     ``rec``, ``pixel``, ``sample`` and ``parent`` (the record index of the camera ray) are for
     recording: with ``record=False`` the kernel passes an empty ``rec`` and ``radiance`` must not
@@ -65,10 +66,9 @@ def make_render_kernel(radiance, record: bool = False):
         lights: LightData,
         settings: IntegratorSettings,
         cam: CameraData,
-        spp: wp.int32,
+        sampler: Sampler,
         first_sample: wp.int32,
         pass_spp: wp.int32,
-        seed: wp.int32,
         first_pixel: wp.int32,
         film: Film,
         rec: RayRecord,
@@ -79,25 +79,29 @@ def make_render_kernel(radiance, record: bool = False):
         parent = int(-1)
         total = wp.vec3(0.0)
         if first_sample == 0:
+            time = shutter_time(cam, 0.5)
             d = camera_ray_direction(cam, x, y, 0.5, 0.5)
-            t, prim = closest_hit(scene, cam.origin, d, 0.0, wp.inf)
-            write_aovs(film, scene, pixel, cam.origin, d, t, prim)
-            if spp == 1:
+            t, prim = closest_hit(scene, cam.origin, d, time, 0.0, wp.inf)
+            write_aovs(film, scene, pixel, cam.origin, d, t, prim, time)
+            if sampler.spp == 1:
                 if wp.static(record):
-                    parent = record_ray(rec, scene, pixel, 0, CAMERA, cam.origin, d, t, prim, wp.vec3(1.0), 1, -1)
-                total = radiance(scene, materials, lights, settings, cam.origin, d, t, prim, rec, seed, pixel, 0, parent)
+                    parent = record_ray(rec, scene, pixel, 0, CAMERA, cam.origin, d, t, prim, time, wp.vec3(1.0), 1, -1)
+                total = radiance(scene, materials, lights, settings, cam.origin, d, t, prim, time, rec, sampler, pixel, 0, parent)
                 film.rgb_sum[pixel] = total
                 film.rgb[pixel] = total
                 return
         else:
             total = film.rgb_sum[pixel]
         for s in range(first_sample, first_sample + pass_spp):
-            pinhole = camera_ray_direction(cam, x, y, sample_1d(seed, pixel, s, 0), sample_1d(seed, pixel, s, 1))
-            o_s, ds = thin_lens_ray(cam, pinhole, concentric_disk(sample_1d(seed, pixel, s, 2), sample_1d(seed, pixel, s, 3)))
-            ts, prim_s = closest_hit(scene, o_s, ds, 0.0, wp.inf)
+            uv = film_position(cam, sample_2d(sampler, pixel, s, 0))
+            pinhole = camera_ray_direction(cam, x, y, uv[0], uv[1])
+            lens = sample_2d(sampler, pixel, s, 2)
+            o_s, ds = thin_lens_ray(cam, pinhole, concentric_disk(lens[0], lens[1]))
+            time_s = shutter_time(cam, sample_1d(sampler, pixel, s, 4))
+            ts, prim_s = closest_hit(scene, o_s, ds, time_s, 0.0, wp.inf)
             if wp.static(record):
-                parent = record_ray(rec, scene, pixel, s, CAMERA, o_s, ds, ts, prim_s, wp.vec3(1.0), 1, -1)
-            total += radiance(scene, materials, lights, settings, o_s, ds, ts, prim_s, rec, seed, pixel, s, parent)
+                parent = record_ray(rec, scene, pixel, s, CAMERA, o_s, ds, ts, prim_s, time_s, wp.vec3(1.0), 1, -1)
+            total += radiance(scene, materials, lights, settings, o_s, ds, ts, prim_s, time_s, rec, sampler, pixel, s, parent)
         film.rgb_sum[pixel] = total
         film.rgb[pixel] = total / float(first_sample + pass_spp)
 

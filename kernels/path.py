@@ -18,9 +18,10 @@ Per camera sample one path is traced:
   min(0.95, largest channel of its throughput) and divides by it (unbiased; Mitsuba's rr_depth 5).
 
 ``max_depth`` counts segments (camera ray = 1; a shadow ray of a hit on segment k is segment
-k + 1), as Mitsuba 3's. Random numbers: ``sample_1d(seed, pixel, sample, dim)`` with dimensions 0-1
-for the pixel position, ``bounce_dim(depth, j)`` for the BSDF and roulette at each bounce and
-``light_dim(depth, i)`` for light i's sample.
+k + 1), as Mitsuba 3's. Random numbers come from the render's sampler (``kernels.sampling``):
+dimensions 0-4 are the camera's (pixel position, lens, time), ``bounce_dim(depth, j)`` are the
+BSDF sample (j = 0, 1: a 2D pair), the Fresnel choice (2) and roulette (3) at each bounce, and
+``light_dim(depth, i)`` the 2D sample of light i. A path's shapes stay at its camera ray's time.
 """
 import warp as wp
 
@@ -31,8 +32,8 @@ from .materials import DIELECTRIC, EMITTER, GLOSSY, MIRROR, MaterialData, beer_l
 from .media import Media, current_medium, dielectric_interface, max_component
 from .microfacet import ggx_g1, ggx_pdf, ggx_sample_visible_normal
 from .optics import fresnel_dielectric, reflect, refract
-from .record import RayRecord
-from .sampling import sample_1d
+from .record import REFLECTED, REFRACTED, SCATTERED, SHADOW_BLOCKED, SHADOW_LIT, STRAIGHT, TOTAL_INTERNAL, RayRecord, record_ray
+from .sampling import Sampler, sample_1d, sample_2d
 from .spawn import hit_error, spawn_origin
 from .traverse import NO_HIT, SceneData, any_hit, closest_hit, geometric_normal, prim_shape
 from .warps import cosine_hemisphere, frame, power_heuristic
@@ -83,44 +84,67 @@ def sample_bsdf(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, u
     return wi, eval_brdf(materials, m, n, wo, wi) * (cos_theta / pdf), pdf
 
 
-@wp.func
-def next_event(
-    scene: SceneData,
-    materials: MaterialData,
-    lights: LightData,
-    m: wp.int32,
-    p: wp.vec3,
-    n: wp.vec3,
-    err: float,
-    wo: wp.vec3,
-    seed: wp.int32,
-    pixel: wp.int32,
-    sample: wp.int32,
-    depth: wp.int32,
-) -> wp.vec3:
-    """Light reflected toward ``wo`` at ``p`` from one sample of every light, MIS-weighted for lights
-    with area (W/(m^2 sr), before the path's throughput)."""
-    total = wp.vec3(0.0)
-    for i in range(lights.type.shape[0]):
-        if lights.type[i] <= SPOT:
-            wi, dist, irradiance = light_incident(lights, i, p)
-            cos_theta = wp.dot(n, wi)
-            if cos_theta > 0.0 and max_component(irradiance) > 0.0:
-                if not any_hit(scene, spawn_origin(p, n, err, wi), wi, 0.0, dist):
-                    total += wp.cw_mul(eval_brdf(materials, m, n, wo, wi), irradiance) * cos_theta
-        else:
-            u1 = sample_1d(seed, pixel, sample, light_dim(depth, i))
-            u2 = sample_1d(seed, pixel, sample, light_dim(depth, i) + 1)
-            wi, dist, radiance, pdf = sample_emitter(lights, i, p, u1, u2)
-            cos_theta = wp.dot(n, wi)
-            if pdf > 0.0 and cos_theta > 0.0 and max_component(radiance) > 0.0:
+def make_next_event(record: bool):
+    """``next_event``, recording its shadow rays when ``record`` (compiled out otherwise)."""
+
+    @wp.func
+    def next_event(
+        scene: SceneData,
+        materials: MaterialData,
+        lights: LightData,
+        m: wp.int32,
+        p: wp.vec3,
+        n: wp.vec3,
+        err: float,
+        wo: wp.vec3,
+        time: float,
+        sampler: Sampler,
+        pixel: wp.int32,
+        sample: wp.int32,
+        depth: wp.int32,
+        rec: RayRecord,
+        parent: wp.int32,
+        beta: wp.vec3,
+    ) -> wp.vec3:
+        """Light reflected toward ``wo`` at ``p`` from one sample of every light, MIS-weighted for
+        lights with area (W/(m^2 sr), before the path's throughput ``beta``).
+
+        Recording: each shadow ray is a segment of ``depth + 1`` segments whose parent is record
+        ``parent``, carrying ``beta`` when it reaches its light and 0 when blocked (then ending at
+        the blocker)."""
+        total = wp.vec3(0.0)
+        for i in range(lights.type.shape[0]):
+            wi = wp.vec3(0.0)
+            t_max = float(0.0)
+            contribution = wp.vec3(0.0)
+            if lights.type[i] <= SPOT:
+                wi, dist, irradiance = light_incident(lights, i, p)
+                t_max = dist
+                cos_theta = wp.dot(n, wi)
+                if cos_theta > 0.0 and max_component(irradiance) > 0.0:
+                    contribution = wp.cw_mul(eval_brdf(materials, m, n, wo, wi), irradiance) * cos_theta
+            else:
+                u = sample_2d(sampler, pixel, sample, light_dim(depth, i))
+                wi, dist, radiance, pdf = sample_emitter(lights, i, p, u[0], u[1])
                 t_max = dist
                 if lights.type[i] != ENVIRONMENT:
                     t_max = dist * (1.0 - SHADOW_MARGIN)
-                if not any_hit(scene, spawn_origin(p, n, err, wi), wi, 0.0, t_max):
+                cos_theta = wp.dot(n, wi)
+                if pdf > 0.0 and cos_theta > 0.0 and max_component(radiance) > 0.0:
                     mis = power_heuristic(pdf, bsdf_pdf(materials, m, n, wo, wi))
-                    total += wp.cw_mul(eval_brdf(materials, m, n, wo, wi), radiance) * (cos_theta * mis / pdf)
-    return total
+                    contribution = wp.cw_mul(eval_brdf(materials, m, n, wo, wi), radiance) * (cos_theta * mis / pdf)
+            if max_component(contribution) > 0.0:
+                o_shadow = spawn_origin(p, n, err, wi)
+                if not any_hit(scene, o_shadow, wi, time, 0.0, t_max):
+                    total += contribution
+                    if wp.static(record):
+                        record_ray(rec, scene, pixel, sample, SHADOW_LIT, o_shadow, wi, t_max, NO_HIT, time, beta, depth + 1, parent)
+                elif wp.static(record):
+                    t_block, prim_block = closest_hit(scene, o_shadow, wi, time, 0.0, t_max)
+                    record_ray(rec, scene, pixel, sample, SHADOW_BLOCKED, o_shadow, wi, t_block, prim_block, time, wp.vec3(0.0), depth + 1, parent)
+        return total
+
+    return next_event
 
 
 @wp.func
@@ -137,118 +161,142 @@ def environment_radiance(lights: LightData, bsdf_pdf_prev: float, specular: bool
     return total
 
 
-@wp.func
-def path_radiance(
-    scene: SceneData,
-    materials: MaterialData,
-    lights: LightData,
-    settings: IntegratorSettings,
-    o: wp.vec3,
-    d: wp.vec3,
-    t: float,
-    prim: wp.int32,
-    rec: RayRecord,
-    seed: wp.int32,
-    pixel: wp.int32,
-    sample: wp.int32,
-    parent: wp.int32,
-) -> wp.vec3:
-    """One path's estimate of the radiance (W/(m^2 sr)) arriving at ``o`` from ``-d``; ``(t, prim)``
-    is the camera ray's first hit."""
-    radiance = wp.vec3(0.0)
-    beta = wp.vec3(1.0)
-    depth = int(1)
-    media = Media(-1, -1, -1, -1)
-    n_media = int(0)
-    specular = bool(True)
-    prev_pdf = float(0.0)
-    prev_p = o
-    t_from = float(0.0)
-    t_last = float(0.0)
-    traced = bool(True)
-    for _segment in range(4 * settings.max_depth + 16):
-        if not traced:
-            t, prim = closest_hit(scene, o, d, t_from, wp.inf)
-        traced = False
-        slot = current_medium(materials, media, n_media)
-        if slot >= 0:
-            beta = wp.cw_mul(beta, beer_lambert(materials.sigma[materials.shape_material[media[slot]]], t - t_last))
-        if prim == NO_HIT:
-            radiance += wp.cw_mul(beta, environment_radiance(lights, prev_pdf, specular))
-            break
-        p = o + t * d
-        n = geometric_normal(scene, prim, p)
-        surface = prim_shape(scene, prim)
-        m = materials.shape_material[surface]
-        entering = wp.dot(d, n) < 0.0
-        n_facing = n
-        if not entering:
-            n_facing = -n
-        if entering and max_component(materials.emission[m]) > 0.0:
-            mis = float(1.0)
-            if not specular and surface >= scene.num_shapes:
-                mis = power_heuristic(prev_pdf, emitter_pdf(lights, surface - scene.num_shapes, prev_p, d, wp.length(p - prev_p)))
-            radiance += wp.cw_mul(beta, materials.emission[m]) * mis
-        kind = materials.type[m]
-        if kind == EMITTER or depth >= settings.max_depth:
-            break
-        err = hit_error(o, p, t)
-        wo = -d
-        straight = bool(False)
-        if kind == DIELECTRIC:
-            real, n1, n2, media_t, n_media_t = dielectric_interface(materials, settings, media, n_media, surface, entering)
-            if not real:
-                straight = True
-                media = media_t
-                n_media = n_media_t
-            else:
-                eta = n1 / n2
-                fresnel = fresnel_dielectric(wp.dot(wo, n_facing), eta)
-                ok, wt = refract(d, n_facing, eta)
-                if not ok:
-                    fresnel = 1.0
-                if sample_1d(seed, pixel, sample, bounce_dim(depth, 2)) < fresnel:
-                    d = reflect(d, n_facing)
-                else:
+def make_path_radiance(record: bool):
+    """``path_radiance``, recording every ray it traces when ``record`` (compiled out otherwise)."""
+    next_event = make_next_event(record)
+
+    @wp.func
+    def path_radiance(
+        scene: SceneData,
+        materials: MaterialData,
+        lights: LightData,
+        settings: IntegratorSettings,
+        o: wp.vec3,
+        d: wp.vec3,
+        t: float,
+        prim: wp.int32,
+        time: float,
+        rec: RayRecord,
+        sampler: Sampler,
+        pixel: wp.int32,
+        sample: wp.int32,
+        parent: wp.int32,
+    ) -> wp.vec3:
+        """One path's estimate of the radiance (W/(m^2 sr)) arriving at ``o`` from ``-d``; ``(t, prim)``
+        is the camera ray's first hit."""
+        radiance = wp.vec3(0.0)
+        beta = wp.vec3(1.0)
+        depth = int(1)
+        media = Media(-1, -1, -1, -1)
+        n_media = int(0)
+        specular = bool(True)
+        prev_pdf = float(0.0)
+        prev_p = o
+        t_from = float(0.0)
+        t_last = float(0.0)
+        traced = bool(True)
+        current = parent  # record index of the segment being followed
+        if wp.static(record):  # how the next segment to trace was spawned
+            segment_kind = int(SCATTERED)
+        for _segment in range(4 * settings.max_depth + 16):
+            if not traced:
+                t, prim = closest_hit(scene, o, d, time, t_from, wp.inf)
+                if wp.static(record):
+                    current = record_ray(rec, scene, pixel, sample, segment_kind, o + t_last * d, d, t - t_last, prim, time, beta, depth, current)
+            traced = False
+            slot = current_medium(materials, media, n_media)
+            if slot >= 0:
+                beta = wp.cw_mul(beta, beer_lambert(materials.sigma[materials.shape_material[media[slot]]], t - t_last))
+            if prim == NO_HIT:
+                radiance += wp.cw_mul(beta, environment_radiance(lights, prev_pdf, specular))
+                break
+            p = o + t * d
+            n = geometric_normal(scene, prim, p, time)
+            surface = prim_shape(scene, prim)
+            m = materials.shape_material[surface]
+            entering = wp.dot(d, n) < 0.0
+            n_facing = n
+            if not entering:
+                n_facing = -n
+            if entering and max_component(materials.emission[m]) > 0.0:
+                mis = float(1.0)
+                if not specular and surface >= scene.num_shapes:
+                    mis = power_heuristic(prev_pdf, emitter_pdf(lights, surface - scene.num_shapes, prev_p, d, wp.length(p - prev_p)))
+                radiance += wp.cw_mul(beta, materials.emission[m]) * mis
+            kind = materials.type[m]
+            if kind == EMITTER or depth >= settings.max_depth:
+                break
+            err = hit_error(o, p, t)
+            wo = -d
+            straight = bool(False)
+            if kind == DIELECTRIC:
+                real, n1, n2, media_t, n_media_t = dielectric_interface(materials, settings, media, n_media, surface, entering)
+                if not real:
+                    straight = True
                     media = media_t
                     n_media = n_media_t
-                    if eta == 1.0:
-                        straight = True
+                    if wp.static(record):
+                        segment_kind = STRAIGHT
+                else:
+                    eta = n1 / n2
+                    fresnel = fresnel_dielectric(wp.dot(wo, n_facing), eta)
+                    ok, wt = refract(d, n_facing, eta)
+                    if not ok:
+                        fresnel = 1.0
+                    if sample_1d(sampler, pixel, sample, bounce_dim(depth, 2)) < fresnel:
+                        d = reflect(d, n_facing)
+                        if wp.static(record):
+                            segment_kind = wp.where(ok, REFLECTED, TOTAL_INTERNAL)
                     else:
-                        d = wt
+                        media = media_t
+                        n_media = n_media_t
+                        if eta == 1.0:
+                            straight = True
+                        else:
+                            d = wt
+                        if wp.static(record):
+                            segment_kind = wp.where(eta == 1.0, STRAIGHT, REFRACTED)
+                    specular = True
+                    depth += 1
+            elif kind == MIRROR:
+                beta = wp.cw_mul(beta, materials.reflectance[m])
+                d = reflect(d, n_facing)
                 specular = True
                 depth += 1
-        elif kind == MIRROR:
-            beta = wp.cw_mul(beta, materials.reflectance[m])
-            d = reflect(d, n_facing)
-            specular = True
-            depth += 1
-        else:
-            radiance += wp.cw_mul(beta, next_event(scene, materials, lights, m, p, n_facing, err, wo, seed, pixel, sample, depth))
-            wi, bsdf_weight, pdf = sample_bsdf(
-                materials, m, n_facing, wo, sample_1d(seed, pixel, sample, bounce_dim(depth, 0)), sample_1d(seed, pixel, sample, bounce_dim(depth, 1))
-            )
-            if pdf == 0.0:
-                break
-            beta = wp.cw_mul(beta, bsdf_weight)
-            d = wi
-            prev_pdf = pdf
-            prev_p = p
-            specular = False
-            depth += 1
-        if straight:
-            t_from = t + err
-            t_last = t
-        else:
-            o = spawn_origin(p, n, err, d)
-            t_from = 0.0
-            t_last = 0.0
-            if depth > RR_DEPTH:
-                q = wp.min(max_component(beta), 0.95)
-                if sample_1d(seed, pixel, sample, bounce_dim(depth, 3)) >= q:
+                if wp.static(record):
+                    segment_kind = REFLECTED
+            else:
+                radiance += wp.cw_mul(
+                    beta, next_event(scene, materials, lights, m, p, n_facing, err, wo, time, sampler, pixel, sample, depth, rec, current, beta)
+                )
+                u = sample_2d(sampler, pixel, sample, bounce_dim(depth, 0))
+                wi, bsdf_weight, pdf = sample_bsdf(materials, m, n_facing, wo, u[0], u[1])
+                if pdf == 0.0:
                     break
-                beta = beta / q
-    return radiance
+                beta = wp.cw_mul(beta, bsdf_weight)
+                d = wi
+                prev_pdf = pdf
+                prev_p = p
+                specular = False
+                depth += 1
+                if wp.static(record):
+                    segment_kind = SCATTERED
+            if straight:
+                t_from = t + err
+                t_last = t
+            else:
+                o = spawn_origin(p, n, err, d)
+                t_from = 0.0
+                t_last = 0.0
+                if depth > RR_DEPTH:
+                    q = wp.min(max_component(beta), 0.95)
+                    if sample_1d(sampler, pixel, sample, bounce_dim(depth, 3)) >= q:
+                        break
+                    beta = beta / q
+        return radiance
+
+    return path_radiance
 
 
-path = make_render_kernel(path_radiance)
+path = make_render_kernel(make_path_radiance(False))
+path_record = make_render_kernel(make_path_radiance(True), record=True)

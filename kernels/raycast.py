@@ -13,6 +13,7 @@ from .integrator import IntegratorSettings, make_render_kernel
 from .lights import LightData
 from .materials import MaterialData
 from .record import RayRecord
+from .sampling import Sampler
 from .traverse import NO_HIT, SceneData, prim_shape
 
 
@@ -26,8 +27,9 @@ def raycast_radiance(
     d: wp.vec3,
     t: float,
     prim: wp.int32,
+    time: float,
     rec: RayRecord,
-    seed: wp.int32,
+    sampler: Sampler,
     pixel: wp.int32,
     sample: wp.int32,
     parent: wp.int32,
@@ -35,7 +37,7 @@ def raycast_radiance(
     """``base_color * |dot(n, d)|`` at the hit of unit ray ``o + t d``, black on a miss."""
     if prim == NO_HIT:
         return wp.vec3(0.0)
-    n = facing_normal(scene, prim, o + t * d, d)
+    n = facing_normal(scene, prim, o + t * d, d, time)
     color = materials.base_color[materials.shape_material[prim_shape(scene, prim)]]
     return color * wp.abs(wp.dot(n, d))
 

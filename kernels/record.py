@@ -13,7 +13,7 @@ field      type      meaning
 pixel      int32     pixel index ``y * width + x`` (row 0 at the top)
 sample     int32     sample index within the pixel (0 with ``spp = 1``: the pixel centre)
 kind       int32     how the ray was spawned: ``CAMERA``, ``SHADOW_LIT``, ``SHADOW_BLOCKED``,
-                     ``REFLECTED``, ``REFRACTED``, ``TOTAL_INTERNAL``, ``STRAIGHT``
+                     ``REFLECTED``, ``REFRACTED``, ``TOTAL_INTERNAL``, ``STRAIGHT``, ``SCATTERED``
 flags      int32     ``HIT``: ends on a surface; ``ENTERING``: hits it from its front side (against
                      ``normal``); ``ESCAPED``: left the scene (a miss, or a shadow ray toward a
                      directional light): ``end = origin + direction``, unit length
@@ -33,7 +33,8 @@ parent     int32     buffer index of the segment whose end this one starts from,
 
 Kinds: ``STRAIGHT`` is a ray continuing unbent through a false interface (the surface of a
 dielectric that does not own the space, see ``kernels.whitted``); ``TOTAL_INTERNAL`` is a
-reflection at a dielectric past the critical angle. Later integrators add kinds at the end.
+reflection at a dielectric past the critical angle. ``SCATTERED`` is a direction drawn from a
+diffuse, Phong or glossy BSDF (the path integrator). Later integrators add kinds at the end.
 
 Capacity: ``count[0]`` counts every append, stored or not; segments beyond ``segments.shape[0]``
 are dropped (a truncated recording), and their children still name them as parents.
@@ -49,7 +50,8 @@ REFLECTED = wp.constant(3)
 REFRACTED = wp.constant(4)
 TOTAL_INTERNAL = wp.constant(5)
 STRAIGHT = wp.constant(6)
-KIND_NAMES = ("camera", "shadow to light", "shadow blocked", "reflected", "refracted", "total internal reflection", "straight through")
+SCATTERED = wp.constant(7)
+KIND_NAMES = ("camera", "shadow to light", "shadow blocked", "reflected", "refracted", "total internal reflection", "straight through", "scattered")
 
 HIT = wp.constant(1)
 ENTERING = wp.constant(2)
@@ -90,12 +92,13 @@ def record_ray(
     d: wp.vec3,
     t: float,
     prim: wp.int32,
+    time: float,
     throughput: wp.vec3,
     depth: wp.int32,
     parent: wp.int32,
 ) -> wp.int32:
-    """Append the segment of unit ray ``o + s d`` that ended at ``(t, prim)`` as a trace returned it;
-    returns its buffer index.
+    """Append the segment of unit ray ``o + s d`` (at ray time ``time``) that ended at ``(t, prim)``
+    as a trace returned it; returns its buffer index.
 
     ``prim == NO_HIT`` with finite ``t``: the ray ran its whole interval (a shadow ray reaching its
     light at distance ``t``); with ``t = inf`` it escaped the scene.
@@ -114,7 +117,7 @@ def record_ray(
         s.normal = wp.vec3(0.0)
         if prim != NO_HIT:
             s.end = o + t * d
-            s.normal = geometric_normal(scene, prim, s.end)
+            s.normal = geometric_normal(scene, prim, s.end, time)
             s.shape = prim_shape(scene, prim)
             s.flags = HIT
             if wp.dot(d, s.normal) < 0.0:

@@ -63,7 +63,7 @@ def trace_spawned(
     i = wp.tid()
     o = origins[i]
     d = directions[i]
-    t, prim = closest_hit(scene, o, d, 0.0, wp.inf)
+    t, prim = closest_hit(scene, o, d, 0.0, 0.0, wp.inf)
     hit_t[i] = t
     hit_prim[i] = prim
     shadow_hit[i] = NOT_TRACED
@@ -72,7 +72,7 @@ def trace_spawned(
     if prim == NO_HIT:
         return
     p = o + t * d
-    n = geometric_normal(scene, prim, p)
+    n = geometric_normal(scene, prim, p, 0.0)
     entering = wp.dot(d, n) < 0.0
     n_facing = n
     eta = 1.0 / ior
@@ -87,12 +87,12 @@ def trace_spawned(
     o_shadow = spawn_origin(p, n_facing, err, wi)
     shadow_origin[i] = o_shadow
     shadow_dir[i] = wi
-    shadow_hit[i] = wp.where(any_hit(scene, o_shadow, wi, 0.0, wp.inf), 1, 0)
+    shadow_hit[i] = wp.where(any_hit(scene, o_shadow, wi, 0.0, 0.0, wp.inf), 1, 0)
     wr = reflect(d, n_facing)
     o_reflect = spawn_origin(p, n, err, wr)
     reflect_origin[i] = o_reflect
     reflect_dir[i] = wr
-    tr, pr = closest_hit(scene, o_reflect, wr, 0.0, wp.inf)
+    tr, pr = closest_hit(scene, o_reflect, wr, 0.0, 0.0, wp.inf)
     reflect_t[i] = tr
     reflect_prim[i] = pr
     ok, wt = refract(d, n_facing, eta)
@@ -100,6 +100,6 @@ def trace_spawned(
         o_refract = spawn_origin(p, n, err, wt)
         refract_origin[i] = o_refract
         refract_dir[i] = wt
-        tt, pt = closest_hit(scene, o_refract, wt, 0.0, wp.inf)
+        tt, pt = closest_hit(scene, o_refract, wt, 0.0, 0.0, wp.inf)
         refract_t[i] = tt
         refract_prim[i] = pt

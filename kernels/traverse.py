@@ -57,28 +57,57 @@ class SceneData:
     plane_normal: wp.array(dtype=wp.vec3)  # unit
     plane_shape: wp.array(dtype=wp.int32)
     num_shapes: wp.int32  # surfaces from here on are the surfaces of lights (see wrt.geometry)
+    surface_velocity: wp.array(dtype=wp.vec3)  # per surface (shapes, then lights); world units per unit time
+    moving: wp.int32  # 1 when any surface has a nonzero velocity
 
 
 @wp.func
-def intersect_prim(scene: SceneData, prim: wp.int32, o: wp.vec3, d: wp.vec3, t_min: float, t_max: float) -> float:
-    """Dispatch one bounded primitive (packed id) to its intersection test."""
+def prim_shape(scene: SceneData, prim: wp.int32) -> wp.int32:
+    """Surface a primitive belongs to: its ``[[shape]]`` index, or ``num_shapes + k`` on the
+    surface of light k (-1 for ``NO_HIT``)."""
+    if prim == NO_HIT:
+        return -1
     kind = prim & 3
     i = prim >> 2
     if kind == TRIANGLE:
-        return intersect_triangle(o, d, scene.tri_verts[3 * i], scene.tri_verts[3 * i + 1], scene.tri_verts[3 * i + 2], t_min, t_max)
+        return scene.tri_shape[i]
     if kind == SPHERE:
-        return intersect_sphere(o, d, scene.sphere_center[i], scene.sphere_radius[i], t_min, t_max)
+        return scene.sphere_shape[i]
+    if kind == POLYGON:
+        return scene.poly_shape[i]
+    return scene.plane_shape[i]
+
+
+@wp.func
+def ray_origin_at(scene: SceneData, prim: wp.int32, o: wp.vec3, time: float) -> wp.vec3:
+    """The point ``o`` moved into the frame of primitive ``prim`` at ``time`` (``o`` itself when
+    nothing in the scene moves)."""
+    if scene.moving == 0:
+        return o
+    return o - time * scene.surface_velocity[prim_shape(scene, prim)]
+
+
+@wp.func
+def intersect_prim(scene: SceneData, prim: wp.int32, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float) -> float:
+    """Dispatch one bounded primitive (packed id) to its intersection test, at ray time ``time``."""
+    kind = prim & 3
+    i = prim >> 2
+    o_rel = ray_origin_at(scene, prim, o, time)
+    if kind == TRIANGLE:
+        return intersect_triangle(o_rel, d, scene.tri_verts[3 * i], scene.tri_verts[3 * i + 1], scene.tri_verts[3 * i + 2], t_min, t_max)
+    if kind == SPHERE:
+        return intersect_sphere(o_rel, d, scene.sphere_center[i], scene.sphere_radius[i], t_min, t_max)
     return intersect_polygon(
-        o, d, scene.poly_normal[i], scene.poly_offset[i], scene.poly_axis[i], scene.poly_uv, scene.poly_start[i], scene.poly_count[i], t_min, t_max
+        o_rel, d, scene.poly_normal[i], scene.poly_offset[i], scene.poly_axis[i], scene.poly_uv, scene.poly_start[i], scene.poly_count[i], t_min, t_max
     )
 
 
 @wp.func
-def closest_plane(scene: SceneData, o: wp.vec3, d: wp.vec3, t_min: float, t_max: float):
+def closest_plane(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float):
     """Nearest of the unbounded planes (tested outside the BVH): ``(t, prim)`` as ``closest_hit``."""
     hit = int(NO_HIT)
     for i in range(scene.plane_point.shape[0]):
-        t = intersect_plane(o, d, scene.plane_point[i], scene.plane_normal[i], t_min, t_max)
+        t = intersect_plane(ray_origin_at(scene, (i << 2) | PLANE, o, time), d, scene.plane_point[i], scene.plane_normal[i], t_min, t_max)
         if t < t_max:
             t_max = t
             hit = (i << 2) | PLANE
@@ -86,9 +115,10 @@ def closest_plane(scene: SceneData, o: wp.vec3, d: wp.vec3, t_min: float, t_max:
 
 
 @wp.func
-def closest_hit(scene: SceneData, o: wp.vec3, d: wp.vec3, t_min: float, t_max: float):
-    """Nearest intersection in ``(t_min, t_max)``: returns ``(t, prim)``; ``prim == NO_HIT`` on a miss."""
-    t_max, hit = closest_plane(scene, o, d, t_min, t_max)
+def closest_hit(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float):
+    """Nearest intersection in ``(t_min, t_max)`` at ray time ``time``: returns ``(t, prim)``;
+    ``prim == NO_HIT`` on a miss."""
+    t_max, hit = closest_plane(scene, o, d, time, t_min, t_max)
     if scene.nodes.shape[0] == 0:
         return t_max, hit
     inv_d = safe_inverse(d)
@@ -105,7 +135,7 @@ def closest_hit(scene: SceneData, o: wp.vec3, d: wp.vec3, t_min: float, t_max: f
         if nd.count > 0:
             for k in range(nd.start, nd.start + nd.count):
                 prim = scene.prims[k]
-                t = intersect_prim(scene, prim, o, d, t_min, t_max)
+                t = intersect_prim(scene, prim, o, d, time, t_min, t_max)
                 if t < t_max:
                     t_max = t
                     hit = prim
@@ -145,10 +175,11 @@ def closest_hit(scene: SceneData, o: wp.vec3, d: wp.vec3, t_min: float, t_max: f
 
 
 @wp.func
-def any_hit(scene: SceneData, o: wp.vec3, d: wp.vec3, t_min: float, t_max: float) -> bool:
-    """Whether anything lies in ``(t_min, t_max)`` along the ray (for shadow rays); stops at the first hit."""
+def any_hit(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float) -> bool:
+    """Whether anything lies in ``(t_min, t_max)`` along the ray at ray time ``time`` (for shadow
+    rays); stops at the first hit."""
     for i in range(scene.plane_point.shape[0]):
-        if intersect_plane(o, d, scene.plane_point[i], scene.plane_normal[i], t_min, t_max) < t_max:
+        if intersect_plane(ray_origin_at(scene, (i << 2) | PLANE, o, time), d, scene.plane_point[i], scene.plane_normal[i], t_min, t_max) < t_max:
             return True
     if scene.nodes.shape[0] == 0:
         return False
@@ -162,7 +193,7 @@ def any_hit(scene: SceneData, o: wp.vec3, d: wp.vec3, t_min: float, t_max: float
         if intersect_box(o, inv_d, nd.lo, nd.hi, t_max) < t_max:
             if nd.count > 0:
                 for k in range(nd.start, nd.start + nd.count):
-                    if intersect_prim(scene, scene.prims[k], o, d, t_min, t_max) < t_max:
+                    if intersect_prim(scene, scene.prims[k], o, d, time, t_min, t_max) < t_max:
                         return True
             else:
                 stack[sp] = nd.start
@@ -172,12 +203,12 @@ def any_hit(scene: SceneData, o: wp.vec3, d: wp.vec3, t_min: float, t_max: float
 
 
 @wp.func
-def closest_hit_brute_force(scene: SceneData, o: wp.vec3, d: wp.vec3, t_min: float, t_max: float):
+def closest_hit_brute_force(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float):
     """Reference for ``closest_hit``: every primitive tested, no tree. Same return values."""
-    t_max, hit = closest_plane(scene, o, d, t_min, t_max)
+    t_max, hit = closest_plane(scene, o, d, time, t_min, t_max)
     for k in range(scene.prims.shape[0]):
         prim = scene.prims[k]
-        t = intersect_prim(scene, prim, o, d, t_min, t_max)
+        t = intersect_prim(scene, prim, o, d, time, t_min, t_max)
         if t < t_max:
             t_max = t
             hit = prim
@@ -185,25 +216,8 @@ def closest_hit_brute_force(scene: SceneData, o: wp.vec3, d: wp.vec3, t_min: flo
 
 
 @wp.func
-def prim_shape(scene: SceneData, prim: wp.int32) -> wp.int32:
-    """Surface a primitive belongs to: its ``[[shape]]`` index, or ``num_shapes + k`` on the
-    surface of light k (-1 for ``NO_HIT``)."""
-    if prim == NO_HIT:
-        return -1
-    kind = prim & 3
-    i = prim >> 2
-    if kind == TRIANGLE:
-        return scene.tri_shape[i]
-    if kind == SPHERE:
-        return scene.sphere_shape[i]
-    if kind == POLYGON:
-        return scene.poly_shape[i]
-    return scene.plane_shape[i]
-
-
-@wp.func
-def geometric_normal(scene: SceneData, prim: wp.int32, p: wp.vec3) -> wp.vec3:
-    """Unit geometric normal of primitive ``prim`` at surface point ``p`` (world space).
+def geometric_normal(scene: SceneData, prim: wp.int32, p: wp.vec3, time: float) -> wp.vec3:
+    """Unit geometric normal of primitive ``prim`` at surface point ``p`` (world space) at ``time``.
 
     Spheres: outward. Triangles: ``cross(v1 - v0, v2 - v0)`` (the winding normal). Polygons and
     planes: the normal given in the scene (polygons: by Newell's method from the winding).
@@ -214,7 +228,7 @@ def geometric_normal(scene: SceneData, prim: wp.int32, p: wp.vec3) -> wp.vec3:
         v0 = scene.tri_verts[3 * i]
         return wp.normalize(wp.cross(scene.tri_verts[3 * i + 1] - v0, scene.tri_verts[3 * i + 2] - v0))
     if kind == SPHERE:
-        return wp.normalize(p - scene.sphere_center[i])
+        return wp.normalize(ray_origin_at(scene, prim, p, time) - scene.sphere_center[i])
     if kind == POLYGON:
         return scene.poly_normal[i]
     return scene.plane_normal[i]
@@ -231,12 +245,13 @@ def trace_closest(
     out_t: wp.array(dtype=float),
     out_prim: wp.array(dtype=wp.int32),
 ):
-    """Closest hit of a batch of rays (tests, stress suite, benchmarks); ``brute_force != 0`` skips the BVH."""
+    """Closest hit of a batch of rays at time 0 (tests, stress suite, benchmarks); ``brute_force != 0``
+    skips the BVH."""
     i = wp.tid()
     if brute_force != 0:
-        t, prim = closest_hit_brute_force(scene, origins[i], directions[i], t_min, t_max)
+        t, prim = closest_hit_brute_force(scene, origins[i], directions[i], 0.0, t_min, t_max)
     else:
-        t, prim = closest_hit(scene, origins[i], directions[i], t_min, t_max)
+        t, prim = closest_hit(scene, origins[i], directions[i], 0.0, t_min, t_max)
     out_t[i] = t
     out_prim[i] = prim
 
@@ -250,6 +265,6 @@ def trace_any(
     t_max: float,
     out_hit: wp.array(dtype=wp.int32),
 ):
-    """Any-hit (occlusion) query of a batch of rays: 1 where something lies in (t_min, t_max)."""
+    """Any-hit (occlusion) query of a batch of rays at time 0: 1 where something lies in (t_min, t_max)."""
     i = wp.tid()
-    out_hit[i] = wp.where(any_hit(scene, origins[i], directions[i], t_min, t_max), 1, 0)
+    out_hit[i] = wp.where(any_hit(scene, origins[i], directions[i], 0.0, t_min, t_max), 1, 0)

@@ -49,6 +49,7 @@ from .lights import LightData, light_incident
 from .materials import DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, PHONG, MaterialData, beer_lambert, eval_brdf
 from .media import MEDIA, Media, current_medium, dielectric_interface, max_component
 from .optics import fresnel_dielectric, reflect, refract
+from .sampling import Sampler
 from .record import REFLECTED, REFRACTED, SHADOW_BLOCKED, SHADOW_LIT, STRAIGHT, TOTAL_INTERNAL, RayRecord, record_ray
 from .spawn import hit_error, spawn_origin
 from .traverse import NO_HIT, SceneData, any_hit, closest_hit, geometric_normal, prim_shape
@@ -83,7 +84,7 @@ def heaviest_branch(throughput: BranchVec3, count: wp.int32) -> wp.int32:
 
 @wp.func
 def shadow_transmittance(
-    scene: SceneData, materials: MaterialData, settings: IntegratorSettings, o: wp.vec3, w: wp.vec3, t_max: float
+    scene: SceneData, materials: MaterialData, settings: IntegratorSettings, o: wp.vec3, w: wp.vec3, t_max: float, time: float
 ) -> wp.vec3:
     """Fraction of a light's radiance reaching ``o`` from direction ``w`` over distance ``t_max``.
 
@@ -92,19 +93,19 @@ def shadow_transmittance(
     straight line, attenuated by Beer-Lambert over the length inside them; anything else blocks.
     """
     if settings.filtered_shadows == 0:
-        if any_hit(scene, o, w, 0.0, t_max):
+        if any_hit(scene, o, w, time, 0.0, t_max):
             return wp.vec3(0.0)
         return wp.vec3(1.0)
     transmittance = wp.vec3(1.0)
     for _k in range(SHADOW_CROSSINGS):
-        t, prim = closest_hit(scene, o, w, 0.0, t_max)
+        t, prim = closest_hit(scene, o, w, time, 0.0, t_max)
         if prim == NO_HIT:
             return transmittance
         m = materials.shape_material[prim_shape(scene, prim)]
         if materials.type[m] != DIELECTRIC:
             return wp.vec3(0.0)
         p = o + t * w
-        n = geometric_normal(scene, prim, p)
+        n = geometric_normal(scene, prim, p, time)
         if wp.dot(w, n) > 0.0:  # leaving: the segment just travelled was inside
             transmittance = wp.cw_mul(transmittance, beer_lambert(materials.sigma[m], t))
         o_next = spawn_origin(p, n, hit_error(o, p, t), w)
@@ -114,19 +115,19 @@ def shadow_transmittance(
 
 
 @wp.func
-def shadow_blocker(scene: SceneData, materials: MaterialData, settings: IntegratorSettings, o: wp.vec3, w: wp.vec3, t_max: float):
+def shadow_blocker(scene: SceneData, materials: MaterialData, settings: IntegratorSettings, o: wp.vec3, w: wp.vec3, t_max: float, time: float):
     """Recording only: ``(t, prim)`` of the surface that stopped a blocked shadow ray from ``o``
     along unit ``w``: the first surface hit, or with filtered shadows the first one that is not a
     dielectric (``NO_HIT`` and ``t_max`` if there is none)."""
     t_total = float(0.0)
     for _k in range(SHADOW_CROSSINGS):
-        t, prim = closest_hit(scene, o, w, 0.0, t_max - t_total)
+        t, prim = closest_hit(scene, o, w, time, 0.0, t_max - t_total)
         if prim == NO_HIT or settings.filtered_shadows == 0:
             return t_total + t, prim
         if materials.type[materials.shape_material[prim_shape(scene, prim)]] != DIELECTRIC:
             return t_total + t, prim
         p = o + t * w
-        o = spawn_origin(p, geometric_normal(scene, prim, p), hit_error(o, p, t), w)
+        o = spawn_origin(p, geometric_normal(scene, prim, p, time), hit_error(o, p, t), w)
         t_total += t
     return t_max, NO_HIT
 
@@ -145,6 +146,7 @@ def make_direct_light(record: bool):
         n: wp.vec3,
         err: float,
         wo: wp.vec3,
+        time: float,
         rec: RayRecord,
         pixel: wp.int32,
         sample: wp.int32,
@@ -164,14 +166,14 @@ def make_direct_light(record: bool):
             cos_theta = wp.dot(n, wi)
             if cos_theta > 0.0 and max_component(irradiance) > 0.0:
                 o_shadow = spawn_origin(p, n, err, wi)
-                visible = shadow_transmittance(scene, materials, settings, o_shadow, wi, dist)
+                visible = shadow_transmittance(scene, materials, settings, o_shadow, wi, dist, time)
                 total += wp.cw_mul(wp.cw_mul(eval_brdf(materials, m, n, wo, wi), irradiance), visible) * cos_theta
                 if wp.static(record):
                     if max_component(visible) > 0.0:
-                        record_ray(rec, scene, pixel, sample, SHADOW_LIT, o_shadow, wi, dist, NO_HIT, wp.cw_mul(throughput, visible), depth, parent)
+                        record_ray(rec, scene, pixel, sample, SHADOW_LIT, o_shadow, wi, dist, NO_HIT, time, wp.cw_mul(throughput, visible), depth, parent)
                     else:
-                        t_block, prim_block = shadow_blocker(scene, materials, settings, o_shadow, wi, dist)
-                        record_ray(rec, scene, pixel, sample, SHADOW_BLOCKED, o_shadow, wi, t_block, prim_block, wp.vec3(0.0), depth, parent)
+                        t_block, prim_block = shadow_blocker(scene, materials, settings, o_shadow, wi, dist, time)
+                        record_ray(rec, scene, pixel, sample, SHADOW_BLOCKED, o_shadow, wi, t_block, prim_block, time, wp.vec3(0.0), depth, parent)
         return total
 
     return direct_light
@@ -191,8 +193,9 @@ def make_whitted_radiance(record: bool):
         d: wp.vec3,
         t: float,
         prim: wp.int32,
+        time: float,
         rec: RayRecord,
-        seed: wp.int32,
+        sampler: Sampler,
         pixel: wp.int32,
         sample: wp.int32,
         parent: wp.int32,
@@ -226,9 +229,9 @@ def make_whitted_radiance(record: bool):
             pending_parent = BranchInt()
         for _segment in range(MAX_SEGMENTS):
             if not traced:
-                t, prim = closest_hit(scene, o, d, t_from, wp.inf)
+                t, prim = closest_hit(scene, o, d, time, t_from, wp.inf)
                 if wp.static(record):
-                    current = record_ray(rec, scene, pixel, sample, segment_kind, o + t_last * d, d, t - t_last, prim, throughput, depth, segment_parent)
+                    current = record_ray(rec, scene, pixel, sample, segment_kind, o + t_last * d, d, t - t_last, prim, time, throughput, depth, segment_parent)
             traced = False
             slot = current_medium(materials, media, n_media)
             if slot >= 0:  # absorption along the segment just travelled (infinite if it escapes)
@@ -238,7 +241,7 @@ def make_whitted_radiance(record: bool):
                 radiance += wp.cw_mul(throughput, settings.background)
             else:
                 p = o + t * d
-                n = geometric_normal(scene, prim, p)
+                n = geometric_normal(scene, prim, p, time)
                 shape = prim_shape(scene, prim)
                 m = materials.shape_material[shape]
                 entering = wp.dot(d, n) < 0.0
@@ -253,7 +256,7 @@ def make_whitted_radiance(record: bool):
                     local = wp.cw_mul(settings.ambient, materials.albedo[m])
                     if depth < settings.max_depth:
                         local += direct_light(
-                            scene, materials, lights, settings, m, p, n_facing, err, -d, rec, pixel, sample, current, depth + 1, throughput
+                            scene, materials, lights, settings, m, p, n_facing, err, -d, time, rec, pixel, sample, current, depth + 1, throughput
                         )
                     radiance += wp.cw_mul(throughput, local)
                 elif kind == MIRROR:

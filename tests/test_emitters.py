@@ -6,7 +6,7 @@ import warp as wp
 import kernels  # noqa: F401
 from kernels.emitters import emitter_pdf, sample_emitter
 from kernels.lights import AREA, ENVIRONMENT, SPHERE_LIGHT, LightData
-from kernels.sampling import sample_1d
+from kernels.sampling import independent_1d as sample_1d
 from kernels.warps import concentric_disk, cosine_hemisphere, frame, power_heuristic
 
 

@@ -101,7 +101,11 @@ BAD = [
     ("unknown light key", GOOD + '[[light]]\ntype = "point"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\ncolor = [1, 1, 1]\n', "light[0].color", "unknown key"),
     ("area light in whitted", GOOD.replace("spp = 1", 'integrator = "whitted"') + '[[light]]\ntype = "area"\ncorner = [0, 2, 0]\nedge_u = [1, 0, 0]\nedge_v = [0, 0, 1]\nradiance = [1, 1, 1]\n', "light[0].type = 'area'", "point, directional and spot"),
     ("flat area light", GOOD + '[[light]]\ntype = "area"\ncorner = [0, 2, 0]\nedge_u = [1, 0, 0]\nedge_v = [2, 0, 0]\nradiance = [1, 1, 1]\n', "light[0].edge_v = [2.0, 0.0, 0.0]", "parallel to edge_u"),
-    ("unplanned sampler", GOOD.replace("spp = 1", 'sampler = "sobol"'), "render.sampler = 'sobol'", "must be one of independent"),
+    ("unknown sampler", GOOD.replace("spp = 1", 'sampler = "halton"'), "render.sampler = 'halton'", "must be one of independent, stratified, sobol"),
+    ("unknown filter", GOOD.replace("spp = 1", 'filter = "mitchell"'), "render.filter = 'mitchell'", "must be one of box, tent, gaussian"),
+    ("shutter closing first", GOOD.replace("[camera]", "[camera]\nshutter = [1, 0]"), "camera.shutter = [1, 0]", "close must not come before open"),
+    ("shutter of one number", GOOD.replace("[camera]", "[camera]\nshutter = [1]"), "camera.shutter = [1]", "2 numbers"),
+    ("velocity with NaN", GOOD + '[[shape]]\ntype = "sphere"\ncenter = [0, 0, 0]\nradius = 1\nvelocity = [nan, 0, 0]\n', "shape[1].velocity", "finite"),
     ("bad dielectric shadows", GOOD.replace("spp = 1", 'dielectric_shadows = "glass"'), "render.dielectric_shadows = 'glass'", "opaque, filtered"),
     ("triangle with 4 points", GOOD + '[[shape]]\ntype = "triangle"\nvertices = [[0,0,0],[1,0,0],[0,1,0],[1,1,0]]\n', "shape[1].vertices", "list of 3"),
 ]

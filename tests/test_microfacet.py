@@ -5,7 +5,7 @@ import warp as wp
 
 import kernels  # noqa: F401
 from kernels.microfacet import ggx_d, ggx_eval, ggx_pdf, ggx_sample_visible_normal
-from kernels.sampling import sample_1d
+from kernels.sampling import independent_1d as sample_1d
 
 
 @wp.kernel

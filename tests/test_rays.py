@@ -11,7 +11,7 @@ from skimage.io import imread
 import wrt
 from conftest import make_scene
 from harness import rayview
-from kernels.record import CAMERA, REFLECTED, REFRACTED, SHADOW_BLOCKED, SHADOW_LIT, STRAIGHT, TOTAL_INTERNAL
+from kernels.record import CAMERA, REFLECTED, REFRACTED, SCATTERED, SHADOW_BLOCKED, SHADOW_LIT, STRAIGHT, TOTAL_INTERNAL
 from wrt.cli import main
 from wrt.rays import trace_rays
 
@@ -149,7 +149,7 @@ MIXED = [
 MIXED_MATERIALS = [GLASS, {"name": "mirror", "type": "mirror"}, {"name": "floor", "albedo": [0.6, 0.5, 0.4]}]
 
 
-@pytest.mark.parametrize("integrator, samples", [("whitted", 1), ("whitted", 3), ("raycast", 1)])
+@pytest.mark.parametrize("integrator, samples", [("whitted", 1), ("whitted", 3), ("raycast", 1), ("path", 1), ("path", 4)])
 def test_recording_matches_the_render(integrator, samples):
     """Recorded camera hits equal the `position` AOV (spp 1: the pixel-centre ray) bit for bit, and
     the recording launch computes the very radiance `wrt.render` does, at any spp."""
@@ -175,6 +175,8 @@ def test_recording_matches_the_render(integrator, samples):
             np.testing.assert_array_equal(tree.position[k], image.aovs["position"][y, x])
     if integrator == "raycast":
         assert (tree.kind == CAMERA).all()
+    elif integrator == "path":
+        assert {SCATTERED, SHADOW_LIT} <= set(tree.kind.tolist())
     else:
         assert {REFLECTED, REFRACTED, SHADOW_LIT} <= set(tree.kind.tolist())
 
@@ -240,3 +242,33 @@ def test_view_png_off_screen_is_not_blank(tmp_path):
     assert len(np.unique(img.reshape(-1, 3), axis=0)) > 50
     camera_blue = np.array([int(rayview.KIND_COLORS[CAMERA][k : k + 2], 16) for k in (1, 3, 5)])
     assert (np.abs(img.astype(int) - camera_blue).max(axis=-1) <= 8).sum() > 200, "no camera ray drawn"
+
+
+def test_path_recording_follows_the_bsdf_and_samples_the_light():
+    """A diffuse floor under a parallelogram light: every scattered ray starts where its parent
+    ended, leaves into the hemisphere of the surface it left, and every shadow ray that reaches
+    the light ends on the light's rectangle."""
+    light = {"type": "area", "corner": [-0.5, 2.0, -0.5], "edge_u": [1.0, 0.0, 0.0], "edge_v": [0.0, 0.0, 1.0], "radiance": [5, 5, 5]}
+    scene = make_scene(
+        [{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "floor"}, {"type": "sphere", "center": [0, 0.5, 0], "radius": 0.5, "material": "floor"}],
+        materials=[{"name": "floor", "albedo": [0.7, 0.7, 0.7]}],
+        lights=[light],
+        camera={"origin": [0, 1.5, 3], "look_at": [0, 0.4, 0]},
+        render={"width": 32, "height": 24, "integrator": "path", "spp": 1, "max_depth": 5},
+    )
+    tree = trace_rays(scene, [(x, y) for x in range(2, 32, 6) for y in range(2, 24, 6)], samples=4)
+    scattered = np.flatnonzero(tree.kind == SCATTERED)
+    assert len(scattered) > 20
+    parents = tree.parent[scattered]
+    offset = np.linalg.norm(tree.origin[scattered] - tree.end[parents], axis=1)
+    o, p = tree.origin[parents], tree.end[parents]
+    bound = 16 * 2.0**-24 * (np.abs(o).max(axis=1) + np.abs(p).max(axis=1) + np.linalg.norm(p - o, axis=1))  # kernels.spawn
+    assert np.all(offset <= 1.01 * bound + 1e-7)
+    facing = np.where((np.sum((tree.end[parents] - tree.origin[parents]) * tree.normal[parents], axis=1) < 0)[:, None], tree.normal[parents], -tree.normal[parents])
+    assert np.all(np.sum((tree.end[scattered] - tree.origin[scattered]) * facing, axis=1) > 0)
+    lit = np.flatnonzero(tree.kind == SHADOW_LIT)
+    assert len(lit) > 20
+    ends = tree.end[lit]
+    assert np.all(np.abs(ends[:, 1] - 2.0) < 2e-3)  # on the light's plane (shadow rays stop 1e-4 of their length short)
+    assert np.all((np.abs(ends[:, 0]) <= 0.501) & (np.abs(ends[:, 2]) <= 0.501))
+    assert tree.depth[scattered].max() <= 5

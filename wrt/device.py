@@ -13,10 +13,11 @@ import tempfile
 import numpy as np
 import warp as wp
 
-from kernels.camera import CameraData
+from kernels.camera import BOX, GAUSSIAN, TENT, CameraData
 from kernels.integrator import IntegratorSettings
 from kernels.lights import AREA, DIRECTIONAL, ENVIRONMENT, POINT, SPHERE_LIGHT, SPOT, LightData
 from kernels.materials import DIELECTRIC, DIFFUSE, EMITTER, GLOSSY, MIRROR, PHONG, MaterialData
+from kernels.sampling import INDEPENDENT, SOBOL, STRATIFIED, Sampler
 from kernels.traverse import BvhNode, SceneData
 
 from .errors import WrtError
@@ -35,6 +36,8 @@ from .scene import (
     SpotLight,
 )
 
+SAMPLER_CODES = {"independent": INDEPENDENT, "stratified": STRATIFIED, "sobol": SOBOL}
+FILTER_CODES = {"box": BOX, "tent": TENT, "gaussian": GAUSSIAN}
 MATERIAL_CODES = {"diffuse": DIFFUSE, "phong": PHONG, "mirror": MIRROR, "dielectric": DIELECTRIC, "glossy": GLOSSY, "emitter": EMITTER}
 
 
@@ -124,6 +127,8 @@ def upload_geometry(p: Primitives, device) -> SceneData:
     s.plane_normal = _vec3(p.plane_normal, device)
     s.plane_shape = _int(p.plane_shape, device)
     s.num_shapes = p.num_shapes
+    s.surface_velocity = _vec3(p.surface_velocity, device)
+    s.moving = int(np.any(p.surface_velocity != 0.0))
     return s
 
 
@@ -210,8 +215,20 @@ def integrator_settings(render: RenderSettings) -> IntegratorSettings:
     return s
 
 
-def camera_data(camera: Camera, width: int, height: int) -> CameraData:
-    """``CameraData`` for the scene-format camera convention (see ``kernels.camera``)."""
+def sampler_data(kind: str, spp: int, seed: int) -> Sampler:
+    """``Sampler`` of the ``[render] sampler`` named ``kind`` for a render of ``spp`` samples; the
+    stratified sampler's 2D grid is the factorisation of ``spp`` nearest to a square."""
+    s = Sampler()
+    s.kind = SAMPLER_CODES[kind]
+    s.seed = seed
+    s.spp = spp
+    s.strata_x = max(k for k in range(1, math.isqrt(spp) + 1) if spp % k == 0)
+    return s
+
+
+def camera_data(camera: Camera, render: RenderSettings, width: int, height: int) -> CameraData:
+    """``CameraData`` for the scene-format camera convention and the ``[render]`` filter (see
+    ``kernels.camera``)."""
     forward, right, up = camera.basis()
     c = CameraData()
     c.origin = wp.vec3(*camera.origin)
@@ -221,4 +238,6 @@ def camera_data(camera: Camera, width: int, height: int) -> CameraData:
     c.focus_distance = camera.focus_distance if camera.focus_distance is not None else float(np.linalg.norm(np.subtract(camera.look_at, camera.origin)))
     c.aspect = width / height
     c.width, c.height = width, height
+    c.filter = FILTER_CODES[render.filter]
+    c.shutter_open, c.shutter_close = camera.shutter
     return c

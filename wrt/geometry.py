@@ -34,6 +34,7 @@ class Primitives:
     plane_point: np.ndarray  # (L, 3)
     plane_normal: np.ndarray  # (L, 3) unit
     plane_shape: np.ndarray
+    surface_velocity: np.ndarray | None = None  # (shapes + lights, 3): scene units per unit time
     num_shapes: int = 0  # surfaces numbered from here on belong to lights
     bvh: Bvh | None = None  # over the bounded primitives, see ``bounded_ids``
     prims: np.ndarray | None = None  # (N,) packed ids in leaf order
@@ -58,12 +59,16 @@ class Primitives:
             out[hit] = table[index[hit]]
         return out
 
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Axis-aligned bounds (N, 3) of the bounded primitives, in ``bounded_ids`` order."""
+    def bounds(self, shutter: tuple[float, float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+        """Axis-aligned bounds (N, 3) of the bounded primitives, in ``bounded_ids`` order, over the
+        times of ``shutter``: a moving primitive's box covers its whole sweep."""
         r = self.sphere_radius[:, None]
-        lo = [self.sphere_center - r, self.tri_verts.min(axis=1)] + [v.min(axis=0, keepdims=True) for v in self.poly_verts]
-        hi = [self.sphere_center + r, self.tri_verts.max(axis=1)] + [v.max(axis=0, keepdims=True) for v in self.poly_verts]
-        return np.concatenate(lo), np.concatenate(hi)
+        lo = np.concatenate([self.sphere_center - r, self.tri_verts.min(axis=1)] + [v.min(axis=0, keepdims=True) for v in self.poly_verts])
+        hi = np.concatenate([self.sphere_center + r, self.tri_verts.max(axis=1)] + [v.max(axis=0, keepdims=True) for v in self.poly_verts])
+        shapes = np.concatenate([self.sphere_shape, self.tri_shape, self.poly_shape]).astype(np.int64)
+        v = self.surface_velocity[shapes]
+        moves = [v * shutter[0], v * shutter[1]]
+        return lo + np.minimum(*moves), hi + np.maximum(*moves)
 
 
 def flatten(scene: Scene) -> Primitives:
@@ -90,6 +95,7 @@ def flatten(scene: Scene) -> Primitives:
             c, u, v = (np.asarray(x, dtype=np.float64) for x in (light.corner, light.edge_u, light.edge_v))
             normal = np.cross(u, v)
             polys.append(([c, c + u, c + u + v, c + v], tuple(normal / np.linalg.norm(normal)), surface))
+    velocity = [shape.velocity for shape in scene.shapes] + [(0.0, 0.0, 0.0)] * len(scene.lights)
     tri_blocks.insert(0, np.asarray([v for v, _ in tris], dtype=np.float64).reshape(-1, 3, 3))
     tri_shape_blocks.insert(0, np.asarray([s for _, s in tris], dtype=np.int32))
     return Primitives(
@@ -104,6 +110,7 @@ def flatten(scene: Scene) -> Primitives:
         plane_point=np.asarray([p for p, _, _ in planes], dtype=np.float64).reshape(-1, 3),
         plane_normal=np.asarray([n for _, n, _ in planes], dtype=np.float64).reshape(-1, 3),
         plane_shape=np.asarray([s for _, _, s in planes], dtype=np.int32),
+        surface_velocity=np.asarray(velocity, dtype=np.float64).reshape(-1, 3),
         num_shapes=len(scene.shapes),
     )
 
@@ -117,7 +124,7 @@ def build(scene: Scene) -> Primitives:
     """Flatten ``scene``, build the BVH over its bounded primitives and reorder to leaf order."""
     p = flatten(scene)
     ids = p.bounded_ids()
-    bvh = build_bvh(*p.bounds())
+    bvh = build_bvh(*p.bounds(scene.camera.shutter))
     ids = ids[bvh.order]
     s = _leaf_order(SPHERE, ids)
     t = _leaf_order(TRIANGLE, ids)

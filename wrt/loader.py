@@ -37,6 +37,7 @@ from .scene import (
     Scene,
     Sphere,
     SphereLight,
+    STILL,
     SpotLight,
     Triangle,
 )
@@ -180,6 +181,14 @@ def _camera(file: str, data) -> Camera:
     fov = t.number("fov", Camera.fov, lo=0.0, hi=180.0, lo_open=True, hi_open=True)
     aperture = t.number("aperture_radius", 0.0, lo=0.0)
     focus = t.number("focus_distance", None, lo=0.0, lo_open=True)
+    shutter = t.get("shutter", Camera.shutter)
+    if shutter is not Camera.shutter:
+        if not isinstance(shutter, list) or len(shutter) != 2 or any(isinstance(c, bool) or not isinstance(c, (int, float)) for c in shutter):
+            raise t.error("shutter", "must be 2 numbers [open, close]", shutter)
+        _check_float32(t, "shutter", shutter, shutter)
+        if shutter[1] < shutter[0]:
+            raise t.error("shutter", "close must not come before open", shutter)
+        shutter = (float(shutter[0]), float(shutter[1]))
     t.finish()
     forward = np.subtract(look_at, origin)
     if not np.any(forward):
@@ -188,7 +197,7 @@ def _camera(file: str, data) -> Camera:
     sin_angle = np.linalg.norm(np.cross(forward, np.asarray(up) / np.linalg.norm(up)))
     if sin_angle < 1e-6:
         raise t.error("up", "is parallel to the viewing direction (look_at - origin)", list(up))
-    return Camera(origin=origin, look_at=look_at, up=up, fov=fov, aperture_radius=aperture, focus_distance=focus)
+    return Camera(origin=origin, look_at=look_at, up=up, fov=fov, aperture_radius=aperture, focus_distance=focus, shutter=shutter)
 
 
 # keys each material type reads, besides name, type and emission
@@ -289,8 +298,9 @@ def _shape(file: str, index: int, data, material_index: Mapping[str, int], scene
         shape = Polygon(vertices=vertices, normal=_newell_normal(t, vertices), material=material)
     else:
         shape = _mesh(t, scene_dir, material)
+    velocity = t.vec3("velocity", STILL)
     t.finish()
-    return shape
+    return dataclasses.replace(shape, velocity=velocity) if velocity != STILL else shape
 
 
 def _unit(t: _Table, key: str) -> tuple[float, float, float]:

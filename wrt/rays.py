@@ -160,8 +160,6 @@ def trace_rays(
     if capacity < 1:
         raise WrtError(f"capacity must be >= 1, got {capacity}")
     dev = resolve_device(device)
-    if scene.render.integrator not in RECORD_KERNELS:
-        raise WrtError(f"{scene.path}: ray recording supports the {' and '.join(RECORD_KERNELS)} integrators, not {scene.render.integrator!r} yet")
     kernel = RECORD_KERNELS[scene.render.integrator]
     wp.load_module(kernel.module, device=dev)
     frame = prepare(scene, dev)

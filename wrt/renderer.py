@@ -30,16 +30,16 @@ import warp as wp
 from kernels.film import Film
 from kernels.raycast import raycast, raycast_record
 from kernels.record import RayRecord
-from kernels.path import path
+from kernels.path import path, path_record
 from kernels.whitted import whitted, whitted_record
 
-from .device import camera_data, integrator_settings, resolve_device, upload_geometry, upload_lights, upload_materials
+from .device import camera_data, integrator_settings, resolve_device, sampler_data, upload_geometry, upload_lights, upload_materials
 from .errors import WrtError
 from .geometry import build
 from .scene import Scene
 
 INTEGRATOR_KERNELS = {"raycast": raycast, "whitted": whitted, "path": path}
-RECORD_KERNELS = {"raycast": raycast_record, "whitted": whitted_record}
+RECORD_KERNELS = {"raycast": raycast_record, "whitted": whitted_record, "path": path_record}
 TILE_PIXELS = 4096  # pixels per CPU launch: small enough to balance two threads, large enough to amortise a launch
 PASS_SECONDS = 1.0  # wall seconds a pass of a progressive render aims at
 AOV_NAMES = ("depth", "normal", "object_id", "position")
@@ -83,6 +83,7 @@ class DeviceScene:
     camera: object  # kernels.camera.CameraData
     film: Film
     build_time_s: float  # wall seconds of the BVH build
+    sampler: str  # [render] sampler
 
     def launch(
         self, kernel, first: int, count: int, spp: int, seed: int, rec: RayRecord | None = None, first_sample: int = 0, pass_spp: int | None = None
@@ -91,7 +92,8 @@ class DeviceScene:
         first_sample + pass_spp - 1`` (default: all ``spp``) of a render of ``spp`` samples;
         ``rec`` only for a recording variant."""
         pass_spp = spp - first_sample if pass_spp is None else pass_spp
-        inputs = [self.geometry, self.materials, self.lights, self.settings, self.camera, spp, first_sample, pass_spp, seed, first, self.film, NO_RECORD if rec is None else rec]
+        sampler = sampler_data(self.sampler, spp, seed)
+        inputs = [self.geometry, self.materials, self.lights, self.settings, self.camera, sampler, first_sample, pass_spp, first, self.film, NO_RECORD if rec is None else rec]
         wp.launch(kernel, dim=count, inputs=inputs, device=self.device)
 
     def aovs(self) -> dict[str, np.ndarray]:
@@ -126,9 +128,10 @@ def prepare(scene: Scene, dev: wp.context.Device) -> DeviceScene:
             materials=upload_materials(scene, dev),
             lights=upload_lights(scene, dev),
             settings=integrator_settings(scene.render),
-            camera=camera_data(scene.camera, w, h),
+            camera=camera_data(scene.camera, scene.render, w, h),
             film=film,
             build_time_s=build_time,
+            sampler=scene.render.sampler,
         )
 
 

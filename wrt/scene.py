@@ -11,8 +11,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 INTEGRATORS = ("raycast", "whitted", "path")
-SAMPLERS = ("independent",)  # "stratified" and "sobol" are planned (issue 4)
-FILTERS = ("box",)  # "gaussian" and "tent" are planned (issue 4)
+SAMPLERS = ("independent", "stratified", "sobol")
+FILTERS = ("box", "tent", "gaussian")
 DIELECTRIC_SHADOWS = ("opaque", "filtered")
 
 
@@ -34,15 +34,16 @@ class RenderSettings:
     exterior_ior: float = 1.0  # index of refraction of the medium filling the scene
     dielectric_shadows: str = "opaque"  # or "filtered": shadow rays pass dielectrics, Beer-attenuated
     min_throughput: float = 1e-4  # whitted branches whose throughput falls below this are cut
-    sampler: str = "independent"  # random numbers: a counter-based hash per (seed, pixel, sample, dimension)
-    filter: str = "box"  # pixel reconstruction filter
+    sampler: str = "independent"  # random numbers (kernels.sampling): independent, stratified or sobol
+    filter: str = "box"  # pixel filter (kernels.camera): box, tent or gaussian
 
 
 @dataclass(frozen=True)
 class Camera:
     """``[camera]``: ``fov`` is the VERTICAL field of view in degrees; a thin lens of
     ``aperture_radius`` (world units, 0 = pinhole) focused at ``focus_distance`` from the lens
-    along the viewing direction (None: the distance to ``look_at``)."""
+    along the viewing direction (None: the distance to ``look_at``); camera samples are taken at
+    times uniform in ``shutter`` = (open, close), in the time unit of shape velocities."""
 
     origin: tuple[float, float, float]
     look_at: tuple[float, float, float]
@@ -50,6 +51,7 @@ class Camera:
     fov: float = 45.0
     aperture_radius: float = 0.0
     focus_distance: float | None = None
+    shutter: tuple[float, float] = (0.0, 0.0)
 
     def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(forward, right, up')`` unit vectors (float64) of the camera convention."""
@@ -87,11 +89,17 @@ class Material:
     emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
+STILL = (0.0, 0.0, 0.0)
+"""The default ``velocity`` of a shape: at time ``tau`` a shape is displaced by ``velocity * tau``
+(scene units per unit time)."""
+
+
 @dataclass(frozen=True)
 class Sphere:
     center: tuple[float, float, float]
     radius: float
     material: int
+    velocity: tuple[float, float, float] = STILL
 
 
 @dataclass(frozen=True)
@@ -101,12 +109,14 @@ class Plane:
     point: tuple[float, float, float]
     normal: tuple[float, float, float]
     material: int
+    velocity: tuple[float, float, float] = STILL
 
 
 @dataclass(frozen=True)
 class Triangle:
     vertices: tuple[tuple[float, float, float], ...]
     material: int
+    velocity: tuple[float, float, float] = STILL
 
 
 @dataclass(frozen=True)
@@ -116,6 +126,7 @@ class Polygon:
     vertices: tuple[tuple[float, float, float], ...]
     normal: tuple[float, float, float]
     material: int
+    velocity: tuple[float, float, float] = STILL
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,6 +137,7 @@ class Mesh:
     vertices: np.ndarray  # (V, 3) float64, world space
     faces: np.ndarray  # (F, 3) int32
     material: int
+    velocity: tuple[float, float, float] = STILL
 
 
 @dataclass(frozen=True)
