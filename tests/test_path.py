@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 import wrt
-from conftest import make_scene
+from conftest import CAMERA, make_scene
 
 ENV = {"type": "environment", "radiance": [0.5, 0.5, 0.5]}
 
@@ -80,9 +80,12 @@ def test_energy_never_increases_under_a_uniform_environment(material):
         assert r.rgb.mean() == pytest.approx(0.5, abs=0.01)
 
 
-def test_bit_identical_for_any_thread_count():
-    args = ([{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "w"}], [{"name": "w", "albedo": [0.7, 0.7, 0.7]}], [ENV, {"type": "point", "position": [2, 2, 2], "intensity": [5, 5, 5]}])
-    scene = make_scene(*args[:1], materials=args[1], lights=args[2], render={"width": 24, "height": 16, "integrator": "path", "spp": 8})
+@pytest.mark.parametrize("sampler, filter", [("independent", "box"), ("stratified", "tent"), ("sobol", "gaussian")])
+def test_bit_identical_for_any_thread_count(sampler, filter):
+    args = ([{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "w", "velocity": [0.3, 0, 0]}], [{"name": "w", "albedo": [0.7, 0.7, 0.7]}], [ENV, {"type": "point", "position": [2, 2, 2], "intensity": [5, 5, 5]}])
+    camera = {**CAMERA, "shutter": [0.0, 1.0], "aperture_radius": 0.05}
+    render = {"width": 24, "height": 16, "integrator": "path", "spp": 8, "sampler": sampler, "filter": filter}
+    scene = make_scene(*args[:1], materials=args[1], lights=args[2], camera=camera, render=render)
     a, b = wrt.render(scene, threads=1), wrt.render(scene, threads=2)
     assert np.array_equal(a.rgb, b.rgb)
 
