@@ -15,10 +15,17 @@ import warp as wp
 from .traverse import NO_HIT, SceneData, geometric_normal, prim_shape
 
 
+@wp.func
+def luminance(rgb: wp.vec3) -> float:
+    """Luminance Y of linear Rec. 709 RGB."""
+    return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]
+
+
 @wp.struct
 class Film:
     rgb: wp.array(dtype=wp.vec3)  # linear radiance, W/(m^2 sr): rgb_sum / samples so far
     rgb_sum: wp.array(dtype=wp.vec3)  # running float32 sum of the samples so far, in sample order
+    luminance_sq_sum: wp.array(dtype=float)  # running sum of the samples' squared luminance (error estimates)
     depth: wp.array(dtype=float)
     normal: wp.array(dtype=wp.vec3)
     object_id: wp.array(dtype=wp.int32)

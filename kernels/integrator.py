@@ -8,8 +8,10 @@ one-sample render traces each primary ray once.
 
 A launch takes the samples ``first_sample .. first_sample + pass_spp - 1`` of a render of ``spp``
 samples (a progressive render is several launches, or passes). It continues the pixel's running
-float32 sum ``film.rgb_sum`` in sample order and writes ``film.rgb = rgb_sum / samples so far``;
-the AOVs are written by the pass with ``first_sample == 0``. The additions happen in the same
+float32 sum ``film.rgb_sum`` in sample order and writes ``film.rgb = rgb_sum / samples so far``
+(and the sum of squared luminances, for error estimates); the AOVs are written by the pass with
+``first_sample == 0``. With a non-empty ``active`` list (adaptive sampling) the launch's threads
+take the pixels ``active[first_pixel + tid]`` instead of ``first_pixel + tid``. The additions happen in the same
 order however the samples are cut into passes, so the image is bit-identical to a one-pass render.
 
 ``make_render_kernel(radiance, record=True)`` builds the recording variant of the same loop: it
@@ -23,7 +25,8 @@ recompiles the module.
 import warp as wp
 
 from .camera import CameraData, camera_ray_direction, film_position, shutter_time, thin_lens_ray
-from .film import Film, write_aovs
+from .features import ALL, Features
+from .film import Film, luminance, write_aovs
 from .lights import LightData
 from .materials import MaterialData
 from .record import CAMERA, RayRecord, record_ray
@@ -46,7 +49,7 @@ class IntegratorSettings:
     min_throughput: float
 
 
-def make_render_kernel(radiance, record: bool = False):
+def make_render_kernel(radiance, record: bool = False, features: Features = ALL, module: str | None = None):
     """A render kernel around the ``@wp.func``
     ``radiance(scene, materials, lights, settings, o, d, t, prim, time, rec, sampler, pixel, sample, parent) -> vec3``.
 
@@ -57,9 +60,13 @@ def make_render_kernel(radiance, record: bool = False):
     ``rec``, ``pixel``, ``sample`` and ``parent`` (the record index of the camera ray) are for
     recording: with ``record=False`` the kernel passes an empty ``rec`` and ``radiance`` must not
     touch it (build it with recording compiled out).
+
+    ``features``: without ``lens`` the camera is taken to be a pinhole and without ``motion``
+    every sample is at mid-shutter (no lens or time sampling); ``module``: the Warp module to put
+    the kernel in (default: this file's, or ``RECORD_MODULE`` for recording variants).
     """
 
-    @wp.kernel(module=RECORD_MODULE if record else None)
+    @wp.kernel(module=module or (RECORD_MODULE if record else None))
     def render_pixels(
         scene: SceneData,
         materials: MaterialData,
@@ -70,16 +77,20 @@ def make_render_kernel(radiance, record: bool = False):
         first_sample: wp.int32,
         pass_spp: wp.int32,
         first_pixel: wp.int32,
+        active: wp.array(dtype=wp.int32),
         film: Film,
         rec: RayRecord,
     ):
         pixel = first_pixel + wp.tid()
+        if active.shape[0] > 0:  # adaptive sampling: only the pixels still sampled
+            pixel = active[first_pixel + wp.tid()]
         x = pixel % cam.width
         y = pixel // cam.width
         parent = int(-1)
         total = wp.vec3(0.0)
+        total_sq = float(0.0)
+        time = shutter_time(cam, 0.5)
         if first_sample == 0:
-            time = shutter_time(cam, 0.5)
             d = camera_ray_direction(cam, x, y, 0.5, 0.5)
             t, prim = closest_hit(scene, cam.origin, d, time, 0.0, wp.inf)
             write_aovs(film, scene, pixel, cam.origin, d, t, prim, time)
@@ -88,21 +99,31 @@ def make_render_kernel(radiance, record: bool = False):
                     parent = record_ray(rec, scene, pixel, 0, CAMERA, cam.origin, d, t, prim, time, wp.vec3(1.0), 1, -1)
                 total = radiance(scene, materials, lights, settings, cam.origin, d, t, prim, time, rec, sampler, pixel, 0, parent)
                 film.rgb_sum[pixel] = total
+                film.luminance_sq_sum[pixel] = luminance(total) * luminance(total)
                 film.rgb[pixel] = total
                 return
         else:
             total = film.rgb_sum[pixel]
+            total_sq = film.luminance_sq_sum[pixel]
         for s in range(first_sample, first_sample + pass_spp):
             uv = film_position(cam, sample_2d(sampler, pixel, s, 0))
             pinhole = camera_ray_direction(cam, x, y, uv[0], uv[1])
-            lens = sample_2d(sampler, pixel, s, 2)
-            o_s, ds = thin_lens_ray(cam, pinhole, concentric_disk(lens[0], lens[1]))
-            time_s = shutter_time(cam, sample_1d(sampler, pixel, s, 4))
+            o_s = cam.origin
+            ds = pinhole
+            if wp.static(features.lens):
+                lens = sample_2d(sampler, pixel, s, 2)
+                o_s, ds = thin_lens_ray(cam, pinhole, concentric_disk(lens[0], lens[1]))
+            time_s = time
+            if wp.static(features.motion):
+                time_s = shutter_time(cam, sample_1d(sampler, pixel, s, 4))
             ts, prim_s = closest_hit(scene, o_s, ds, time_s, 0.0, wp.inf)
             if wp.static(record):
                 parent = record_ray(rec, scene, pixel, s, CAMERA, o_s, ds, ts, prim_s, time_s, wp.vec3(1.0), 1, -1)
-            total += radiance(scene, materials, lights, settings, o_s, ds, ts, prim_s, time_s, rec, sampler, pixel, s, parent)
+            value = radiance(scene, materials, lights, settings, o_s, ds, ts, prim_s, time_s, rec, sampler, pixel, s, parent)
+            total += value
+            total_sq += luminance(value) * luminance(value)
         film.rgb_sum[pixel] = total
+        film.luminance_sq_sum[pixel] = total_sq
         film.rgb[pixel] = total / float(first_sample + pass_spp)
 
     return render_pixels

@@ -26,6 +26,7 @@ BSDF sample (j = 0, 1: a 2D pair), the Fresnel choice (2) and roulette (3) at ea
 import warp as wp
 
 from .emitters import emitter_pdf, sample_emitter
+from .features import ALL, Features
 from .integrator import IntegratorSettings, make_render_kernel
 from .lights import ENVIRONMENT, SPOT, LightData, light_incident
 from .materials import DIELECTRIC, EMITTER, GLOSSY, MIRROR, MaterialData, beer_lambert, eval_brdf
@@ -161,8 +162,9 @@ def environment_radiance(lights: LightData, bsdf_pdf_prev: float, specular: bool
     return total
 
 
-def make_path_radiance(record: bool):
-    """``path_radiance``, recording every ray it traces when ``record`` (compiled out otherwise)."""
+def make_path_radiance(record: bool, features: Features = ALL):
+    """``path_radiance``, recording every ray it traces when ``record`` (compiled out otherwise),
+    with the code of the features the scene lacks compiled out (``kernels.features``)."""
     next_event = make_next_event(record)
 
     @wp.func
@@ -204,11 +206,13 @@ def make_path_radiance(record: bool):
                 if wp.static(record):
                     current = record_ray(rec, scene, pixel, sample, segment_kind, o + t_last * d, d, t - t_last, prim, time, beta, depth, current)
             traced = False
-            slot = current_medium(materials, media, n_media)
-            if slot >= 0:
-                beta = wp.cw_mul(beta, beer_lambert(materials.sigma[materials.shape_material[media[slot]]], t - t_last))
+            if wp.static(features.dielectric):
+                slot = current_medium(materials, media, n_media)
+                if slot >= 0:
+                    beta = wp.cw_mul(beta, beer_lambert(materials.sigma[materials.shape_material[media[slot]]], t - t_last))
             if prim == NO_HIT:
-                radiance += wp.cw_mul(beta, environment_radiance(lights, prev_pdf, specular))
+                if wp.static(features.lights):
+                    radiance += wp.cw_mul(beta, environment_radiance(lights, prev_pdf, specular))
                 break
             p = o + t * d
             n = geometric_normal(scene, prim, p, time)
@@ -218,57 +222,64 @@ def make_path_radiance(record: bool):
             n_facing = n
             if not entering:
                 n_facing = -n
-            if entering and max_component(materials.emission[m]) > 0.0:
-                mis = float(1.0)
-                if not specular and surface >= scene.num_shapes:
-                    mis = power_heuristic(prev_pdf, emitter_pdf(lights, surface - scene.num_shapes, prev_p, d, wp.length(p - prev_p)))
-                radiance += wp.cw_mul(beta, materials.emission[m]) * mis
+            if wp.static(features.emission):
+                if entering and max_component(materials.emission[m]) > 0.0:
+                    mis = float(1.0)
+                    if not specular and surface >= scene.num_shapes:
+                        mis = power_heuristic(prev_pdf, emitter_pdf(lights, surface - scene.num_shapes, prev_p, d, wp.length(p - prev_p)))
+                    radiance += wp.cw_mul(beta, materials.emission[m]) * mis
             kind = materials.type[m]
             if kind == EMITTER or depth >= settings.max_depth:
                 break
             err = hit_error(o, p, t)
             wo = -d
             straight = bool(False)
-            if kind == DIELECTRIC:
-                real, n1, n2, media_t, n_media_t = dielectric_interface(materials, settings, media, n_media, surface, entering)
-                if not real:
-                    straight = True
-                    media = media_t
-                    n_media = n_media_t
-                    if wp.static(record):
-                        segment_kind = STRAIGHT
-                else:
-                    eta = n1 / n2
-                    fresnel = fresnel_dielectric(wp.dot(wo, n_facing), eta)
-                    ok, wt = refract(d, n_facing, eta)
-                    if not ok:
-                        fresnel = 1.0
-                    if sample_1d(sampler, pixel, sample, bounce_dim(depth, 2)) < fresnel:
-                        d = reflect(d, n_facing)
-                        if wp.static(record):
-                            segment_kind = wp.where(ok, REFLECTED, TOTAL_INTERNAL)
-                    else:
+            scattered = bool(True)  # diffuse, Phong or glossy: next-event estimation and a BSDF sample
+            if wp.static(features.dielectric):
+                if kind == DIELECTRIC:
+                    scattered = False
+                    real, n1, n2, media_t, n_media_t = dielectric_interface(materials, settings, media, n_media, surface, entering)
+                    if not real:
+                        straight = True
                         media = media_t
                         n_media = n_media_t
-                        if eta == 1.0:
-                            straight = True
-                        else:
-                            d = wt
                         if wp.static(record):
-                            segment_kind = wp.where(eta == 1.0, STRAIGHT, REFRACTED)
+                            segment_kind = STRAIGHT
+                    else:
+                        eta = n1 / n2
+                        fresnel = fresnel_dielectric(wp.dot(wo, n_facing), eta)
+                        ok, wt = refract(d, n_facing, eta)
+                        if not ok:
+                            fresnel = 1.0
+                        if sample_1d(sampler, pixel, sample, bounce_dim(depth, 2)) < fresnel:
+                            d = reflect(d, n_facing)
+                            if wp.static(record):
+                                segment_kind = wp.where(ok, REFLECTED, TOTAL_INTERNAL)
+                        else:
+                            media = media_t
+                            n_media = n_media_t
+                            if eta == 1.0:
+                                straight = True
+                            else:
+                                d = wt
+                            if wp.static(record):
+                                segment_kind = wp.where(eta == 1.0, STRAIGHT, REFRACTED)
+                        specular = True
+                        depth += 1
+            if wp.static(features.specular):
+                if kind == MIRROR:
+                    scattered = False
+                    beta = wp.cw_mul(beta, materials.reflectance[m])
+                    d = reflect(d, n_facing)
                     specular = True
                     depth += 1
-            elif kind == MIRROR:
-                beta = wp.cw_mul(beta, materials.reflectance[m])
-                d = reflect(d, n_facing)
-                specular = True
-                depth += 1
-                if wp.static(record):
-                    segment_kind = REFLECTED
-            else:
-                radiance += wp.cw_mul(
-                    beta, next_event(scene, materials, lights, m, p, n_facing, err, wo, time, sampler, pixel, sample, depth, rec, current, beta)
-                )
+                    if wp.static(record):
+                        segment_kind = REFLECTED
+            if scattered:
+                if wp.static(features.lights):
+                    radiance += wp.cw_mul(
+                        beta, next_event(scene, materials, lights, m, p, n_facing, err, wo, time, sampler, pixel, sample, depth, rec, current, beta)
+                    )
                 u = sample_2d(sampler, pixel, sample, bounce_dim(depth, 0))
                 wi, bsdf_weight, pdf = sample_bsdf(materials, m, n_facing, wo, u[0], u[1])
                 if pdf == 0.0:

@@ -35,6 +35,15 @@ PCG_INCREMENT = wp.constant(wp.uint32(2891336453))
 PCG_MIX = wp.constant(wp.uint32(277803737))
 TO_UNIT = wp.constant(5.9604645e-08)  # 2^-24: the top 24 bits of a uint32 as a float in [0, 1)
 ONE_MINUS_EPSILON = wp.constant(0.99999994)  # the largest float32 below 1
+# 32-bit constants of the hashes below, as typed module constants: a literal of 2^31 or more
+# written inside a Warp function is emitted as a (wrapping) int32, which compilers warn about
+KENSLER_1 = wp.constant(wp.uint32(0xE170893D))
+KENSLER_5 = wp.constant(wp.uint32(0x9E501CC3))
+KENSLER_6 = wp.constant(wp.uint32(0xC860A3DF))
+LAINE_KARRAS_2 = wp.constant(wp.uint32(0xB82F1E52))
+LAINE_KARRAS_3 = wp.constant(wp.uint32(0xC7AFE638))
+LAINE_KARRAS_4 = wp.constant(wp.uint32(0x8D22F6E6))
+TOP_BIT = wp.constant(wp.uint32(0x80000000))
 
 
 @wp.struct
@@ -87,7 +96,7 @@ def permutation_element(i: wp.uint32, n: wp.uint32, key: wp.uint32) -> wp.uint32
     w = w | (w >> wp.uint32(16))
     while True:
         i = i ^ key
-        i = i * wp.uint32(0xE170893D)
+        i = i * KENSLER_1
         i = i ^ (key >> wp.uint32(16))
         i = i ^ ((i & w) >> wp.uint32(4))
         i = i ^ (key >> wp.uint32(8))
@@ -99,9 +108,9 @@ def permutation_element(i: wp.uint32, n: wp.uint32, key: wp.uint32) -> wp.uint32
         i = i ^ ((i & w) >> wp.uint32(11))
         i = i * wp.uint32(0x74DCB303)
         i = i ^ ((i & w) >> wp.uint32(2))
-        i = i * wp.uint32(0x9E501CC3)
+        i = i * KENSLER_5
         i = i ^ ((i & w) >> wp.uint32(2))
-        i = i * wp.uint32(0xC860A3DF)
+        i = i * KENSLER_6
         i = i & w
         i = i ^ (i >> wp.uint32(5))
         if i < n:
@@ -125,16 +134,16 @@ def owen_scramble(x: wp.uint32, key: wp.uint32) -> wp.uint32:
     x = reverse_bits(x)
     x = x + key
     x = x ^ (x * wp.uint32(0x6C50B47C))
-    x = x ^ (x * wp.uint32(0xB82F1E52))
-    x = x ^ (x * wp.uint32(0xC7AFE638))
-    x = x ^ (x * wp.uint32(0x8D22F6E6))
+    x = x ^ (x * LAINE_KARRAS_2)
+    x = x ^ (x * LAINE_KARRAS_3)
+    x = x ^ (x * LAINE_KARRAS_4)
     return reverse_bits(x)
 
 
 @wp.func
 def sobol_second(i: wp.uint32) -> wp.uint32:
     """The second Sobol dimension (primitive polynomial x + 1) of index ``i``, as 32 bits."""
-    v = wp.uint32(0x80000000)
+    v = TOP_BIT
     x = wp.uint32(0)
     while i != wp.uint32(0):
         if (i & wp.uint32(1)) != wp.uint32(0):

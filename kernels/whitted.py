@@ -44,6 +44,7 @@ C. Schmidt, B. Budge, "Simple Nested Dielectrics in Ray Traced Images", JGT 7(2)
 """
 import warp as wp
 
+from .features import ALL, Features
 from .integrator import IntegratorSettings, make_render_kernel
 from .lights import LightData, light_incident
 from .materials import DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, PHONG, MaterialData, beer_lambert, eval_brdf
@@ -179,8 +180,10 @@ def make_direct_light(record: bool):
     return direct_light
 
 
-def make_whitted_radiance(record: bool):
-    """``whitted_radiance``, recording every ray it traces when ``record`` (compiled out otherwise)."""
+def make_whitted_radiance(record: bool, features: Features = ALL):
+    """``whitted_radiance``, recording every ray it traces when ``record`` (compiled out otherwise),
+    with the code of the features the scene lacks compiled out (``kernels.features``): without
+    mirrors and dielectrics there is no branch stack and the camera ray's hit is the whole tree."""
     direct_light = make_direct_light(record)
 
     @wp.func
@@ -207,13 +210,14 @@ def make_whitted_radiance(record: bool):
         depth = int(1)
         media = Media(-1, -1, -1, -1)
         n_media = int(0)
-        pending_origin = BranchVec3()
-        pending_dir = BranchVec3()
-        pending_throughput = BranchVec3()
-        pending_depth = BranchInt()
-        pending_media = BranchMedia()
-        pending_n_media = BranchInt()
         n_pending = int(0)
+        if wp.static(features.specular):
+            pending_origin = BranchVec3()
+            pending_dir = BranchVec3()
+            pending_throughput = BranchVec3()
+            pending_depth = BranchInt()
+            pending_media = BranchMedia()
+            pending_n_media = BranchInt()
         traced = bool(True)
         # The ray being followed is o + s d for s > t_from; t_last is where its current segment
         # began. A ray that goes straight on through a surface (a false interface, or an
@@ -225,17 +229,19 @@ def make_whitted_radiance(record: bool):
         if wp.static(record):  # how the next segment to trace was spawned, and from which record
             segment_kind = int(REFLECTED)  # set again before every trace (the pixel loop records the camera ray)
             segment_parent = parent
-            pending_kind = BranchInt()
-            pending_parent = BranchInt()
+            if wp.static(features.specular):
+                pending_kind = BranchInt()
+                pending_parent = BranchInt()
         for _segment in range(MAX_SEGMENTS):
             if not traced:
                 t, prim = closest_hit(scene, o, d, time, t_from, wp.inf)
                 if wp.static(record):
                     current = record_ray(rec, scene, pixel, sample, segment_kind, o + t_last * d, d, t - t_last, prim, time, throughput, depth, segment_parent)
             traced = False
-            slot = current_medium(materials, media, n_media)
-            if slot >= 0:  # absorption along the segment just travelled (infinite if it escapes)
-                throughput = wp.cw_mul(throughput, beer_lambert(materials.sigma[materials.shape_material[media[slot]]], t - t_last))
+            if wp.static(features.dielectric):
+                slot = current_medium(materials, media, n_media)
+                if slot >= 0:  # absorption along the segment just travelled (infinite if it escapes)
+                    throughput = wp.cw_mul(throughput, beer_lambert(materials.sigma[materials.shape_material[media[slot]]], t - t_last))
             go_on = bool(False)
             if prim == NO_HIT:
                 radiance += wp.cw_mul(throughput, settings.background)
@@ -254,124 +260,130 @@ def make_whitted_radiance(record: bool):
                 kind = materials.type[m]
                 if kind == DIFFUSE or kind == PHONG or kind == GLOSSY:
                     local = wp.cw_mul(settings.ambient, materials.albedo[m])
-                    if depth < settings.max_depth:
-                        local += direct_light(
-                            scene, materials, lights, settings, m, p, n_facing, err, -d, time, rec, pixel, sample, current, depth + 1, throughput
-                        )
+                    if wp.static(features.lights):
+                        if depth < settings.max_depth:
+                            local += direct_light(
+                                scene, materials, lights, settings, m, p, n_facing, err, -d, time, rec, pixel, sample, current, depth + 1, throughput
+                            )
                     radiance += wp.cw_mul(throughput, local)
-                elif kind == MIRROR:
-                    throughput = wp.cw_mul(throughput, materials.reflectance[m])
-                    if depth < settings.max_depth and max_component(throughput) >= settings.min_throughput:
-                        d = reflect(d, n_facing)
-                        o = spawn_origin(p, n, err, d)
-                        t_from = 0.0
-                        t_last = 0.0
-                        depth += 1
-                        go_on = True
-                        if wp.static(record):
-                            segment_kind = REFLECTED
-                            segment_parent = current
-                elif kind == DIELECTRIC:
-                    real, n1, n2, media_t, n_media_t = dielectric_interface(materials, settings, media, n_media, shape, entering)
-                    if not real:
-                        t_from = t + err
-                        t_last = t
-                        media = media_t
-                        n_media = n_media_t
-                        go_on = True
-                        if wp.static(record):
-                            segment_kind = STRAIGHT
-                            segment_parent = current
-                    elif depth < settings.max_depth:
-                        eta = n1 / n2
-                        fresnel = fresnel_dielectric(-wp.dot(d, n_facing), eta)
-                        ok, wt = refract(d, n_facing, eta)
-                        if not ok:
-                            fresnel = 1.0
-                        wr = reflect(d, n_facing)
-                        reflected = throughput * fresnel
-                        transmitted = throughput * (1.0 - fresnel)
-                        keep_r = max_component(reflected) > 0.0 and max_component(reflected) >= settings.min_throughput
-                        keep_t = ok and max_component(transmitted) > 0.0 and max_component(transmitted) >= settings.min_throughput
-                        # Follow the heavier branch now and defer the lighter one. A full stack
-                        # evicts its lightest entry if the new one is heavier, else drops the new one.
-                        if keep_r and keep_t:
-                            defer_reflected = max_component(reflected) < max_component(transmitted)
-                            weight = wp.min(max_component(reflected), max_component(transmitted))
-                            slot_new = n_pending
-                            if n_pending == BRANCHES:
-                                slot_new = lightest_branch(pending_throughput, n_pending)
-                                if max_component(pending_throughput[slot_new]) >= weight:
-                                    slot_new = -1
-                            else:
-                                n_pending += 1
-                            if slot_new >= 0:
-                                if defer_reflected:
-                                    pending_origin[slot_new] = spawn_origin(p, n, err, wr)
-                                    pending_dir[slot_new] = wr
-                                    pending_throughput[slot_new] = reflected
-                                    pending_media[slot_new] = media
-                                    pending_n_media[slot_new] = n_media
-                                else:
-                                    pending_origin[slot_new] = spawn_origin(p, n, err, wt)
-                                    pending_dir[slot_new] = wt
-                                    pending_throughput[slot_new] = transmitted
-                                    pending_media[slot_new] = media_t
-                                    pending_n_media[slot_new] = n_media_t
-                                pending_depth[slot_new] = depth + 1
-                                if wp.static(record):
-                                    pending_kind[slot_new] = wp.where(defer_reflected, REFLECTED, REFRACTED)
-                                    pending_parent[slot_new] = current
-                            keep_r = not defer_reflected
-                            keep_t = defer_reflected
-                        if keep_r:
-                            d = wr
-                            throughput = reflected
-                        elif keep_t:
-                            d = wt
-                            throughput = transmitted
-                            media = media_t
-                            n_media = n_media_t
-                        if keep_t and eta == 1.0:  # index-matched: straight on (refract returned d)
-                            t_from = t + err
-                            t_last = t
-                        elif keep_r or keep_t:
+                if wp.static(features.specular):
+                    if kind == MIRROR:
+                        throughput = wp.cw_mul(throughput, materials.reflectance[m])
+                        if depth < settings.max_depth and max_component(throughput) >= settings.min_throughput:
+                            d = reflect(d, n_facing)
                             o = spawn_origin(p, n, err, d)
                             t_from = 0.0
                             t_last = 0.0
-                        if keep_r or keep_t:
                             depth += 1
                             go_on = True
                             if wp.static(record):
-                                segment_kind = wp.where(keep_r, wp.where(ok, REFLECTED, TOTAL_INTERNAL), REFRACTED)
+                                segment_kind = REFLECTED
                                 segment_parent = current
+                if wp.static(features.dielectric):
+                    if kind == DIELECTRIC:
+                        real, n1, n2, media_t, n_media_t = dielectric_interface(materials, settings, media, n_media, shape, entering)
+                        if not real:
+                            t_from = t + err
+                            t_last = t
+                            media = media_t
+                            n_media = n_media_t
+                            go_on = True
+                            if wp.static(record):
+                                segment_kind = STRAIGHT
+                                segment_parent = current
+                        elif depth < settings.max_depth:
+                            eta = n1 / n2
+                            fresnel = fresnel_dielectric(-wp.dot(d, n_facing), eta)
+                            ok, wt = refract(d, n_facing, eta)
+                            if not ok:
+                                fresnel = 1.0
+                            wr = reflect(d, n_facing)
+                            reflected = throughput * fresnel
+                            transmitted = throughput * (1.0 - fresnel)
+                            keep_r = max_component(reflected) > 0.0 and max_component(reflected) >= settings.min_throughput
+                            keep_t = ok and max_component(transmitted) > 0.0 and max_component(transmitted) >= settings.min_throughput
+                            # Follow the heavier branch now and defer the lighter one. A full stack
+                            # evicts its lightest entry if the new one is heavier, else drops the new one.
+                            if keep_r and keep_t:
+                                defer_reflected = max_component(reflected) < max_component(transmitted)
+                                weight = wp.min(max_component(reflected), max_component(transmitted))
+                                slot_new = n_pending
+                                if n_pending == BRANCHES:
+                                    slot_new = lightest_branch(pending_throughput, n_pending)
+                                    if max_component(pending_throughput[slot_new]) >= weight:
+                                        slot_new = -1
+                                else:
+                                    n_pending += 1
+                                if slot_new >= 0:
+                                    if defer_reflected:
+                                        pending_origin[slot_new] = spawn_origin(p, n, err, wr)
+                                        pending_dir[slot_new] = wr
+                                        pending_throughput[slot_new] = reflected
+                                        pending_media[slot_new] = media
+                                        pending_n_media[slot_new] = n_media
+                                    else:
+                                        pending_origin[slot_new] = spawn_origin(p, n, err, wt)
+                                        pending_dir[slot_new] = wt
+                                        pending_throughput[slot_new] = transmitted
+                                        pending_media[slot_new] = media_t
+                                        pending_n_media[slot_new] = n_media_t
+                                    pending_depth[slot_new] = depth + 1
+                                    if wp.static(record):
+                                        pending_kind[slot_new] = wp.where(defer_reflected, REFLECTED, REFRACTED)
+                                        pending_parent[slot_new] = current
+                                keep_r = not defer_reflected
+                                keep_t = defer_reflected
+                            if keep_r:
+                                d = wr
+                                throughput = reflected
+                            elif keep_t:
+                                d = wt
+                                throughput = transmitted
+                                media = media_t
+                                n_media = n_media_t
+                            if keep_t and eta == 1.0:  # index-matched: straight on (refract returned d)
+                                t_from = t + err
+                                t_last = t
+                            elif keep_r or keep_t:
+                                o = spawn_origin(p, n, err, d)
+                                t_from = 0.0
+                                t_last = 0.0
+                            if keep_r or keep_t:
+                                depth += 1
+                                go_on = True
+                                if wp.static(record):
+                                    segment_kind = wp.where(keep_r, wp.where(ok, REFLECTED, TOTAL_INTERNAL), REFRACTED)
+                                    segment_parent = current
             if not go_on:
-                if n_pending == 0:
+                if wp.static(not features.specular):
                     break
-                # resume the heaviest deferred branch, so that what the segment budget may leave
-                # untraced is the lightest light; the last entry fills its slot
-                k = heaviest_branch(pending_throughput, n_pending)
-                o = pending_origin[k]
-                d = pending_dir[k]
-                t_from = 0.0
-                t_last = 0.0
-                throughput = pending_throughput[k]
-                depth = pending_depth[k]
-                media = pending_media[k]
-                n_media = pending_n_media[k]
-                if wp.static(record):
-                    segment_kind = pending_kind[k]
-                    segment_parent = pending_parent[k]
-                n_pending -= 1
-                pending_origin[k] = pending_origin[n_pending]
-                pending_dir[k] = pending_dir[n_pending]
-                pending_throughput[k] = pending_throughput[n_pending]
-                pending_depth[k] = pending_depth[n_pending]
-                pending_media[k] = pending_media[n_pending]
-                pending_n_media[k] = pending_n_media[n_pending]
-                if wp.static(record):
-                    pending_kind[k] = pending_kind[n_pending]
-                    pending_parent[k] = pending_parent[n_pending]
+                if wp.static(features.specular):
+                    if n_pending == 0:
+                        break
+                    # resume the heaviest deferred branch, so that what the segment budget may leave
+                    # untraced is the lightest light; the last entry fills its slot
+                    k = heaviest_branch(pending_throughput, n_pending)
+                    o = pending_origin[k]
+                    d = pending_dir[k]
+                    t_from = 0.0
+                    t_last = 0.0
+                    throughput = pending_throughput[k]
+                    depth = pending_depth[k]
+                    media = pending_media[k]
+                    n_media = pending_n_media[k]
+                    if wp.static(record):
+                        segment_kind = pending_kind[k]
+                        segment_parent = pending_parent[k]
+                    n_pending -= 1
+                    pending_origin[k] = pending_origin[n_pending]
+                    pending_dir[k] = pending_dir[n_pending]
+                    pending_throughput[k] = pending_throughput[n_pending]
+                    pending_depth[k] = pending_depth[n_pending]
+                    pending_media[k] = pending_media[n_pending]
+                    pending_n_media[k] = pending_n_media[n_pending]
+                    if wp.static(record):
+                        pending_kind[k] = pending_kind[n_pending]
+                        pending_parent[k] = pending_parent[n_pending]
         return radiance
 
     return whitted_radiance

@@ -183,13 +183,13 @@ def test_missing_and_directory_mesh(tmp_path, capsys):
 
 def test_image_too_big_for_memory_is_refused_up_front(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(wrt.renderer, "available_memory", lambda: 100 * 2**20)
-    err = run_bad(tmp_path, capsys, GOOD, "render.width x height = 4000 x 3000", "needs about 1.7 GiB of host memory", "only 0.1 GiB available", extra_args=["--width", "4000", "--height", "3000"])
-    assert "56 B/pixel" in err
+    err = run_bad(tmp_path, capsys, GOOD, "render.width x height = 4000 x 3000", "needs about 1.8 GiB of host memory", "only 0.1 GiB available", extra_args=["--width", "4000", "--height", "3000"])
+    assert "60 B/pixel" in err
 
 
 def test_memory_estimate_matches_the_film():
-    """The estimate's film share is what the renderer allocates: 14 float32/int32 values per pixel
-    (RGB, its running sum, and the AOVs)."""
+    """The estimate's film share is what the renderer allocates: 15 float32/int32 values per pixel
+    (RGB, its running sum, the sum of squared luminances, and the AOVs)."""
     scene = wrt.parse_scene({"camera": {"origin": [0, 0, 5], "look_at": [0, 0, 0]}, "render": {"width": 8, "height": 4}})
     frame = wrt.renderer.prepare(scene, wp.get_device("cpu"))
     film = sum(getattr(frame.film, name).capacity for name in Film.vars)

@@ -34,7 +34,8 @@ def _aovs():
     ids[0, 0] = -1
     position = rng.uniform(-1e3, 1e3, (H, W, 3)).astype(np.float32)
     variance = rng.uniform(0.0, 2.0, (H, W, 3)).astype(np.float32)
-    return {"depth": depth, "normal": normal, "object_id": ids, "position": position, "variance": variance}
+    spp = rng.integers(16, 1025, (H, W)).astype(np.float32)
+    return {"depth": depth, "normal": normal, "object_id": ids, "position": position, "variance": variance, "spp": spp}
 
 
 def _sorted_listing(folder):
@@ -71,7 +72,7 @@ def test_exr_channel_names_are_the_public_contract(tmp_path):
     inp = oiio.ImageInput.open(str(path))
     names = set(inp.spec().channelnames)
     inp.close()
-    expected = {"R", "G", "B", "Z", "N.X", "N.Y", "N.Z", "id", "P.X", "P.Y", "P.Z", "var.R", "var.G", "var.B"}
+    expected = {"R", "G", "B", "Z", "N.X", "N.Y", "N.Z", "id", "P.X", "P.Y", "P.Z", "var.R", "var.G", "var.B", "spp"}
     assert names == expected
 
 

@@ -52,6 +52,13 @@ def _parser() -> argparse.ArgumentParser:
     )
     r.add_argument("--half", action="store_true", help="store EXR RGB as half floats (AOVs stay float32)")
     r.add_argument(
+        "--target-error",
+        type=float,
+        metavar="E",
+        help="adaptive sampling: a pixel stops once the estimated relative standard error of its mean luminance is below E "
+        "(e.g. 0.02); --spp is then the most a pixel takes, and an EXR output gets the per-pixel sample count as channel 'spp'",
+    )
+    r.add_argument(
         "--checkpoint-every",
         type=int,
         metavar="N",
@@ -159,6 +166,8 @@ def _render(args) -> int:
         raise WrtError(f"--threads {args.threads}: must be >= 1")
     if args.checkpoint_every is not None and args.checkpoint_every < 1:
         raise WrtError(f"--checkpoint-every {args.checkpoint_every}: must be >= 1")
+    if args.target_error is not None and not args.target_error > 0.0:
+        raise WrtError(f"--target-error {args.target_error}: must be > 0")
     ext = os.path.splitext(args.output)[1].lower()
     if ext not in (".exr", ".png"):
         raise WrtError(f"{args.output}: unsupported output format {ext or '(none)'!r} (use .exr or .png)")
@@ -180,7 +189,11 @@ def _render(args) -> int:
             "device": result.device,
             "render_time_s": result.render_time_s,
         }
-        write_image(args.output, result.rgb, aovs={k: result.aovs[k] for k in args.aov}, metadata=metadata, half=args.half)
+        aovs = {k: result.aovs[k] for k in args.aov}
+        if args.target_error is not None and ext == ".exr":
+            aovs["spp"] = result.aovs["spp"].astype("float32")  # counts are exact in float32
+            metadata["target_error"] = args.target_error
+        write_image(args.output, result.rgb, aovs=aovs, metadata=metadata, half=args.half)
 
     bar = tqdm(
         total=scene.render.spp,
@@ -200,7 +213,9 @@ def _render(args) -> int:
                 write(snapshot())
             return not stop.is_set()
 
-        result = render(scene, device=args.device, threads=args.threads, progress=on_pass, progress_every=args.checkpoint_every)
+        result = render(
+            scene, device=args.device, threads=args.threads, progress=on_pass, progress_every=args.checkpoint_every, target_error=args.target_error
+        )
     write(result)
     h, w = result.rgb.shape[:2]
     print(

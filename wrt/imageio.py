@@ -24,13 +24,15 @@ AOV_CHANNELS = {
     "object_id": ("id",),
     "position": ("P.X", "P.Y", "P.Z"),
     "variance": ("var.R", "var.G", "var.B"),
+    "spp": ("spp",),
 }
 """EXR channel names of each AOV, in component order; a public contract of the file format.
 
 ``depth`` is the ray distance to the first hit (scene units, +inf on a miss); ``normal`` the
 unit shading normal and ``position`` the hit point (world space); ``object_id`` (channel ``id``) the shape index in
 scene-file order (-1 on a miss), stored as float32. ``variance`` is the per-sample variance of
-each pixel's RGB estimate (reference images of the regression harness).
+each pixel's RGB estimate (reference images of the regression harness); ``spp`` the samples each
+pixel took (adaptive sampling).
 """
 
 SUPPORTED_EXTENSIONS = (".exr", ".png")

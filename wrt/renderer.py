@@ -27,23 +27,41 @@ from functools import partial
 import numpy as np
 import warp as wp
 
+from kernels.features import ALL, Features
 from kernels.film import Film
-from kernels.raycast import raycast, raycast_record
+from kernels.raycast import raycast_record
 from kernels.record import RayRecord
-from kernels.path import path, path_record
-from kernels.whitted import whitted, whitted_record
+from kernels.path import path_record
+from kernels.variants import render_kernel
+from kernels.whitted import whitted_record
 
 from .device import camera_data, integrator_settings, resolve_device, sampler_data, upload_geometry, upload_lights, upload_materials
 from .errors import WrtError
 from .geometry import build
-from .scene import Scene
+from .scene import SURFACE_LIGHTS, Scene
 
-INTEGRATOR_KERNELS = {"raycast": raycast, "whitted": whitted, "path": path}
 RECORD_KERNELS = {"raycast": raycast_record, "whitted": whitted_record, "path": path_record}
 TILE_PIXELS = 4096  # pixels per CPU launch: small enough to balance two threads, large enough to amortise a launch
 PASS_SECONDS = 1.0  # wall seconds a pass of a progressive render aims at
 AOV_NAMES = ("depth", "normal", "object_id", "position")
 NO_RECORD = RayRecord()  # what the rendering variants get for the record buffer they never touch
+ADAPTIVE_FIRST_PASS = 16  # samples every pixel takes before adaptive sampling may stop it
+ADAPTIVE_FLOOR = 0.01  # luminance below which an adaptive pixel's error is measured absolutely
+
+
+def scene_features(scene: Scene) -> Features:
+    """The ``kernels.features.Features`` ``scene`` needs: its kernels are specialised on them."""
+    used = {scene.materials[shape.material] for shape in scene.shapes}
+    kinds = {m.type for m in used}
+    moving = any(any(shape.velocity) for shape in scene.shapes)
+    return Features(
+        lights=bool(scene.lights),
+        specular=bool(kinds & {"mirror", "dielectric"}),
+        dielectric="dielectric" in kinds,
+        emission=any(any(m.emission) for m in used) or any(isinstance(light, SURFACE_LIGHTS) for light in scene.lights),
+        lens=scene.camera.aperture_radius > 0.0,
+        motion=moving and scene.camera.shutter[1] > scene.camera.shutter[0],
+    )
 
 
 @dataclass
@@ -84,16 +102,30 @@ class DeviceScene:
     film: Film
     build_time_s: float  # wall seconds of the BVH build
     sampler: str  # [render] sampler
+    no_active: wp.array  # empty: every pixel of the launch's range is sampled
 
     def launch(
-        self, kernel, first: int, count: int, spp: int, seed: int, rec: RayRecord | None = None, first_sample: int = 0, pass_spp: int | None = None
+        self,
+        kernel,
+        first: int,
+        count: int,
+        spp: int,
+        seed: int,
+        rec: RayRecord | None = None,
+        first_sample: int = 0,
+        pass_spp: int | None = None,
+        active: wp.array | None = None,
     ) -> None:
-        """Run ``kernel`` over pixels ``first .. first + count - 1``, samples ``first_sample ..
-        first_sample + pass_spp - 1`` (default: all ``spp``) of a render of ``spp`` samples;
-        ``rec`` only for a recording variant."""
+        """Run ``kernel`` over pixels ``first .. first + count - 1`` (or, given ``active``, over
+        pixels ``active[first .. first + count - 1]``), samples ``first_sample .. first_sample +
+        pass_spp - 1`` (default: all ``spp``) of a render of ``spp`` samples; ``rec`` only for a
+        recording variant."""
         pass_spp = spp - first_sample if pass_spp is None else pass_spp
         sampler = sampler_data(self.sampler, spp, seed)
-        inputs = [self.geometry, self.materials, self.lights, self.settings, self.camera, sampler, first_sample, pass_spp, first, self.film, NO_RECORD if rec is None else rec]
+        inputs = [
+            self.geometry, self.materials, self.lights, self.settings, self.camera, sampler, first_sample, pass_spp, first,
+            self.no_active if active is None else active, self.film, NO_RECORD if rec is None else rec,
+        ]
         wp.launch(kernel, dim=count, inputs=inputs, device=self.device)
 
     def aovs(self) -> dict[str, np.ndarray]:
@@ -116,6 +148,7 @@ def prepare(scene: Scene, dev: wp.context.Device) -> DeviceScene:
         film = Film()
         film.rgb = wp.zeros(w * h, dtype=wp.vec3, device=dev)
         film.rgb_sum = wp.zeros(w * h, dtype=wp.vec3, device=dev)
+        film.luminance_sq_sum = wp.zeros(w * h, dtype=wp.float32, device=dev)
         film.depth = wp.zeros(w * h, dtype=wp.float32, device=dev)
         film.normal = wp.zeros(w * h, dtype=wp.vec3, device=dev)
         film.object_id = wp.zeros(w * h, dtype=wp.int32, device=dev)
@@ -132,6 +165,7 @@ def prepare(scene: Scene, dev: wp.context.Device) -> DeviceScene:
             film=film,
             build_time_s=build_time,
             sampler=scene.render.sampler,
+            no_active=wp.empty(0, dtype=wp.int32, device=dev),
         )
 
 
@@ -141,9 +175,9 @@ def default_threads() -> int:
 
 
 # Memory per pixel, measured (peak RSS of `wrt render` at 2048^2 and 3072^2, EXR with all AOVs
-# and PNG): the film is RGB + RGB sum + depth + normal + object id + position = 14 4-byte values;
+# and PNG): the film is RGB + RGB sum + luminance^2 sum + depth + normal + object id + position = 15 4-byte values;
 # writing it to an image file (channel copies, tone mapping in float64) peaks at about 100 bytes more.
-FILM_BYTES_PER_PIXEL = 56
+FILM_BYTES_PER_PIXEL = 60
 WRITE_BYTES_PER_PIXEL = 100
 
 
@@ -201,6 +235,30 @@ def pass_size(spp: int, done: int, elapsed: float, every: int | None) -> int:
 Progress = Callable[[int, int, float, Callable[[], "RenderResult"]], "bool | None"]
 
 
+def adaptive_passes(spp: int) -> list[int]:
+    """Sample counts at which an adaptive render checks its pixels: ``ADAPTIVE_FIRST_PASS``, then
+    doubling, then ``spp``."""
+    ends = [min(spp, ADAPTIVE_FIRST_PASS)]
+    while ends[-1] < spp:
+        ends.append(min(spp, 2 * ends[-1]))
+    return ends
+
+
+def relative_error(rgb_sum: np.ndarray, luminance_sq_sum: np.ndarray, n: int) -> np.ndarray:
+    """Estimated standard error of each pixel's mean luminance after ``n >= 2`` samples, relative
+    to the mean ``m`` (to ``ADAPTIVE_FLOOR`` where the mean is darker than that).
+
+    The sample variance gets one pseudo-sample at distance ``max(m, ADAPTIVE_FLOOR)`` from the
+    mean: a pixel whose few samples agree (all zero in a penumbra that rare paths do reach, say)
+    is not taken as converged until ``1 / sqrt(n (n - 1))`` is below the target too.
+    """
+    mean = (rgb_sum.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])) / n
+    scale = np.maximum(mean, ADAPTIVE_FLOOR)
+    squares = np.maximum(luminance_sq_sum - n * mean * mean, 0.0)  # sum of squared deviations
+    variance = (squares + scale * scale) / (n - 1)
+    return np.sqrt(variance / n) / scale
+
+
 def render(
     scene: Scene,
     spp: int | None = None,
@@ -209,6 +267,8 @@ def render(
     threads: int | None = None,
     progress: Progress | None = None,
     progress_every: int | None = None,
+    target_error: float | None = None,
+    specialize: bool = True,
 ) -> RenderResult:
     """Render ``scene`` with its integrator.
 
@@ -232,6 +292,14 @@ def render(
     progress_every : int, optional
         With ``progress``: passes also end at every multiple of this many samples, so the callback
         sees those counts (checkpoints).
+    target_error : float, optional
+        Adaptive sampling: every pixel takes ``ADAPTIVE_FIRST_PASS`` samples, then the pixels
+        whose estimated relative error (``relative_error``) is still above ``target_error`` take
+        as many again, and so on up to ``spp`` (passes end at 16, 32, 64, ... samples, whatever
+        ``progress_every``). The result's ``aovs["spp"]`` holds each pixel's sample count.
+    specialize : bool
+        Render with the kernel specialised on the scene's features (``scene_features``), default;
+        False: the all-features kernel (the same image, for speed comparisons).
 
     Notes
     -----
@@ -239,6 +307,7 @@ def render(
     sample order, so a render in passes is bit-identical to a one-pass render, and one stopped
     after ``k > 1`` samples to a render with ``spp = k``. With ``spp = 1`` the sample is the pixel
     centre; with ``spp > 1`` every sample, the first pass's included, is uniform over the pixel.
+    An adaptive render is deterministic too: a pixel's stopping depends only on its own samples.
     """
     spp = scene.render.spp if spp is None else int(spp)
     seed = scene.render.seed if seed is None else int(seed)
@@ -246,10 +315,12 @@ def render(
         raise WrtError(f"spp must be >= 1, got {spp}")
     if progress_every is not None and progress_every < 1:
         raise WrtError(f"progress_every must be >= 1, got {progress_every}")
+    if target_error is not None and not target_error > 0.0:
+        raise WrtError(f"target_error must be > 0, got {target_error}")
     dev = resolve_device(device)
     check_memory(scene, dev)
     threads = 1 if dev.is_cuda else max(1, threads or default_threads())
-    kernel = INTEGRATOR_KERNELS[scene.render.integrator]
+    kernel = render_kernel(scene.render.integrator, scene_features(scene) if specialize else ALL)
     w, h = scene.render.width, scene.render.height
 
     t0 = time.perf_counter()
@@ -257,21 +328,29 @@ def render(
     t1 = time.perf_counter()
     frame = prepare(scene, dev)
     pool = None if dev.is_cuda else ThreadPoolExecutor(max_workers=threads)
-    tiles = [(first, min(TILE_PIXELS, w * h - first)) for first in range(0, w * h, TILE_PIXELS)]
+    counts = np.zeros(w * h, dtype=np.int32)  # samples taken by each pixel
+    active = None  # adaptive sampling: indices of the pixels still sampled (None: all)
 
     def run_pass(first_sample: int, pass_spp: int) -> None:
+        n = w * h if active is None else len(active)
+        on_device = None if active is None else wp.array(active, dtype=wp.int32, device=dev)
         if pool is None:
-            frame.launch(kernel, 0, w * h, spp, seed, first_sample=first_sample, pass_spp=pass_spp)
+            frame.launch(kernel, 0, n, spp, seed, None, first_sample, pass_spp, on_device)
             wp.synchronize_device(dev)
         else:
-            for future in [pool.submit(frame.launch, kernel, first, count, spp, seed, None, first_sample, pass_spp) for first, count in tiles]:
+            tiles = [(first, min(TILE_PIXELS, n - first)) for first in range(0, n, TILE_PIXELS)]
+            for future in [pool.submit(frame.launch, kernel, first, count, spp, seed, None, first_sample, pass_spp, on_device) for first, count in tiles]:
                 future.result()
+        counts[slice(None) if active is None else active] = first_sample + pass_spp
 
     def result(done: int, elapsed: float, copy: bool) -> RenderResult:
         take = np.copy if copy else np.asarray
+        aovs = {name: take(a) for name, a in frame.aovs().items()}
+        if target_error is not None:
+            aovs["spp"] = counts.reshape(h, w).copy()
         return RenderResult(
             rgb=take(frame.film.rgb.numpy().reshape(h, w, 3)),
-            aovs={name: take(a) for name, a in frame.aovs().items()},
+            aovs=aovs,
             spp=done,
             seed=seed,
             integrator=scene.render.integrator,
@@ -282,15 +361,25 @@ def render(
             render_time_s=elapsed,
         )
 
-    done, busy = 0, 0.0  # samples per pixel done, wall seconds of passes
+    schedule = adaptive_passes(spp) if target_error is not None else None
+    done, busy = 0, 0.0  # samples per pixel done (the most any pixel took), wall seconds of passes
     try:
         while done < spp:
-            n = spp - done if progress is None else pass_size(spp, done, busy, progress_every)
+            if schedule is not None:
+                n = schedule[schedule.index(done) + 1] - done if done else schedule[0]
+            else:
+                n = spp - done if progress is None else pass_size(spp, done, busy, progress_every)
             t2 = time.perf_counter()
             run_pass(done, n)
-            busy += time.perf_counter() - t2
             done += n
+            if schedule is not None and done < spp:
+                pixels = np.arange(w * h) if active is None else active
+                error = relative_error(frame.film.rgb_sum.numpy()[pixels], frame.film.luminance_sq_sum.numpy()[pixels], done)
+                active = pixels[error > target_error].astype(np.int32)
+            busy += time.perf_counter() - t2
             if progress is not None and progress(done, spp, busy, partial(result, done, busy, True)) is False:
+                break
+            if active is not None and len(active) == 0:
                 break
     finally:
         if pool is not None:

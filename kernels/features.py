@@ -1,0 +1,35 @@
+"""What a scene asks of its kernels: the flags integrator kernels are specialised on.
+
+Each integrator's kernel is built per distinct ``Features`` value by a factory whose ``@wp.func``
+bodies test the flags with ``wp.static``, so a feature the scene does not use is not in the
+generated code at all: no shadow rays or light sampling without lights, no branch stack,
+Fresnel or media bookkeeping without mirrors and dielectrics, no lens or shutter-time sampling
+with a pinhole camera or nothing moving. ``ALL`` (every flag set) is the all-features kernel that
+renders any scene. Variants compile on first use, each into its own Warp module (see
+``kernels.variants``), and land in Warp's kernel cache.
+"""
+from __future__ import annotations
+
+from dataclasses import astuple, dataclass
+
+
+@dataclass(frozen=True)
+class Features:
+    lights: bool = True  # any light: shadow rays (whitted), next-event estimation and environment (path)
+    specular: bool = True  # mirrors or dielectrics: reflected and refracted rays
+    dielectric: bool = True  # refraction, Fresnel, nested media, Beer-Lambert absorption
+    emission: bool = True  # emissive surfaces: materials with emission, area and sphere lights
+    lens: bool = True  # a thin lens (aperture_radius > 0): lens sampling
+    motion: bool = True  # moving shapes and an open shutter: shutter-time sampling
+
+    def __post_init__(self):
+        if self.dielectric and not self.specular:
+            raise ValueError("dielectric implies specular (refraction and reflection rays)")
+
+    @property
+    def key(self) -> str:
+        """A short name of the variant, e.g. ``"110010"`` (flags in field order)."""
+        return "".join("1" if flag else "0" for flag in astuple(self))
+
+
+ALL = Features()

@@ -1,0 +1,50 @@
+"""The render kernel of an integrator specialised on a scene's ``Features``, built on first use.
+
+``render_kernel(integrator, features)`` returns the same kernel object for the same arguments:
+the all-features kernels (``features == ALL``) are the ones each integrator module builds at
+import; any other variant is built here into a Warp module of its own, named after the
+integrator and ``features.key``, so that adding a variant never recompiles a module that has
+already been loaded, and Warp's kernel cache keeps each compiled variant across processes.
+"""
+from __future__ import annotations
+
+import functools
+
+from .features import ALL, Features
+from .integrator import make_render_kernel
+from .path import make_path_radiance, path
+from .raycast import raycast, raycast_radiance
+from .whitted import make_whitted_radiance, whitted
+
+ALL_FEATURES_KERNELS = {"raycast": raycast, "whitted": whitted, "path": path}
+RADIANCE_FACTORIES = {
+    "raycast": lambda features: raycast_radiance,
+    "whitted": lambda features: make_whitted_radiance(False, features),
+    "path": lambda features: make_path_radiance(False, features),
+}
+
+
+def relevant(integrator: str, features: Features) -> Features:
+    """``features`` with the flags that do not pay for a variant of ``integrator`` set: each
+    variant costs a compilation (seconds) the first time it is used, so only flags that remove
+    measurable work are specialised on (see docs/performance.md): the lens and shutter sampling of
+    the pixel loop for every integrator; lights and the branch stack for whitted; lights and
+    dielectrics for path (its mirror and emission tests are a load and a compare)."""
+    if integrator == "raycast":
+        return Features(lens=features.lens, motion=features.motion)
+    if integrator == "whitted":
+        return Features(lights=features.lights, specular=features.specular, dielectric=features.dielectric, lens=features.lens, motion=features.motion)
+    return Features(lights=features.lights, dielectric=features.dielectric, lens=features.lens, motion=features.motion)
+
+
+def render_kernel(integrator: str, features: Features):
+    """The rendering kernel of ``integrator`` ("raycast", "whitted" or "path") for ``features``."""
+    return _kernel(integrator, relevant(integrator, features))
+
+
+@functools.cache
+def _kernel(integrator: str, features: Features):
+    if features == ALL:
+        return ALL_FEATURES_KERNELS[integrator]
+    radiance = RADIANCE_FACTORIES[integrator](features)
+    return make_render_kernel(radiance, features=features, module=f"wrt_{integrator}_{features.key}")

@@ -1,0 +1,70 @@
+"""Kernels specialised on a scene's features (kernels/features.py, kernels/variants.py) render
+exactly what the all-features kernels render: specialisation only removes unreachable code."""
+import numpy as np
+import pytest
+
+import wrt
+from conftest import CAMERA, make_scene
+from kernels.features import ALL, Features
+from kernels.variants import relevant, render_kernel
+from wrt.renderer import scene_features
+
+DIFFUSE = [{"name": "white", "albedo": [0.7, 0.7, 0.7]}]
+GLASS = {"name": "glass", "type": "dielectric", "ior": 1.5, "transmittance": [0.9, 0.8, 0.7]}
+MIRROR = {"name": "mirror", "type": "mirror"}
+FLOOR = {"type": "plane", "point": [0, -1, 0], "normal": [0, 1, 0], "material": "white"}
+POINT = {"type": "point", "position": [2, 3, 3], "intensity": [10, 10, 10]}
+AREA = {"type": "area", "corner": [-1, 3, -1], "edge_u": [2, 0, 0], "edge_v": [0, 0, 2], "radiance": [4, 4, 4]}
+
+
+def test_features_follow_the_scene():
+    plain = make_scene([FLOOR], materials=DIFFUSE)
+    assert scene_features(plain) == Features(lights=False, specular=False, dielectric=False, emission=False, lens=False, motion=False)
+    rich = make_scene(
+        [FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "glass", "velocity": [1, 0, 0]}],
+        materials=DIFFUSE + [GLASS],
+        lights=[AREA],
+        camera={**CAMERA, "aperture_radius": 0.1, "shutter": [0, 1]},
+    )
+    assert scene_features(rich) == ALL
+    still = make_scene([{"type": "sphere", "center": [0, 0, 0], "radius": 1, "velocity": [1, 0, 0]}], camera={**CAMERA, "shutter": [2, 2]})
+    assert not scene_features(still).motion  # moving shapes, but a closed shutter: no time to sample
+
+
+def test_dielectric_implies_specular():
+    with pytest.raises(ValueError):
+        Features(specular=False, dielectric=True)
+
+
+def test_variants_are_built_once_and_only_for_flags_that_pay():
+    plain = Features(lights=False, specular=False, dielectric=False, emission=False, lens=False, motion=False)
+    assert render_kernel("whitted", plain) is render_kernel("whitted", plain)
+    assert render_kernel("path", ALL) is render_kernel("path", Features(specular=True, emission=True))
+    assert relevant("raycast", plain) == Features(lens=False, motion=False)
+    assert relevant("path", plain).emission and relevant("path", plain).specular  # a compare each: not worth a variant
+
+
+SCENES = {
+    "whitted diffuse": ([FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"}], DIFFUSE, [POINT], {}, "whitted"),
+    "whitted glass and mirror": (
+        [FLOOR, {"type": "sphere", "center": [-1, 0, 0], "radius": 0.8, "material": "glass"}, {"type": "sphere", "center": [1, 0, 0], "radius": 0.8, "material": "mirror"}],
+        DIFFUSE + [GLASS, MIRROR], [POINT], {}, "whitted",
+    ),
+    "whitted no lights": ([FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "mirror"}], DIFFUSE + [MIRROR], [], {}, "whitted"),
+    "path diffuse, lens": ([FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"}], DIFFUSE, [AREA], {"aperture_radius": 0.2}, "path"),
+    "path glass, motion": (
+        [FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "glass", "velocity": [0.5, 0, 0]}],
+        DIFFUSE + [GLASS], [AREA, POINT], {"shutter": [0, 1]}, "path",
+    ),
+    "raycast": ([FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"}], DIFFUSE, [], {}, "raycast"),
+}
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_specialised_kernel_renders_the_same_image(name):
+    shapes, materials, lights, camera, integrator = SCENES[name]
+    render = {"width": 24, "height": 18, "spp": 4, "integrator": integrator, "ambient": [0.1, 0.1, 0.1]}
+    scene = make_scene(shapes, materials=materials, lights=lights, camera={**CAMERA, **camera}, render=render)
+    special, general = wrt.render(scene), wrt.render(scene, specialize=False)
+    assert np.array_equal(special.rgb, general.rgb)
+    assert special.rgb.max() > 0  # something was rendered
