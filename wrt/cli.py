@@ -133,6 +133,22 @@ def _parser() -> argparse.ArgumentParser:
     st.add_argument("--rays", type=int, default=10**6, help="rays per ray-batch case (default 1000000)")
     st.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     st.add_argument("--report", metavar="DIR", help="also write the table as DIR/stress.json and DIR/stress.md")
+
+    b = verbs.add_parser(
+        "bench",
+        help="benchmark error against run time, per sampler, and against Mitsuba 3",
+        description="Render each scene at a doubling series of spp (4, 8, ...) for each sampler (independent, "
+        "stratified, sobol), adaptive sampling off and on, until each curve has used its time budget; measure wall "
+        "time (after a warm-up render; compilation reported separately) and error against a converged reference "
+        "(RMSE of linear values, 1-SSIM of tone-mapped sRGB); fit log-log slopes; for Mitsuba 3 XML scenes, compare "
+        "with Mitsuba 3 at equal time; time the specialised against the all-features kernel on a diffuse-only "
+        "scene. Writes DIR/results.json, results.csv and one log-log plot per scene. See docs/performance.md.",
+    )
+    b.add_argument("scenes", nargs="*", metavar="SCENE", help="scene files, .toml or Mitsuba 3 .xml (default: the Cornell boxes and soft_shadows)")
+    b.add_argument("--budget", type=float, metavar="SECONDS", help="render seconds per curve (default 6; 0.5 with --quick)")
+    b.add_argument("-o", "--output", default="bench-results", metavar="DIR", help="output folder (default bench-results); references are cached in DIR/references")
+    b.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
+    b.add_argument("--quick", action="store_true", help="small images, 3 points per curve: a smoke test of the benchmark, not a measurement")
     return parser
 
 
@@ -273,7 +289,13 @@ def _stress(args) -> int:
     return stress.command(args.rays, args.seed, args.report)
 
 
-VERBS = {"render": _render, "matrix": _matrix, "refs": _refs, "compare": _compare, "rays": _rays, "stress": _stress}
+def _bench(args) -> int:
+    from harness import bench
+
+    return bench.command(args.scenes, args.budget, args.output, args.device, args.quick)
+
+
+VERBS = {"render": _render, "matrix": _matrix, "refs": _refs, "compare": _compare, "rays": _rays, "stress": _stress, "bench": _bench}
 
 
 def main(argv: list[str] | None = None) -> int:

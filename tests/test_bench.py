@@ -1,0 +1,94 @@
+"""Smoke test of the run-time-against-error benchmark (harness/bench.py, ``wrt bench``).
+
+It checks that the benchmark runs and that its numbers are sane (finite, error falling with spp,
+slopes computed, files written); never a timing threshold.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+
+import numpy as np
+import pytest
+
+from harness import bench
+from wrt.cli import main
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bench")
+    return out, bench.run(bench.default_scenes(quick=True), str(out), budget_s=bench.QUICK_BUDGET_S, max_points=3, repeats=1)
+
+
+def test_files_are_written(quick_run):
+    out, results = quick_run
+    with open(out / "results.json") as f:
+        assert json.load(f)["scenes"][0]["name"] == results["scenes"][0]["name"]
+    with open(out / "results.csv") as f:
+        rows = list(csv.DictReader(f))
+    points = sum(len(c.get("points", [])) for e in results["scenes"] for c in e["curves"] + [e.get("mitsuba", {})])
+    assert len(rows) == points > 0
+    for e in results["scenes"]:
+        assert (out / f"{e['name']}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert os.path.exists(out / e["reference"]["path"])
+    assert not [p for p in os.listdir(out) if p.startswith(".")]  # no temporary files left
+
+
+def test_error_falls_with_spp_and_slopes_are_computed(quick_run):
+    _, results = quick_run
+    curves = [c for e in results["scenes"] for c in e["curves"] + ([e["mitsuba"]] if "mitsuba" in e else []) if not c.get("skipped")]
+    assert {c["sampler"] for c in curves if c["renderer"] == "wrt"} == set(bench.SAMPLERS)
+    for c in curves:
+        points = c["points"]
+        assert [p["spp"] for p in points] == [4, 8, 16]
+        for p in points:
+            assert all(math.isfinite(p[k]) and p[k] > 0 for k in ("wall_s", "rmse", "one_minus_ssim", "mean_spp"))
+        assert points[-1]["rmse"] < points[0]["rmse"], c["label"]
+        assert points[-1]["one_minus_ssim"] < points[0]["one_minus_ssim"], c["label"]
+        assert math.isfinite(c["slope_rmse"]) and c["slope_rmse"] < 0, c["label"]
+    for e in results["scenes"]:
+        assert 0 < e["reference"]["rmse_floor"] < min(p["rmse"] for c in e["curves"] for p in c.get("points", []))
+
+
+def test_mitsuba_and_speedup_parts(quick_run):
+    _, results = quick_run
+    cornell = results["scenes"][0]
+    if bench.mitsuba_status()[0] is None:
+        assert "mitsuba" not in cornell
+    else:
+        assert cornell["equal_time"]["best"] is not None
+        assert math.isfinite(cornell["equal_time"]["best_rmse_ratio"])
+        assert cornell["equal_time"]["same_sampler"] == "independent"  # the XML's sampler
+        assert math.isfinite(cornell["equal_time"]["same_sampler_rmse_ratio"])
+    s = results["speedup"]
+    assert "skipped" in s or (s["materials"] == ["diffuse"] and math.isfinite(s["speedup"]) and s["speedup"] > 0)
+
+
+def test_equal_time_interpolates_log_log():
+    ours = [{"wall_s": t, "rmse": 1 / math.sqrt(t)} for t in (0.1, 1.0, 10.0)]
+    theirs = [{"wall_s": t, "rmse": 2 / math.sqrt(t)} for t in (0.05, 0.3, 3.0, 20.0)]
+    rows = bench.equal_time(ours, theirs, "rmse")
+    assert [r["wall_s"] for r in rows] == [0.3, 3.0]  # only times inside our range
+    assert np.allclose([r["ratio"] for r in rows], 0.5)
+
+
+def test_reference_is_cached(tmp_path):
+    scene = bench.quick_size(bench.BenchScene(bench._example("path", "soft_shadows.toml")), width=16)
+    first = bench.reference_image(scene, str(tmp_path), 8, "cpu")
+    again = bench.reference_image(scene, str(tmp_path), 8, "cpu")
+    more = bench.reference_image(scene, str(tmp_path), 16, "cpu")
+    assert (first["source"], again["source"], more["source"]) == ("rendered", "cached", "rendered")
+    assert np.array_equal(first["rgb"], again["rgb"]) and more["spp"] == 16
+
+
+@pytest.mark.parametrize(
+    "argv, named",
+    [(["bench", "no/such/scene.toml"], "no/such/scene.toml"), (["bench", "--budget", "-1"], "--budget -1"), (["bench", "README.md"], "README.md")],
+)
+def test_bad_input_is_one_line_exit_2(argv, named, capsys, tmp_path):
+    assert main(argv + ["-o", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("wrt: error:") and named in err and "\n" not in err
