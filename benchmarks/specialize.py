@@ -4,22 +4,22 @@
 
 For each scene: the features it needs (``wrt.renderer.scene_features``), then the median wall
 time of the render passes (BVH build and kernel compilation excluded, done once before timing)
-with the specialised kernel and with the all-features one, on all cores; the two images must be
+with the specialised kernel and with the all-features one, on one thread, the two alternating
+run by run so that drift in a shared machine's speed hits both alike; the two images must be
 identical (specialisation only removes code the scene cannot reach).
 """
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import statistics
-import tempfile
 
 import numpy as np
 
 import wrt
 from wrt.device import cpu_model, init_warp
+from wrt.files import write_json
 from wrt.loader import override_render
 from wrt.renderer import scene_features
 
@@ -32,15 +32,19 @@ SCENES = [  # (scene, overrides): diffuse-only scenes first, the target of the s
 ]
 
 
-def timed(scene, specialize: bool, repeats: int):
-    wrt.render(scene, specialize=specialize)  # compile, caches
-    runs = [wrt.render(scene, specialize=specialize) for _ in range(repeats)]
-    return statistics.median(r.render_time_s for r in runs), runs[0].rgb
+def timed(scene, repeats: int):
+    """``{specialize: (median seconds, image)}`` from alternating one-thread renders."""
+    images = {spec: wrt.render(scene, specialize=spec, threads=1).rgb for spec in (False, True)}  # compile, caches
+    times = {False: [], True: []}
+    for _ in range(repeats):
+        for spec in (False, True):
+            times[spec].append(wrt.render(scene, specialize=spec, threads=1).render_time_s)
+    return {spec: (statistics.median(times[spec]), images[spec]) for spec in (False, True)}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("-o", "--output", help="write the results as JSON here")
     args = parser.parse_args()
     init_warp()
@@ -48,8 +52,8 @@ def main() -> None:
     for path, overrides in SCENES:
         scene = override_render(wrt.load_scene(path), **overrides)
         features = scene_features(scene)
-        t_all, rgb_all = timed(scene, False, args.repeats)
-        t_spec, rgb_spec = timed(scene, True, args.repeats)
+        runs = timed(scene, args.repeats)
+        (t_all, rgb_all), (t_spec, rgb_spec) = runs[False], runs[True]
         row = {
             "scene": path,
             **overrides,
@@ -64,12 +68,9 @@ def main() -> None:
         print(f"{path:40s} {scene.render.integrator:8s} features {features.key}  all {t_all:.3f} s  specialised {t_spec:.3f} s  "
               f"x{row['speedup']:.2f}  identical={row['identical']}")
     if args.output:
-        out = {"machine": {"cpu": cpu_model(), "cores": os.cpu_count(), "platform": platform.platform()}, "repeats": args.repeats, "scenes": rows}
-        folder = os.path.dirname(os.path.abspath(args.output))
-        os.makedirs(folder, exist_ok=True)
-        with tempfile.NamedTemporaryFile("w", dir=folder, suffix=".tmp", delete=False) as f:
-            json.dump(out, f, indent=2)
-        os.replace(f.name, args.output)
+        machine = {"cpu": cpu_model(), "cores": os.cpu_count(), "platform": platform.platform()}
+        out = {"machine": machine, "threads": 1, "repeats": args.repeats, "scenes": rows}
+        write_json(args.output, out)
 
 
 if __name__ == "__main__":

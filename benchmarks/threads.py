@@ -8,7 +8,6 @@ done once before timing) and checks that the images are bit-identical.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import statistics
@@ -18,6 +17,7 @@ import numpy as np
 
 import wrt
 from wrt.device import cpu_model, init_warp
+from wrt.files import write_json
 from wrt.loader import override_render
 from wrt.renderer import default_threads
 
@@ -67,10 +67,7 @@ def main() -> None:
         print(f"| {row['threads']} | {row['median_s']:.3f} | {row['mrays_per_s']:.2f} | {row['speedup']:.2f}x |")
     print(f"images bit-identical across thread counts: {identical}")
     if args.output:
-        tmp = args.output + ".tmp"
-        with open(tmp, "w") as f:
-            json.dump(report, f, indent=2)
-        os.replace(tmp, args.output)
+        write_json(args.output, report)
 
 
 if __name__ == "__main__":

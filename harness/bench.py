@@ -44,7 +44,6 @@ import math
 import os
 import platform
 import sys
-import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -54,6 +53,7 @@ import numpy as np
 import wrt
 from wrt.device import cpu_model, resolve_device
 from wrt.errors import WrtError
+from wrt.files import write_atomic
 from wrt.imageio import read_image, write_image
 from wrt.loader import load_scene, override_render, parse_scene
 from wrt.mitsuba_xml import load_mitsuba
@@ -460,23 +460,6 @@ def run(scenes: list[BenchScene], out_dir: str, budget_s: float, device: str = "
 
 
 # --- files -------------------------------------------------------------------------------------------
-
-
-def write_atomic(path: str, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename."""
-    folder = os.path.dirname(os.path.abspath(path))
-    os.makedirs(folder, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", dir=folder)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp's 0600 would outlive the rename
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
 
 
 CSV_COLUMNS = ("scene", "renderer", "curve", "sampler", "adaptive", "spp", "mean_spp", "render_s", "wall_s", "rmse", "one_minus_ssim")

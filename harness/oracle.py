@@ -16,7 +16,6 @@ import threading
 
 import numpy as np
 
-from wrt.geometry import polygon_projection
 from wrt.scene import Mesh, Plane, Polygon, Scene, Sphere, Triangle
 
 

@@ -28,6 +28,7 @@ import numpy as np
 
 import wrt
 from wrt.errors import WrtError
+from wrt.files import write_json
 from wrt.imageio import read_image, write_image
 
 from .matrix import Feature, load_feature_scene, scene_hash
@@ -148,18 +149,6 @@ def calibrate(feature: Feature, reference: Reference, device: str = "cpu", threa
     }
 
 
-def _write_json(path: str, data: dict) -> None:
-    tmp = f"{path}.tmp-{os.getpid()}"
-    try:
-        with open(tmp, "w") as f:
-            json.dump(data, f, indent=2)
-            f.write("\n")
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-
-
 def store(feature: Feature, reference: Reference, folder: str | None = None) -> None:
     """Write the reference EXR (half RGB, float variance) and its preview PNG, atomically each."""
     p = paths(feature.name, folder)
@@ -169,4 +158,4 @@ def store(feature: Feature, reference: Reference, folder: str | None = None) -> 
 
 def store_calibration(feature: Feature, calibration: dict, folder: str | None = None) -> None:
     p = paths(feature.name, folder)
-    _write_json(p["json"], {**calibration, "reference_sha256": file_sha256(p["exr"])})
+    write_json(p["json"], {**calibration, "reference_sha256": file_sha256(p["exr"])})

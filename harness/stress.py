@@ -25,6 +25,7 @@ import kernels  # noqa: F401  (configures Warp)
 from kernels import spawn
 from kernels.traverse import NO_HIT, SPHERE, trace_any, trace_closest
 from wrt.device import upload_geometry
+from wrt.files import write_atomic
 from wrt.geometry import build
 from wrt.loader import parse_scene
 from wrt.scene import Mesh
@@ -107,11 +108,8 @@ def write_report(results: list[CaseResult], folder: str, rays: int, seed: int) -
     os.makedirs(folder, exist_ok=True)
     json_path, md_path = os.path.join(folder, "stress.json"), os.path.join(folder, "stress.md")
     doc = {"rays": rays, "seed": seed, "passed": all(r.passed for r in results), "cases": [r.as_dict() for r in results]}
-    for path, text in ((json_path, json.dumps(doc, indent=2, default=float) + "\n"), (md_path, format_markdown(results, rays, seed))):
-        tmp = path + ".tmp"
-        with open(tmp, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
+    write_atomic(json_path, json.dumps(doc, indent=2, default=float) + "\n")
+    write_atomic(md_path, format_markdown(results, rays, seed))
     return json_path, md_path
 
 

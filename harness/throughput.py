@@ -39,12 +39,10 @@ Rays have unit directions, so ``t`` is a distance in scene units; every engine g
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import statistics
 import sys
-import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
 
@@ -53,6 +51,7 @@ import warp as wp
 
 import kernels  # noqa: F401  (configures Warp)
 from kernels.traverse import trace_any, trace_closest
+from wrt.files import write_json
 from wrt.device import cpu_model, init_warp, resolve_device, upload_geometry
 from wrt.errors import WrtError
 from wrt.geometry import build
@@ -580,21 +579,6 @@ def _columns(rows: list[list[str]]) -> list[str]:
     return ["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows]
 
 
-def write_json(results: dict, path: str) -> None:
-    """Write ``results`` to ``path`` atomically: a temporary file in the same folder, then a rename."""
-    folder = os.path.dirname(os.path.abspath(path))
-    os.makedirs(folder, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=".throughput-", suffix=".json", dir=folder)
-    try:
-        with os.fdopen(fd, "w") as f:
-            json.dump(results, f, indent=2)
-            f.write("\n")
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m harness.throughput", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--triangles", type=int, default=1_000_000, help="triangles in the mesh (about; default 1,000,000)")
@@ -612,7 +596,7 @@ def main(argv=None) -> int:
     results["command"] = " ".join(["python -m harness.throughput", *(sys.argv[1:] if argv is None else argv)])
     print(format_table(results))
     if args.output:
-        write_json(results, args.output)
+        write_json(args.output, results)
     return 0
 
 

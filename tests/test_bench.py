@@ -59,10 +59,17 @@ def test_mitsuba_and_speedup_parts(quick_run):
     if bench.mitsuba_status()[0] is None:
         assert "mitsuba" not in cornell
     else:
-        assert cornell["equal_time"]["best"] is not None
-        assert math.isfinite(cornell["equal_time"]["best_rmse_ratio"])
-        assert cornell["equal_time"]["same_sampler"] == "independent"  # the XML's sampler
-        assert math.isfinite(cornell["equal_time"]["same_sampler_rmse_ratio"])
+        # Ratios exist only at Mitsuba times inside a wrt curve's time range, which depends on the
+        # machine's speed: check each ratio against its own points, never whether there are any.
+        equal = cornell["equal_time"]
+        assert equal["same_sampler"] == "independent"  # the XML's sampler
+        for label, curve in equal["per_curve"].items():
+            rows = curve["rmse_at"]
+            assert (curve["rmse_ratio"] is None) == (not rows), label
+            if rows:
+                assert math.isfinite(curve["rmse_ratio"]) and all(r["ratio"] == pytest.approx(r["wrt"] / r["mitsuba"]) for r in rows)
+        ranked = [c["rmse_ratio"] for c in equal["per_curve"].values() if c["rmse_ratio"] is not None]
+        assert equal["best_rmse_ratio"] == (min(ranked) if ranked else None)
     s = results["speedup"]
     assert "skipped" in s or (s["materials"] == ["diffuse"] and math.isfinite(s["speedup"]) and s["speedup"] > 0)
 

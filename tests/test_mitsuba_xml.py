@@ -10,7 +10,7 @@ import pytest
 from mitsuba_peer import mitsuba_available, render_mitsuba
 from wrt.errors import WrtError
 from wrt.mitsuba_xml import IOR_TABLE, MAX_DEPTH, load_mitsuba, look_at_matrix, rotation_matrix
-from wrt.scene import INTEGRATORS, Camera
+from wrt.scene import Camera
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "mitsuba"
 EXAMPLE_FILES = sorted(EXAMPLES.glob("*.xml"))

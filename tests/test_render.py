@@ -1,6 +1,5 @@
 """Render orchestration (wrt/renderer.py), the raycast integrator and the `wrt render` command."""
 import numpy as np
-import pytest
 
 import wrt
 import wrt.renderer
