@@ -37,7 +37,6 @@ import csv
 import dataclasses
 import hashlib
 import importlib.util
-import inspect
 import io
 import json
 import math
@@ -53,7 +52,7 @@ import numpy as np
 import wrt
 from wrt.device import cpu_model, resolve_device
 from wrt.errors import WrtError
-from wrt.files import write_atomic
+from wrt.files import write_atomic, write_json
 from wrt.imageio import read_image, write_image
 from wrt.loader import load_scene, override_render, parse_scene
 from wrt.mitsuba_xml import load_mitsuba
@@ -61,6 +60,7 @@ from wrt.scene import Mesh, Scene
 
 from .references import REFERENCE_SEED
 from .score import convergence_slope, rmse, ssim
+from .throughput import format_table, run_throughput
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SAMPLERS = ("independent", "stratified", "sobol")
@@ -71,6 +71,10 @@ MIN_POINTS = 3  # a curve has at least this many points, whatever the budget
 REPEATS = 2  # renders per point (same seed: the same image); the fastest time counts (the machine may be shared)
 DEFAULT_BUDGET_S = 6.0  # render seconds per curve in the full run
 QUICK_BUDGET_S = 0.5
+FULL_TRIANGLES, FULL_RAYS = 1_000_000, 1 << 20  # the ray-throughput part (harness.throughput)
+QUICK_TRIANGLES, QUICK_RAYS = 20_000, 8192
+MIN_TRIANGLES = 1000
+THROUGHPUT_REPEATS = 5
 REFERENCE_SAMPLER = "sobol"
 REFERENCE_TIME_FACTOR = 12.0  # the reference renders for about this many curve budgets
 MIN_REFERENCE_SPP = 256
@@ -148,12 +152,6 @@ def scene_key(scene: Scene) -> str:
     return h.hexdigest()[:16]
 
 
-def render_api() -> dict[str, bool]:
-    """Which optional ``wrt.render`` arguments this version has (adaptive sampling, specialisation)."""
-    names = inspect.signature(wrt.render).parameters
-    return {"target_error": "target_error" in names, "specialize": "specialize" in names}
-
-
 # --- one curve: a doubling spp series until the budget ---------------------------------------------
 
 
@@ -206,19 +204,16 @@ def slopes(points: list[dict]) -> dict:
     }
 
 
-def wrt_shot(bench: BenchScene, sampler: str, device: str, adaptive: bool = False, seed: int = SEED, specialize: bool | None = None) -> Callable[[int], Shot]:
+def wrt_shot(bench: BenchScene, sampler: str, device: str, adaptive: bool = False, seed: int = SEED, specialize: bool = True) -> Callable[[int], Shot]:
     """A renderer for `measure_curve`: scene file -> ``wrt.render`` with ``sampler`` (and adaptive
-    sampling, or the all-features kernel with ``specialize=False``) at a given spp."""
+    sampling) at a given spp, with the kernel specialised on the scene (every point alike,
+    whatever its size), or the all-features kernel with ``specialize=False``."""
 
     def shoot(spp: int) -> Shot:
         t0 = time.perf_counter()
         scene = override_render(bench.load(), sampler=sampler)
-        extra = {}
-        if adaptive:
-            extra["target_error"] = ADAPTIVE_K / math.sqrt(spp)
-        if specialize is not None:
-            extra["specialize"] = specialize
-        result = wrt.render(scene, spp=spp, seed=seed, device=device, **extra)
+        target = ADAPTIVE_K / math.sqrt(spp) if adaptive else None
+        result = wrt.render(scene, spp=spp, seed=seed, device=device, target_error=target, specialize=specialize)
         wall = time.perf_counter() - t0
         mean_spp = float(np.mean(result.aovs["spp"])) if adaptive else float(result.spp)
         return Shot(result.rgb, result.render_time_s, wall, mean_spp)
@@ -230,6 +225,7 @@ def warm_up(bench: BenchScene, sampler: str, device: str, **options) -> dict:
     """Two small renders before timing: the first compiles and loads the kernels (its compile
     and BVH-build seconds are returned), the second measures the rate (``spp_per_s``)."""
     scene = override_render(bench.load(), sampler=sampler)
+    options.setdefault("specialize", True)  # as the timed renders, whatever their size
     t0 = time.perf_counter()
     first = wrt.render(scene, spp=START_SPP, seed=SEED, device=device, **options)
     warmup = time.perf_counter() - t0
@@ -331,8 +327,6 @@ def compare_mitsuba(curves: list[dict], mitsuba: dict, sampler: str) -> dict:
     scene's own, which Mitsuba uses) without adaptive sampling."""
     out = {}
     for c in curves:
-        if c.get("skipped"):
-            continue
         per = {m: equal_time(c["points"], mitsuba["points"], m) for m in ("rmse", "one_minus_ssim")}
         out[c["label"]] = {
             **{f"{m}_at": rows for m, rows in per.items()},
@@ -385,7 +379,6 @@ def run(scenes: list[BenchScene], out_dir: str, budget_s: float, device: str = "
     """Run the benchmark over ``scenes`` and write ``out_dir/results.json``, ``results.csv`` and one
     plot per scene; returns the results (the JSON's content)."""
     log = log or (lambda text: None)
-    api = render_api()
     peer, mitsuba_why = mitsuba_status() if mitsuba else (None, "not asked for")
     if peer is not None and not device.startswith("cpu"):
         peer, mitsuba_why = None, f"wrt runs on {device}: the comparison is CPU against CPU, run it with --device cpu"
@@ -397,7 +390,6 @@ def run(scenes: list[BenchScene], out_dir: str, budget_s: float, device: str = "
         "date": time.strftime("%Y-%m-%d %H:%M:%S %Z", time.localtime(started)),
         "budget_s": budget_s,
         "settings": {"start_spp": START_SPP, "min_points": MIN_POINTS, "max_points": max_points, "repeats": repeats, "seed": SEED, "adaptive_k": ADAPTIVE_K, "reference_sampler": REFERENCE_SAMPLER, "reference_time_factor": REFERENCE_TIME_FACTOR},
-        "api": api,
         "mitsuba": mitsuba_why,
         "scenes": [],
         "speedup": None,
@@ -423,16 +415,11 @@ def run(scenes: list[BenchScene], out_dir: str, budget_s: float, device: str = "
                 label = curve_label(sampler, adaptive)
                 curve = {"renderer": "wrt", "label": label, "sampler": sampler, "adaptive": adaptive}
                 entry["curves"].append(curve)
-                if adaptive and not api["target_error"]:
-                    curve["skipped"] = "this wrt.render has no target_error (adaptive sampling not there yet)"
-                    continue
                 log(f"  {label}:")
                 options = {"target_error": ADAPTIVE_K / math.sqrt(START_SPP)} if adaptive else {}
                 curve.update(warm_up(bench, sampler, device, **options))
                 curve["points"] = measure_curve(wrt_shot(bench, sampler, device, adaptive), ref["rgb"], budget_s, max_points, repeats, log)
                 curve.update(slopes(curve["points"]))
-        if adaptive_skipped := [c for c in entry["curves"] if c.get("skipped")]:
-            log(f"  adaptive curves skipped: {adaptive_skipped[0]['skipped']}")
         if bench.is_mitsuba and peer is not None:
             log(f"  Mitsuba 3 ({mitsuba_why}):")
             shoot = mitsuba_shot(peer, bench)
@@ -447,12 +434,8 @@ def run(scenes: list[BenchScene], out_dir: str, budget_s: float, device: str = "
             log(f"  Mitsuba 3 skipped: {mitsuba_why}")
         results["scenes"].append(entry)
         if bench.speedup:
-            if not api["specialize"]:
-                results["speedup"] = {"scene": bench.name, "skipped": "this wrt.render has no specialize argument (kernel specialisation not there yet)"}
-                log(f"  speed-up skipped: {results['speedup']['skipped']}")
-            else:
-                log("  specialised against all-features kernel:")
-                results["speedup"] = specialisation_speedup(bench, device, min(2.0, budget_s / 2), log)
+            log("  specialised against all-features kernel:")
+            results["speedup"] = specialisation_speedup(bench, device, min(2.0, budget_s / 2), log)
     results["machine"]["load_average_end"] = list(os.getloadavg())
     results["total_s"] = time.time() - started
     write_results(results, out_dir)
@@ -523,9 +506,6 @@ def table(results: dict) -> str:
     lines = []
     for e in results["scenes"]:
         for c in e["curves"] + ([e["mitsuba"]] if "mitsuba" in e else []):
-            if c.get("skipped"):
-                rows.append([e["name"], c["label"], "skipped", "", "", "", "", "", "", ""])
-                continue
             last = c["points"][-1]
             seconds = last["wall_s"] if last["render_s"] is None else last["render_s"]
             rows.append([e["name"], c["label"], str(len(c["points"])), f"{c['points'][0]['spp']}-{last['spp']}", f"{seconds:.2f}", f"{last['rmse']:.4g}", f"{last['one_minus_ssim']:.4g}", f"{c['slope_rmse']:+.2f}", f"{c['slope_one_minus_ssim']:+.2f}", f"{c.get('compile_s', 0.0):.2f}"])
@@ -541,16 +521,20 @@ def table(results: dict) -> str:
                 lines.append(f"{e['name']}: with the scene's own sampler ({eq['same_sampler']}, as Mitsuba renders it): RMSE ratio {eq['same_sampler_rmse_ratio']:.2f}")
     s = results.get("speedup")
     if s:
-        lines.append(f"speed-up on {s['scene']}: " + (s["skipped"] if "skipped" in s else f"specialised {s['specialised_s']:.3f} s vs all-features {s['all_features_s']:.3f} s at {s['spp']} spp: {s['speedup']:.2f}x (target >= {s['target']})"))
+        lines.append(f"speed-up on {s['scene']}: specialised {s['specialised_s']:.3f} s vs all-features {s['all_features_s']:.3f} s at {s['spp']} spp: {s['speedup']:.2f}x (target >= {s['target']})")
     lines.append(f"Mitsuba 3: {results['mitsuba']}")
     widths = [max(len(r[k]) for r in rows) for k in range(len(rows[0]))]
     return "\n".join(["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows] + [""] + lines)
 
 
-def command(paths: list[str], budget_s: float | None, out_dir: str, device: str, quick: bool) -> int:
-    """``wrt bench``: run, print the table, write the files; 0 on success."""
+def command(paths: list[str], budget_s: float | None, out_dir: str, device: str, quick: bool, triangles: int | None = None) -> int:
+    """``wrt bench``: run, print the tables, write the files; 0 on success. ``triangles``: size of
+    the ray-throughput mesh (``harness.throughput``; default 1M, 20k with ``quick``; 0 skips it)."""
     if budget_s is not None and not (budget_s > 0 and math.isfinite(budget_s)):
         raise WrtError(f"--budget {budget_s}: must be a positive number of seconds")
+    triangles = (QUICK_TRIANGLES if quick else FULL_TRIANGLES) if triangles is None else triangles
+    if triangles < 0 or 0 < triangles < MIN_TRIANGLES:
+        raise WrtError(f"--triangles {triangles}: must be 0 (skip the throughput benchmark) or at least {MIN_TRIANGLES}")
     for p in paths:
         if not os.path.isfile(p):
             raise WrtError(f"{p}: no such scene file")
@@ -567,4 +551,10 @@ def command(paths: list[str], budget_s: float | None, out_dir: str, device: str,
     results = run(scenes, out_dir, budget, device, max_points=3 if quick else None, repeats=1 if quick else REPEATS, log=lambda text: print(text, file=sys.stderr, flush=True))
     print(table(results))
     print(f"\n{results['machine']['cpu']}, {results['machine']['cores']} cores, device {device}; {results['total_s']:.0f} s; wrote {out_dir}/results.json, results.csv and plots")
+    if triangles:
+        rays = QUICK_RAYS if quick else FULL_RAYS
+        speed = run_throughput(triangles, rays, device=device, repeats=1 if quick else THROUGHPUT_REPEATS)
+        speed["command"] = f"wrt bench (--triangles {triangles})"
+        write_json(os.path.join(out_dir, "throughput.json"), speed)
+        print("\n" + format_table(speed) + f"\nwrote {out_dir}/throughput.json")
     return 0

@@ -39,7 +39,7 @@ def test_files_are_written(quick_run):
 
 def test_error_falls_with_spp_and_slopes_are_computed(quick_run):
     _, results = quick_run
-    curves = [c for e in results["scenes"] for c in e["curves"] + ([e["mitsuba"]] if "mitsuba" in e else []) if not c.get("skipped")]
+    curves = [c for e in results["scenes"] for c in e["curves"] + ([e["mitsuba"]] if "mitsuba" in e else [])]
     assert {c["sampler"] for c in curves if c["renderer"] == "wrt"} == set(bench.SAMPLERS)
     for c in curves:
         points = c["points"]
@@ -71,7 +71,7 @@ def test_mitsuba_and_speedup_parts(quick_run):
         ranked = [c["rmse_ratio"] for c in equal["per_curve"].values() if c["rmse_ratio"] is not None]
         assert equal["best_rmse_ratio"] == (min(ranked) if ranked else None)
     s = results["speedup"]
-    assert "skipped" in s or (s["materials"] == ["diffuse"] and math.isfinite(s["speedup"]) and s["speedup"] > 0)
+    assert s["materials"] == ["diffuse"] and math.isfinite(s["speedup"]) and s["speedup"] > 0
 
 
 def test_equal_time_interpolates_log_log():
@@ -93,9 +93,27 @@ def test_reference_is_cached(tmp_path):
 
 @pytest.mark.parametrize(
     "argv, named",
-    [(["bench", "no/such/scene.toml"], "no/such/scene.toml"), (["bench", "--budget", "-1"], "--budget -1"), (["bench", "README.md"], "README.md")],
+    [
+        (["bench", "no/such/scene.toml"], "no/such/scene.toml"),
+        (["bench", "--budget", "-1"], "--budget -1"),
+        (["bench", "README.md"], "README.md"),
+        (["bench", "--triangles", "12"], "--triangles 12"),
+    ],
 )
 def test_bad_input_is_one_line_exit_2(argv, named, capsys, tmp_path):
     assert main(argv + ["-o", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("wrt: error:") and named in err and "\n" not in err
+
+
+def test_command_line_runs_both_parts(tmp_path, capsys):
+    """`wrt bench SCENE --quick --triangles N`: the error curves and the ray-throughput table."""
+    scene = os.path.join(os.path.dirname(__file__), "..", "examples", "path", "soft_shadows.toml")
+    assert main(["bench", scene, "--quick", "--budget", "0.2", "--triangles", "2000", "-o", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "Ray throughput" in out and "wrt/wp.Mesh" in out
+    with open(tmp_path / "throughput.json") as f:
+        speed = json.load(f)
+    assert 1500 < speed["mesh"]["triangles"] <= 2000 and speed["command"] == "wrt bench (--triangles 2000)"  # about N
+    with open(tmp_path / "results.json") as f:
+        assert json.load(f)["scenes"][0]["name"].endswith("soft_shadows")

@@ -65,6 +65,18 @@ def test_specialised_kernel_renders_the_same_image(name):
     shapes, materials, lights, camera, integrator = SCENES[name]
     render = {"width": 24, "height": 18, "spp": 4, "integrator": integrator, "ambient": [0.1, 0.1, 0.1]}
     scene = make_scene(shapes, materials=materials, lights=lights, camera={**CAMERA, **camera}, render=render)
-    special, general = wrt.render(scene), wrt.render(scene, specialize=False)
+    special, general = wrt.render(scene, specialize=True), wrt.render(scene, specialize=False)
     assert np.array_equal(special.rgb, general.rgb)
     assert special.rgb.max() > 0  # something was rendered
+
+
+def test_small_renders_take_the_all_features_kernel_by_default(monkeypatch):
+    """A variant's first compilation costs seconds: by default only renders of at least
+    SPECIALIZE_MIN_SAMPLES pixel samples use one (the image is the same either way)."""
+    chosen = []
+    monkeypatch.setattr(wrt.renderer, "render_kernel", lambda integrator, features: chosen.append(features) or render_kernel(integrator, features))
+    scene = make_scene([FLOOR], materials=DIFFUSE, render={"width": 16, "height": 8, "spp": 2, "integrator": "path"})
+    wrt.render(scene)
+    monkeypatch.setattr(wrt.renderer, "SPECIALIZE_MIN_SAMPLES", 16 * 8 * 2)
+    wrt.render(scene)
+    assert chosen == [ALL, scene_features(scene)]

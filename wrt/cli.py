@@ -149,6 +149,13 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("-o", "--output", default="bench-results", metavar="DIR", help="output folder (default bench-results); references are cached in DIR/references")
     b.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
     b.add_argument("--quick", action="store_true", help="small images, 3 points per curve: a smoke test of the benchmark, not a measurement")
+    b.add_argument(
+        "--triangles",
+        type=int,
+        metavar="N",
+        help="also measure ray throughput (rays/s of wrt's BVH, wp.Mesh and Embree when installed) on an N-triangle mesh: "
+        "DIR/throughput.json (default 1000000; 20000 with --quick; 0 skips it)",
+    )
     return parser
 
 
@@ -292,7 +299,7 @@ def _stress(args) -> int:
 def _bench(args) -> int:
     from harness import bench
 
-    return bench.command(args.scenes, args.budget, args.output, args.device, args.quick)
+    return bench.command(args.scenes, args.budget, args.output, args.device, args.quick, args.triangles)
 
 
 VERBS = {"render": _render, "matrix": _matrix, "refs": _refs, "compare": _compare, "rays": _rays, "stress": _stress, "bench": _bench}

@@ -45,6 +45,7 @@ TILE_PIXELS = 4096  # pixels per CPU launch: small enough to balance two threads
 PASS_SECONDS = 1.0  # wall seconds a pass of a progressive render aims at
 AOV_NAMES = ("depth", "normal", "object_id", "position")
 NO_RECORD = RayRecord()  # what the rendering variants get for the record buffer they never touch
+SPECIALIZE_MIN_SAMPLES = 1 << 20  # pixel samples from which a render uses its scene's kernel variant by default
 ADAPTIVE_FIRST_PASS = 16  # samples every pixel takes before adaptive sampling may stop it
 ADAPTIVE_FLOOR = 0.01  # luminance below which an adaptive pixel's error is measured absolutely
 
@@ -268,7 +269,7 @@ def render(
     progress: Progress | None = None,
     progress_every: int | None = None,
     target_error: float | None = None,
-    specialize: bool = True,
+    specialize: bool | None = None,
 ) -> RenderResult:
     """Render ``scene`` with its integrator.
 
@@ -297,9 +298,12 @@ def render(
         whose estimated relative error (``relative_error``) is still above ``target_error`` take
         as many again, and so on up to ``spp`` (passes end at 16, 32, 64, ... samples, whatever
         ``progress_every``). The result's ``aovs["spp"]`` holds each pixel's sample count.
-    specialize : bool
-        Render with the kernel specialised on the scene's features (``scene_features``), default;
-        False: the all-features kernel (the same image, for speed comparisons).
+    specialize : bool, optional
+        True: render with the kernel specialised on the scene's features (``scene_features``);
+        False: with the all-features kernel. Both give the same image. Default: specialised from
+        ``SPECIALIZE_MIN_SAMPLES`` pixel samples (width x height x spp) on: a variant's first
+        compilation takes seconds (then Warp's cache serves it), more than a smaller render
+        could save, so small renders take the all-features kernel, compiled once for all.
 
     Notes
     -----
@@ -320,6 +324,8 @@ def render(
     dev = resolve_device(device)
     check_memory(scene, dev)
     threads = 1 if dev.is_cuda else max(1, threads or default_threads())
+    if specialize is None:
+        specialize = scene.render.width * scene.render.height * spp >= SPECIALIZE_MIN_SAMPLES
     kernel = render_kernel(scene.render.integrator, scene_features(scene) if specialize else ALL)
     w, h = scene.render.width, scene.render.height
 
