@@ -18,11 +18,13 @@ hits        the hit points, point data ``normal`` (unit geometric normal), ``fac
 lights      point and spot lights as points (vertices); directional lights as a line along the
             direction they travel
 camera      the camera position and its view pyramid (lines to the image corners)
+bvh         with ``trace_rays(..., bvh=True)``: the box of every BVH node a segment's closest-hit
+            query visited, as 12 edge lines each, cell data ``node`` and ``row`` (the segment)
 =========== ======================================================================================
 
 ``draw`` puts them in a plotter: geometry semi-transparent, segments coloured by kind with a
 legend, hit points as small spheres, normals as short arrows on the side the ray came from (the
-normal reflection and refraction use), misses fading out. ``save_view``
+normal reflection and refraction use), misses fading out, visited BVH boxes as thin lines. ``save_view``
 renders off screen to a PNG (EGL when there is no display), ``show`` opens a window, ``export``
 writes the blocks to a ``.vtm`` that ParaView and ``pyvista.read`` open.
 """
@@ -45,6 +47,7 @@ GEOMETRY_OPACITY = 0.25
 PLANE_OPACITY = 0.12  # planes are large: fainter, so they do not veil the rays
 NORMAL_COLOR = "#404040"
 LIGHT_COLOR = "#ffd000"
+BVH_COLOR = "#7f8c9a"
 MISS_FRACTION = 0.25  # misses are drawn this fraction of the scene's size long
 HIT_FRACTION = 0.006  # radius of the hit spheres
 NORMAL_FRACTION = 0.06  # length of the normal arrows
@@ -180,7 +183,25 @@ def ray_blocks(tree: RayTree) -> pv.MultiBlock:
     blocks["hits"] = hits
     blocks["lights"] = lights
     blocks["camera"] = camera
+    blocks["bvh"] = _box_edges(tree)
     return blocks
+
+
+BOX_EDGES = np.array([[0, 1], [1, 3], [3, 2], [2, 0], [4, 5], [5, 7], [7, 6], [6, 4], [0, 4], [1, 5], [2, 6], [3, 7]])
+
+
+def _box_edges(tree: RayTree) -> pv.PolyData:
+    """The boxes of the visited BVH nodes (``tree.visit_node``): 12 lines each, cell data ``node``, ``row``."""
+    if len(tree.visit_node) == 0:
+        return pv.PolyData()
+    lo, hi = tree.bvh_lo[tree.visit_node].astype(np.float64), tree.bvh_hi[tree.visit_node].astype(np.float64)
+    corner = np.array([[(i >> k) & 1 for k in range(3)] for i in range(8)], dtype=bool)  # bit k: hi along axis k
+    points = np.where(corner[None], hi[:, None], lo[:, None]).reshape(-1, 3)
+    edges = (BOX_EDGES[None] + 8 * np.arange(len(lo))[:, None, None]).reshape(-1, 2)
+    boxes = pv.PolyData(points, lines=np.column_stack([np.full(len(edges), 2), edges]).ravel())
+    boxes.cell_data["node"] = np.repeat(tree.visit_node, 12)
+    boxes.cell_data["row"] = np.repeat(tree.visit_row, 12)
+    return boxes
 
 
 def _auto_view(tree: RayTree, forward: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -230,6 +251,9 @@ def draw(plotter: pv.Plotter, tree: RayTree, view: tuple[float, float] | None = 
         plotter.add_mesh(balls, scalars="color", rgb=True, show_scalar_bar=False)
         arrow = pv.Arrow(tip_length=0.3, tip_radius=0.08, shaft_radius=0.025, scale=NORMAL_FRACTION * size)
         plotter.add_mesh(hits.glyph(orient="facing_normal", scale=False, geom=arrow), color=NORMAL_COLOR)
+    boxes = blocks["bvh"]
+    if boxes.n_cells:
+        plotter.add_mesh(boxes, color=BVH_COLOR, opacity=0.6, line_width=1, lighting=False)
     lights = blocks["lights"]
     if lights.n_points:
         plotter.add_mesh(lights, color=LIGHT_COLOR, point_size=20, render_points_as_spheres=True, line_width=6, render_lines_as_tubes=True)
@@ -239,6 +263,8 @@ def draw(plotter: pv.Plotter, tree: RayTree, view: tuple[float, float] | None = 
         legend.append(["surface normal", NORMAL_COLOR])
     if lights.n_points:
         legend.append(["light", LIGHT_COLOR])
+    if boxes.n_cells:
+        legend.append([f"BVH nodes visited ({len(np.unique(tree.visit_node))})", BVH_COLOR])
     width, height = 0.011 * max(len(label) for label, _ in legend) + 0.04, 0.032 * len(legend)
     box = plotter.add_legend(legend, bcolor="white", border=True, size=(width, height), face="rectangle")
     box.SetPosition(0.99 - width, 0.95 - height)  # upper right (pyvista's loc offsets x by the height)
@@ -330,6 +356,7 @@ def run(
     view: tuple[float, float] | None = None,
     device: str = "cpu",
     capacity: int = DEFAULT_CAPACITY,
+    show_bvh: bool = False,
 ) -> int:
     """``wrt rays``: trace the pixels (and a grid of pixels) of a scene file, then draw, show or export."""
     if output is not None:
@@ -346,7 +373,7 @@ def run(
     chosen = list(pixels)
     if grid is not None:
         chosen += grid_pixels(scene.render.width, scene.render.height, *grid)
-    tree = trace_rays(scene, chosen, samples=samples, max_depth=max_depth, device=device, capacity=capacity)
+    tree = trace_rays(scene, chosen, samples=samples, max_depth=max_depth, device=device, capacity=capacity, bvh=show_bvh)
     counts = np.bincount(tree.kind, minlength=len(RayTree.KIND_NAMES))
     summary = ", ".join(f"{n} {name}" for name, n in zip(RayTree.KIND_NAMES, counts) if n)
     print(f"{scene_file}: {len(tree.pixels)} pixel{'s' if len(tree.pixels) > 1 else ''} x {samples} sample{'s' if samples > 1 else ''}: {len(tree)} segments ({summary})")

@@ -18,6 +18,8 @@ flags      int32     ``HIT``: ends on a surface; ``ENTERING``: hits it from its 
                      ``normal``); ``ESCAPED``: left the scene (a miss, or a shadow ray toward a
                      directional light): ``end = origin + direction``, unit length
 origin     vec3      where the ray starts (offset off the surface it leaves, as traced)
+direction  vec3      the unit direction it was traced with
+time       float     its ray time (the camera sample's time in the shutter interval)
 end        vec3      hit point ``origin + t direction``; the light's position for a shadow ray that
                      reaches a point or spot light; ``origin + direction`` when ``ESCAPED``
 normal     vec3      unit geometric normal at the hit (outward for spheres and closed meshes, the
@@ -65,6 +67,8 @@ class Segment:
     kind: wp.int32
     flags: wp.int32
     origin: wp.vec3
+    direction: wp.vec3
+    time: float
     end: wp.vec3
     normal: wp.vec3
     shape: wp.int32
@@ -110,6 +114,8 @@ def record_ray(
         s.sample = sample
         s.kind = kind
         s.origin = o
+        s.direction = d
+        s.time = time
         s.throughput = throughput
         s.depth = depth
         s.parent = parent

@@ -114,64 +114,92 @@ def closest_plane(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: 
     return t_max, hit
 
 
+@wp.struct
+class VisitLog:
+    """BVH nodes a closest-hit query visited, per ray (``wrt rays --show-bvh``)."""
+
+    nodes: wp.array2d(dtype=wp.int32)  # (rays, capacity): node indices in visiting order
+    count: wp.array(dtype=wp.int32)  # visits per ray (more than the capacity: the row is cut short)
+
+
+def make_closest_hit(log_visits: bool):
+    """The closest-hit traversal, appending every node it visits to row ``row`` of ``log`` when
+    ``log_visits`` (compiled out otherwise)."""
+
+    @wp.func
+    def closest_hit_logged(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float, log: VisitLog, row: wp.int32):
+        t_max, hit = closest_plane(scene, o, d, time, t_min, t_max)
+        if scene.nodes.shape[0] == 0:
+            return t_max, hit
+        inv_d = safe_inverse(d)
+        root = scene.nodes[0]
+        if intersect_box(o, inv_d, root.lo, root.hi, t_max) >= t_max:
+            return t_max, hit
+        stack = StackInt()
+        stack_t = StackFloat()
+        sp = int(0)
+        node = int(0)
+        while True:
+            nd = scene.nodes[node]
+            if wp.static(log_visits):
+                k = log.count[row]
+                if k < log.nodes.shape[1]:
+                    log.nodes[row, k] = node
+                log.count[row] = k + 1
+            descend = bool(False)
+            if nd.count > 0:
+                for k in range(nd.start, nd.start + nd.count):
+                    prim = scene.prims[k]
+                    t = intersect_prim(scene, prim, o, d, time, t_min, t_max)
+                    if t < t_max:
+                        t_max = t
+                        hit = prim
+            else:
+                left = scene.nodes[nd.start]
+                right = scene.nodes[nd.start + 1]
+                t_left = intersect_box(o, inv_d, left.lo, left.hi, t_max)
+                t_right = intersect_box(o, inv_d, right.lo, right.hi, t_max)
+                if t_left < t_max and t_right < t_max:
+                    descend = True
+                    if t_left <= t_right:
+                        node = nd.start
+                        stack[sp] = nd.start + 1
+                        stack_t[sp] = t_right
+                    else:
+                        node = nd.start + 1
+                        stack[sp] = nd.start
+                        stack_t[sp] = t_left
+                    sp += 1
+                elif t_left < t_max:
+                    descend = True
+                    node = nd.start
+                elif t_right < t_max:
+                    descend = True
+                    node = nd.start + 1
+            if not descend:
+                # pop the nearest pending node that can still hold a closer hit
+                found = bool(False)
+                while sp > 0 and not found:
+                    sp -= 1
+                    if stack_t[sp] < t_max:
+                        node = stack[sp]
+                        found = True
+                if not found:
+                    break
+        return t_max, hit
+
+    return closest_hit_logged
+
+
+_closest_hit = make_closest_hit(False)
+
+
 @wp.func
 def closest_hit(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float):
     """Nearest intersection in ``(t_min, t_max)`` at ray time ``time``: returns ``(t, prim)``;
     ``prim == NO_HIT`` on a miss."""
-    t_max, hit = closest_plane(scene, o, d, time, t_min, t_max)
-    if scene.nodes.shape[0] == 0:
-        return t_max, hit
-    inv_d = safe_inverse(d)
-    root = scene.nodes[0]
-    if intersect_box(o, inv_d, root.lo, root.hi, t_max) >= t_max:
-        return t_max, hit
-    stack = StackInt()
-    stack_t = StackFloat()
-    sp = int(0)
-    node = int(0)
-    while True:
-        nd = scene.nodes[node]
-        descend = bool(False)
-        if nd.count > 0:
-            for k in range(nd.start, nd.start + nd.count):
-                prim = scene.prims[k]
-                t = intersect_prim(scene, prim, o, d, time, t_min, t_max)
-                if t < t_max:
-                    t_max = t
-                    hit = prim
-        else:
-            left = scene.nodes[nd.start]
-            right = scene.nodes[nd.start + 1]
-            t_left = intersect_box(o, inv_d, left.lo, left.hi, t_max)
-            t_right = intersect_box(o, inv_d, right.lo, right.hi, t_max)
-            if t_left < t_max and t_right < t_max:
-                descend = True
-                if t_left <= t_right:
-                    node = nd.start
-                    stack[sp] = nd.start + 1
-                    stack_t[sp] = t_right
-                else:
-                    node = nd.start + 1
-                    stack[sp] = nd.start
-                    stack_t[sp] = t_left
-                sp += 1
-            elif t_left < t_max:
-                descend = True
-                node = nd.start
-            elif t_right < t_max:
-                descend = True
-                node = nd.start + 1
-        if not descend:
-            # pop the nearest pending node that can still hold a closer hit
-            found = bool(False)
-            while sp > 0 and not found:
-                sp -= 1
-                if stack_t[sp] < t_max:
-                    node = stack[sp]
-                    found = True
-            if not found:
-                break
-    return t_max, hit
+    t, prim = _closest_hit(scene, o, d, time, t_min, t_max, VisitLog(), 0)
+    return t, prim
 
 
 @wp.func
@@ -268,3 +296,14 @@ def trace_any(
     """Any-hit (occlusion) query of a batch of rays at time 0: 1 where something lies in (t_min, t_max)."""
     i = wp.tid()
     out_hit[i] = wp.where(any_hit(scene, origins[i], directions[i], 0.0, t_min, t_max), 1, 0)
+
+
+_closest_hit_visiting = make_closest_hit(True)
+
+
+@wp.kernel
+def trace_visits(scene: SceneData, origins: wp.array(dtype=wp.vec3), directions: wp.array(dtype=wp.vec3), times: wp.array(dtype=float), log: VisitLog):
+    """Replay the closest-hit query of recorded rays (``t`` in ``(0, inf)``), logging the BVH nodes
+    each visits: the same traversal code as the render kernels'."""
+    i = wp.tid()
+    _closest_hit_visiting(scene, origins[i], directions[i], times[i], 0.0, wp.inf, log, i)

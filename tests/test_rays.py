@@ -218,7 +218,8 @@ def test_export_reopens_with_pyvista(tmp_path):
     tree = trace_rays(scene, [(16, 16), (10, 20)])
     rayview.export(tree, str(tmp_path / "rays.vtm"))
     blocks = pv.read(tmp_path / "rays.vtm")
-    assert list(blocks.keys()) == ["geometry", "segments", "misses", "hits", "lights", "camera"]
+    assert list(blocks.keys()) == ["geometry", "segments", "misses", "hits", "lights", "camera", "bvh"]
+    assert blocks["bvh"] is None or blocks["bvh"].n_cells == 0  # no --show-bvh: an empty block
     assert list(blocks["geometry"].keys()) == ["shape[0] sphere", "shape[1] plane"]
     ends, escaped = np.flatnonzero(~tree.escaped), np.flatnonzero(tree.escaped)
     assert blocks["segments"].n_cells == len(ends) and blocks["misses"].n_cells == len(escaped)
@@ -272,3 +273,36 @@ def test_path_recording_follows_the_bsdf_and_samples_the_light():
     assert np.all(np.abs(ends[:, 1] - 2.0) < 2e-3)  # on the light's plane (shadow rays stop 1e-4 of their length short)
     assert np.all((np.abs(ends[:, 0]) <= 0.501) & (np.abs(ends[:, 2]) <= 0.501))
     assert tree.depth[scattered].max() <= 5
+
+
+def test_show_bvh_logs_the_nodes_the_traversal_visits(tmp_path):
+    """`--show-bvh`: the render kernels' closest-hit traversal, replayed for each recorded ray,
+    logs the root first, only nodes whose box the ray meets, and the leaf holding the hit."""
+    from wrt.geometry import build
+
+    showcase = os.path.join(os.path.dirname(__file__), "..", "examples", "showcase.toml")
+    scene = wrt.load_scene(showcase)
+    tree = trace_rays(scene, [(330, 150), (450, 200), (5, 5)], bvh=True)
+    bvh = build(scene).bvh  # the same deterministic build the recording used
+    np.testing.assert_array_equal(tree.bvh_lo, bvh.lo.astype(np.float32))
+    for row in range(len(tree)):
+        nodes = tree.visit_node[tree.visit_row == row]
+        if len(nodes) == 0:
+            continue
+        assert nodes[0] == 0 and len(set(nodes.tolist())) == len(nodes)
+        o, d = tree.origin[row].astype(np.float64), tree.direction[row].astype(np.float64)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t0, t1 = (bvh.lo[nodes] - o) / d, (bvh.hi[nodes] - o) / d
+        near = np.nanmax(np.minimum(t0, t1), axis=1)
+        far = np.nanmin(np.maximum(t0, t1), axis=1)
+        assert np.all(near <= far * (1 + 1e-5) + 1e-6)  # every visited box meets the ray
+        if tree.hit[row]:
+            p = tree.end[row].astype(np.float64)
+            leaves = nodes[bvh.count[nodes] > 0]
+            inside = np.all((bvh.lo[leaves] - 1e-4 <= p) & (p <= bvh.hi[leaves] + 1e-4), axis=1)
+            assert inside.any()  # the hit primitive's leaf was visited
+    assert len(tree.visit_node) > 10
+    out = tmp_path / "bvh.vtm"
+    assert main(["rays", showcase, "--pixel", "330", "150", "--show-bvh", "--export", str(out)]) == 0
+    boxes = pv.read(out)["bvh"]
+    assert boxes.n_cells == 12 * len(np.unique(tree.visit_node[tree.visit_row == 0]))

@@ -122,6 +122,7 @@ def _parser() -> argparse.ArgumentParser:
     rays.add_argument("--view", nargs=2, type=float, metavar=("AZIMUTH", "ELEVATION"), help="view angles in degrees relative to the scene camera (default: automatic)")
     rays.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
     rays.add_argument("--capacity", type=int, default=1 << 18, help="segments the record buffer holds (default 262144)")
+    rays.add_argument("--show-bvh", action="store_true", help="also draw the BVH boxes each traced ray's closest-hit query visited")
 
     st = verbs.add_parser(
         "stress",
@@ -285,6 +286,7 @@ def _rays(args) -> int:
     return rayview.run(
         args.scene, [tuple(p) for p in args.pixel], grid=args.grid, samples=args.samples, max_depth=args.depth, output=args.output,
         interactive=args.interactive, export_path=args.export, view=args.view, device=args.device, capacity=args.capacity,
+        show_bvh=args.show_bvh,
     )
 
 

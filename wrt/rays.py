@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from kernels.record import ENTERING, ESCAPED, HIT, KIND_NAMES, RayRecord, Segment
+from kernels.record import ENTERING, ESCAPED, HIT, KIND_NAMES, SHADOW_BLOCKED, SHADOW_LIT, RayRecord, Segment
+from kernels.traverse import VisitLog, trace_visits
 
 from .device import resolve_device
 from .errors import WrtError
@@ -27,6 +28,7 @@ from .renderer import RECORD_KERNELS, prepare
 from .scene import Scene
 
 DEFAULT_CAPACITY = 1 << 18  # segments (about 30 MB); a whitted camera ray is at most 512 plus its shadow rays
+MAX_VISITS = 512  # BVH nodes logged per replayed ray (--show-bvh)
 
 
 @dataclass
@@ -62,9 +64,17 @@ class RayTree:
         hit (outward / winding normal, not flipped; 0 without a hit); path weight carried.
     hit, entering, escaped : (N,) bool
         Ends on a surface; hits it from its front side (against ``normal``); left the scene.
+    time : (N,) float32
+        Ray time of each segment (its camera sample's time in the shutter interval).
     recorded : int
         Segments the kernels produced; more than ``N`` when the buffer's capacity cut the
         recording short (``truncated``), in which case some ``parent`` rows are >= N.
+    visit_row, visit_node : (V,) int
+        With ``bvh=True``: the BVH nodes the closest-hit query of each non-shadow segment visits,
+        in order (``visit_row``: the segment's row; replayed by the render kernels' traversal
+        code from the segment's start, ``kernels.traverse.trace_visits``); empty otherwise.
+    bvh_lo, bvh_hi : (M, 3) float32
+        Bounds of every BVH node (index = ``visit_node``) with ``bvh=True``; empty otherwise.
     """
 
     scene: Scene
@@ -86,7 +96,12 @@ class RayTree:
     hit: np.ndarray
     entering: np.ndarray
     escaped: np.ndarray
+    time: np.ndarray
     recorded: int
+    visit_row: np.ndarray
+    visit_node: np.ndarray
+    bvh_lo: np.ndarray
+    bvh_hi: np.ndarray
 
     KIND_NAMES = KIND_NAMES
 
@@ -123,6 +138,7 @@ def trace_rays(
     max_depth: int | None = None,
     device: str | None = "cpu",
     capacity: int = DEFAULT_CAPACITY,
+    bvh: bool = False,
 ) -> RayTree:
     """Trace pixels of ``scene`` with its integrator, recording every ray segment.
 
@@ -141,6 +157,8 @@ def trace_rays(
         Warp device, "cpu" or "cuda".
     capacity : int
         Segments the record buffer holds; a recording that needs more is cut (``truncated``).
+    bvh : bool
+        Also log the BVH nodes each non-shadow segment's closest-hit query visits.
 
     Raises
     ------
@@ -171,9 +189,11 @@ def trace_rays(
     recorded = int(rec.count.numpy()[0])
     seg = rec.segments.numpy()[: min(recorded, capacity)]
     flags = seg["flags"]
-    origin, end = seg["origin"], seg["end"]
-    direction = end - origin
-    direction /= np.maximum(np.linalg.norm(direction, axis=1, keepdims=True), np.finfo(np.float32).tiny)
+    visit_row, visit_node, bvh_lo, bvh_hi = (np.zeros(0, dtype=np.int64),) * 2 + (np.zeros((0, 3), dtype=np.float32),) * 2
+    if bvh:
+        visit_row, visit_node = bvh_visits(frame, seg, dev)
+        nodes = frame.geometry.nodes.numpy()
+        bvh_lo, bvh_hi = nodes["lo"], nodes["hi"]
     index = np.array([y * w + x for x, y in chosen])
     rgb = frame.film.rgb.numpy()[index]
     position = frame.film.position.numpy()[index]
@@ -189,13 +209,37 @@ def trace_rays(
         depth=seg["depth"],
         parent=seg["parent"],
         shape=seg["shape"],
-        origin=origin,
-        end=end,
-        direction=direction,
+        origin=seg["origin"],
+        end=seg["end"],
+        direction=seg["direction"],
         normal=seg["normal"],
         throughput=seg["throughput"],
         hit=(flags & HIT) != 0,
         entering=(flags & ENTERING) != 0,
         escaped=(flags & ESCAPED) != 0,
+        time=seg["time"],
         recorded=recorded,
+        visit_row=visit_row,
+        visit_node=visit_node,
+        bvh_lo=bvh_lo,
+        bvh_hi=bvh_hi,
     )
+
+
+def bvh_visits(frame, seg: np.ndarray, dev) -> tuple[np.ndarray, np.ndarray]:
+    """``(row, node)`` of every BVH node the closest-hit query of each recorded non-shadow segment
+    visits, in order: the segments replayed through ``kernels.traverse.trace_visits``."""
+    rows = np.flatnonzero(~np.isin(seg["kind"], [SHADOW_LIT, SHADOW_BLOCKED]))
+    if len(rows) == 0 or frame.geometry.nodes.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    log = VisitLog()
+    log.nodes = wp.zeros((len(rows), MAX_VISITS), dtype=wp.int32, device=dev)
+    log.count = wp.zeros(len(rows), dtype=wp.int32, device=dev)
+    origins = wp.array(np.ascontiguousarray(seg["origin"][rows]), dtype=wp.vec3, device=dev)
+    directions = wp.array(np.ascontiguousarray(seg["direction"][rows]), dtype=wp.vec3, device=dev)
+    times = wp.array(np.ascontiguousarray(seg["time"][rows]), dtype=float, device=dev)
+    wp.launch(trace_visits, dim=len(rows), inputs=[frame.geometry, origins, directions, times, log], device=dev)
+    count = np.minimum(log.count.numpy(), MAX_VISITS)
+    nodes = log.nodes.numpy()
+    keep = np.arange(MAX_VISITS)[None, :] < count[:, None]
+    return np.repeat(rows, count), nodes[keep].astype(np.int64)
