@@ -143,7 +143,8 @@ def _parser() -> argparse.ArgumentParser:
         "time (after a warm-up render; compilation reported separately) and error against a converged reference "
         "(RMSE of linear values, 1-SSIM of tone-mapped sRGB); fit log-log slopes; for Mitsuba 3 XML scenes, compare "
         "with Mitsuba 3 at equal time; time the specialised against the all-features kernel on a diffuse-only "
-        "scene. Writes DIR/results.json, results.csv and one log-log plot per scene. See docs/performance.md.",
+        "scene. Writes DIR/results.json, results.csv and one log-log plot per scene; then measures ray throughput "
+        "(DIR/throughput.json, see --triangles). See docs/performance.md.",
     )
     b.add_argument("scenes", nargs="*", metavar="SCENE", help="scene files, .toml or Mitsuba 3 .xml (default: the Cornell boxes and soft_shadows)")
     b.add_argument("--budget", type=float, metavar="SECONDS", help="render seconds per curve (default 6; 0.5 with --quick)")
