@@ -22,7 +22,7 @@ The slope of a curve is the least-squares slope of log error against log time (`
 wrt, ``wall_s`` for Mitsuba): about -0.5 for a Monte Carlo estimator whose error is its noise, and
 steeper where a sampler stratifies a smooth integrand.
 
-For a Mitsuba 3 XML scene, Mitsuba (if importable: ``tests/mitsuba_peer.py``) renders the same
+For a Mitsuba 3 XML scene, Mitsuba (if importable: ``harness/mitsuba_peer.py``) renders the same
 file at a doubling spp series too, with the same reference and metrics; the equal-time ratio is
 wrt's error interpolated (log-log) at each of Mitsuba's times, divided by Mitsuba's error there
 (below 1: wrt is better at equal time). On a scene with diffuse materials only, the specialised
@@ -36,7 +36,6 @@ from __future__ import annotations
 import csv
 import dataclasses
 import hashlib
-import importlib.util
 import io
 import json
 import math
@@ -58,6 +57,7 @@ from wrt.loader import load_scene, override_render, parse_scene
 from wrt.mitsuba_xml import load_mitsuba
 from wrt.scene import Mesh, Scene
 
+from . import mitsuba_peer
 from .references import REFERENCE_SEED
 from .score import convergence_slope, rmse, ssim
 from .throughput import format_table, run_throughput
@@ -270,30 +270,12 @@ def reference_spp(spp_per_s: float, budget_s: float) -> int:
 # --- Mitsuba 3 ---------------------------------------------------------------------------------------
 
 
-def mitsuba_peer():
-    """The test suite's Mitsuba helper (``tests/mitsuba_peer.py``), imported by path; None
-    where the checkout has no tests folder."""
-    if "mitsuba_peer" in sys.modules:
-        return sys.modules["mitsuba_peer"]
-    path = os.path.join(ROOT, "tests", "mitsuba_peer.py")
-    if not os.path.exists(path):
-        return None
-    spec = importlib.util.spec_from_file_location("mitsuba_peer", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    sys.modules["mitsuba_peer"] = module
-    return module
-
-
 def mitsuba_status() -> tuple[object | None, str]:
-    """``(peer module, "mitsuba X, variant V")`` when Mitsuba 3 can render, else ``(None, why)``.
-    The variant is the peer's: ``$WRT_MITSUBA_VARIANT`` (``wrt bench`` sets it to
-    ``MITSUBA_VARIANT`` unless given), else scalar_rgb."""
-    peer = mitsuba_peer()
-    if peer is None:
-        return None, f"{os.path.join(ROOT, 'tests', 'mitsuba_peer.py')} is missing"
-    ok, why = peer.mitsuba_available()
-    return (peer, why) if ok else (None, why)
+    """``(harness.mitsuba_peer, "mitsuba X, variant V")`` when Mitsuba 3 can render, else
+    ``(None, why)``. The variant is the peer's: ``$WRT_MITSUBA_VARIANT`` (``wrt bench`` sets it
+    to ``MITSUBA_VARIANT`` unless given), else scalar_rgb."""
+    ok, why = mitsuba_peer.mitsuba_available()
+    return (mitsuba_peer, why) if ok else (None, why)
 
 
 def mitsuba_shot(peer, bench: BenchScene, seed: int = SEED) -> Callable[[int], Shot]:

@@ -8,7 +8,7 @@ import pytest
 import wrt
 from wrt.loader import override_render
 from harness.score import ssim
-from mitsuba_peer import mitsuba_available, render_mitsuba
+from harness.mitsuba_peer import mitsuba_available, render_mitsuba
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "mitsuba"
 AVAILABLE, REASON = mitsuba_available()

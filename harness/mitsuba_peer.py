@@ -1,7 +1,8 @@
-"""Mitsuba 3 as an independent peer renderer for the tests: render a scene XML to linear RGB.
+"""Mitsuba 3 as an independent peer renderer, for the tests and ``wrt bench``: render a scene XML
+to linear RGB.
 
-Mitsuba 3 (``pip install mitsuba``) is an optional test dependency, never a runtime one: tests
-call `mitsuba_available` and ``pytest.skip(reason)`` where it is missing.
+Mitsuba 3 (``pip install mitsuba``) is an optional test dependency, never a runtime one: callers
+ask `mitsuba_available` and skip (tests: ``pytest.skip(reason)``) where it is missing.
 
 The variant is ``scalar_rgb`` (plain C++, every core, works on any x86-64 or ARM CPU). On a
 2-core machine it renders the 128x128 examples in ``examples/mitsuba`` at about 36 ms (Cornell
