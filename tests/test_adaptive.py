@@ -64,7 +64,7 @@ def test_target_error_must_be_positive():
         wrt.render(scene(), spp=16, target_error=0.0)
 
 
-def test_cli_writes_the_sample_count_aov(tmp_path):
+def test_cli_writes_the_sample_count_aov(tmp_path, capsys):
     path = tmp_path / "s.toml"
     path.write_text(
         '[render]\nwidth = 16\nheight = 12\nintegrator = "path"\nspp = 64\n[camera]\norigin = [0, 1.5, 3]\nlook_at = [0, 0.4, 0]\n'
@@ -73,6 +73,8 @@ def test_cli_writes_the_sample_count_aov(tmp_path):
     )
     out = tmp_path / "o.exr"
     assert main(["render", str(path), "-o", str(out), "--target-error", "0.05"]) == 0
+    summary = capsys.readouterr().out
+    assert "64 spp (adaptive: " in summary  # the rate counts the samples taken, not 64 per pixel
     image = read_image(out)
     counts = image.aovs["spp"]
     assert counts.shape == (12, 16) and counts.min() >= ADAPTIVE_FIRST_PASS and set(np.unique(counts)) <= set(adaptive_passes(64))

@@ -230,9 +230,12 @@ def _render(args) -> int:
     with bar, _stop_on_ctrl_c() as stop:
 
         def on_pass(done: int, spp: int, elapsed: float, snapshot) -> bool:
-            rate = done / max(elapsed, 1e-9)  # spp per second
-            eta = tqdm.format_interval((spp - done) / rate)
-            bar.set_postfix_str(f"{tqdm.format_interval(elapsed)}<{eta}, {rate * pixels / 1e6:.3g} M samples/s", refresh=False)
+            if args.target_error is None:
+                rate = done / max(elapsed, 1e-9)  # spp per second
+                eta = tqdm.format_interval((spp - done) / rate)
+                bar.set_postfix_str(f"{tqdm.format_interval(elapsed)}<{eta}, {rate * pixels / 1e6:.3g} M samples/s", refresh=False)
+            else:  # fewer pixels each pass: no rate or ETA to promise
+                bar.set_postfix_str(f"{tqdm.format_interval(elapsed)}, adaptive", refresh=False)
             bar.update(done - bar.n)
             if args.checkpoint_every and done % args.checkpoint_every == 0 and done < spp and not stop.is_set():
                 write(snapshot())
@@ -243,11 +246,13 @@ def _render(args) -> int:
         )
     write(result)
     h, w = result.rgb.shape[:2]
+    samples = int(result.aovs["spp"].sum()) if "spp" in result.aovs else result.spp * pixels  # adaptive: as taken
+    adaptive = f" (adaptive: {samples / pixels:.1f} on average)" if "spp" in result.aovs else ""
     print(
-        f"wrote {args.output}: {w}x{h}, {result.spp} spp, {result.integrator}, {result.device} "
+        f"wrote {args.output}: {w}x{h}, {result.spp} spp{adaptive}, {result.integrator}, {result.device} "
         f"({result.threads} thread{'s' if result.threads > 1 else ''}); BVH {result.build_time_s:.2f} s, "
         f"kernels {result.compile_time_s:.2f} s, render {result.render_time_s:.3f} s "
-        f"({result.spp * pixels / max(result.render_time_s, 1e-9) / 1e6:.3g} M samples/s)"
+        f"({samples / max(result.render_time_s, 1e-9) / 1e6:.3g} M samples/s)"
     )
     if result.spp < scene.render.spp:
         print(f"wrt: interrupted: wrote the {result.spp} of {scene.render.spp} spp done", file=sys.stderr)
