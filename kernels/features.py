@@ -18,7 +18,6 @@ class Features:
     lights: bool = True  # any light: shadow rays (whitted), next-event estimation and environment (path)
     specular: bool = True  # mirrors or dielectrics: reflected and refracted rays
     dielectric: bool = True  # refraction, Fresnel, nested media, Beer-Lambert absorption
-    emission: bool = True  # emissive surfaces: materials with emission, area and sphere lights
     lens: bool = True  # a thin lens (aperture_radius > 0): lens sampling
     motion: bool = True  # moving shapes and an open shutter: shutter-time sampling
 
@@ -28,7 +27,7 @@ class Features:
 
     @property
     def key(self) -> str:
-        """A short name of the variant, e.g. ``"110010"`` (flags in field order)."""
+        """A short name of the variant, e.g. ``"11001"`` (flags in field order)."""
         return "".join("1" if flag else "0" for flag in astuple(self))
 
 

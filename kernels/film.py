@@ -15,10 +15,13 @@ import warp as wp
 from .traverse import NO_HIT, SceneData, geometric_normal, prim_shape
 
 
+LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)  # Y of linear Rec. 709 RGB (host code reads them too)
+
+
 @wp.func
 def luminance(rgb: wp.vec3) -> float:
-    """Luminance Y of linear Rec. 709 RGB."""
-    return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]
+    """Luminance Y of linear Rec. 709 RGB (``LUMINANCE_WEIGHTS``)."""
+    return wp.static(LUMINANCE_WEIGHTS[0]) * rgb[0] + wp.static(LUMINANCE_WEIGHTS[1]) * rgb[1] + wp.static(LUMINANCE_WEIGHTS[2]) * rgb[2]
 
 
 @wp.struct

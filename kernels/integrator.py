@@ -3,16 +3,18 @@
 ``make_render_kernel(radiance)`` builds a kernel that, for each pixel of a tile, traces the
 pixel-centre camera ray at mid-shutter, writes the AOVs (``kernels.film``), and averages
 ``radiance(...)`` over ``spp`` samples: the centre ray itself when ``spp == 1``; otherwise film
-positions drawn from the pixel filter, lens positions and shutter times, from the sampler. ``radiance`` receives the camera ray and its first hit already found, so a
-one-sample render traces each primary ray once.
+positions drawn from the pixel filter, lens positions and shutter times, from the sampler.
+``radiance`` receives the camera ray and its first hit already found, so a one-sample render
+traces each primary ray once.
 
 A launch takes the samples ``first_sample .. first_sample + pass_spp - 1`` of a render of ``spp``
 samples (a progressive render is several launches, or passes). It continues the pixel's running
 float32 sum ``film.rgb_sum`` in sample order and writes ``film.rgb = rgb_sum / samples so far``
 (and the sum of squared luminances, for error estimates); the AOVs are written by the pass with
 ``first_sample == 0``. With a non-empty ``active`` list (adaptive sampling) the launch's threads
-take the pixels ``active[first_pixel + tid]`` instead of ``first_pixel + tid``. The additions happen in the same
-order however the samples are cut into passes, so the image is bit-identical to a one-pass render.
+take the pixels ``active[first_pixel + tid]`` instead of ``first_pixel + tid``. The additions
+happen in the same order however the samples are cut into passes, so the image is bit-identical
+to a one-pass render.
 
 ``make_render_kernel(radiance, record=True)`` builds the recording variant of the same loop: it
 also appends every camera ray of a sample to a ``kernels.record.RayRecord`` and hands its index

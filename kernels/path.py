@@ -222,12 +222,11 @@ def make_path_radiance(record: bool, features: Features = ALL):
             n_facing = n
             if not entering:
                 n_facing = -n
-            if wp.static(features.emission):
-                if entering and max_component(materials.emission[m]) > 0.0:
-                    mis = float(1.0)
-                    if not specular and surface >= scene.num_shapes:
-                        mis = power_heuristic(prev_pdf, emitter_pdf(lights, surface - scene.num_shapes, prev_p, d, wp.length(p - prev_p)))
-                    radiance += wp.cw_mul(beta, materials.emission[m]) * mis
+            if entering and max_component(materials.emission[m]) > 0.0:
+                mis = float(1.0)
+                if not specular and surface >= scene.num_shapes:
+                    mis = power_heuristic(prev_pdf, emitter_pdf(lights, surface - scene.num_shapes, prev_p, d, wp.length(p - prev_p)))
+                radiance += wp.cw_mul(beta, materials.emission[m]) * mis
             kind = materials.type[m]
             if kind == EMITTER or depth >= settings.max_depth:
                 break
@@ -266,15 +265,14 @@ def make_path_radiance(record: bool, features: Features = ALL):
                                 segment_kind = wp.where(eta == 1.0, STRAIGHT, REFRACTED)
                         specular = True
                         depth += 1
-            if wp.static(features.specular):
-                if kind == MIRROR:
-                    scattered = False
-                    beta = wp.cw_mul(beta, materials.reflectance[m])
-                    d = reflect(d, n_facing)
-                    specular = True
-                    depth += 1
-                    if wp.static(record):
-                        segment_kind = REFLECTED
+            if kind == MIRROR:
+                scattered = False
+                beta = wp.cw_mul(beta, materials.reflectance[m])
+                d = reflect(d, n_facing)
+                specular = True
+                depth += 1
+                if wp.static(record):
+                    segment_kind = REFLECTED
             if scattered:
                 if wp.static(features.lights):
                     radiance += wp.cw_mul(

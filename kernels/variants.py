@@ -29,7 +29,7 @@ def relevant(integrator: str, features: Features) -> Features:
     variant costs a compilation (seconds) the first time it is used, so only flags that remove
     measurable work are specialised on (see docs/performance.md): the lens and shutter sampling of
     the pixel loop for every integrator; lights and the branch stack for whitted; lights and
-    dielectrics for path (its mirror and emission tests are a load and a compare)."""
+    dielectrics for path (its mirror test is a load and a compare: path ignores ``specular``)."""
     if integrator == "raycast":
         return Features(lens=features.lens, motion=features.motion)
     if integrator == "whitted":

@@ -19,7 +19,7 @@ AREA = {"type": "area", "corner": [-1, 3, -1], "edge_u": [2, 0, 0], "edge_v": [0
 
 def test_features_follow_the_scene():
     plain = make_scene([FLOOR], materials=DIFFUSE)
-    assert scene_features(plain) == Features(lights=False, specular=False, dielectric=False, emission=False, lens=False, motion=False)
+    assert scene_features(plain) == Features(lights=False, specular=False, dielectric=False, lens=False, motion=False)
     rich = make_scene(
         [FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "glass", "velocity": [1, 0, 0]}],
         materials=DIFFUSE + [GLASS],
@@ -37,11 +37,11 @@ def test_dielectric_implies_specular():
 
 
 def test_variants_are_built_once_and_only_for_flags_that_pay():
-    plain = Features(lights=False, specular=False, dielectric=False, emission=False, lens=False, motion=False)
+    plain = Features(lights=False, specular=False, dielectric=False, lens=False, motion=False)
     assert render_kernel("whitted", plain) is render_kernel("whitted", plain)
-    assert render_kernel("path", ALL) is render_kernel("path", Features(specular=True, emission=True))
+    assert render_kernel("path", ALL) is render_kernel("path", Features(specular=True))
     assert relevant("raycast", plain) == Features(lens=False, motion=False)
-    assert relevant("path", plain).emission and relevant("path", plain).specular  # a compare each: not worth a variant
+    assert relevant("path", plain).specular  # the mirror test is a compare: not worth a variant
 
 
 SCENES = {

@@ -28,7 +28,7 @@ import numpy as np
 import warp as wp
 
 from kernels.features import ALL, Features
-from kernels.film import Film
+from kernels.film import LUMINANCE_WEIGHTS, Film
 from kernels.raycast import raycast_record
 from kernels.record import RayRecord
 from kernels.path import path_record
@@ -38,7 +38,7 @@ from kernels.whitted import whitted_record
 from .device import camera_data, integrator_settings, resolve_device, sampler_data, upload_geometry, upload_lights, upload_materials
 from .errors import WrtError
 from .geometry import build
-from .scene import SURFACE_LIGHTS, Scene
+from .scene import Scene
 
 RECORD_KERNELS = {"raycast": raycast_record, "whitted": whitted_record, "path": path_record}
 TILE_PIXELS = 4096  # pixels per CPU launch: small enough to balance two threads, large enough to amortise a launch
@@ -59,7 +59,6 @@ def scene_features(scene: Scene) -> Features:
         lights=bool(scene.lights),
         specular=bool(kinds & {"mirror", "dielectric"}),
         dielectric="dielectric" in kinds,
-        emission=any(any(m.emission) for m in used) or any(isinstance(light, SURFACE_LIGHTS) for light in scene.lights),
         lens=scene.camera.aperture_radius > 0.0,
         motion=moving and scene.camera.shutter[1] > scene.camera.shutter[0],
     )
@@ -253,7 +252,7 @@ def relative_error(rgb_sum: np.ndarray, luminance_sq_sum: np.ndarray, n: int) ->
     mean: a pixel whose few samples agree (all zero in a penumbra that rare paths do reach, say)
     is not taken as converged until ``1 / sqrt(n (n - 1))`` is below the target too.
     """
-    mean = (rgb_sum.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])) / n
+    mean = (rgb_sum.astype(np.float64) @ np.array(LUMINANCE_WEIGHTS)) / n
     scale = np.maximum(mean, ADAPTIVE_FLOOR)
     squares = np.maximum(luminance_sq_sum - n * mean * mean, 0.0)  # sum of squared deviations
     variance = (squares + scale * scale) / (n - 1)
