@@ -26,6 +26,7 @@ from kernels import spawn
 from kernels.traverse import NO_HIT, SPHERE, trace_any, trace_closest
 from wrt.device import upload_geometry
 from wrt.files import write_atomic
+from wrt.bvh import lane_bounds
 from wrt.geometry import build
 from wrt.loader import parse_scene
 from wrt.scene import Mesh
@@ -141,7 +142,7 @@ class Tracer:
     """Closest-hit and any-hit queries of ray batches against a scene, on the CPU."""
 
     def __init__(self, scene):
-        self.prims = build(scene)
+        self.prims = build(scene, "cpu")
         self.data = upload_geometry(self.prims, "cpu")
 
     def closest(self, origins, directions, t_min=0.0, t_max=np.inf, brute_force=False):
@@ -816,8 +817,9 @@ def case_zero_components(rays, rng):
         meshes=[(v, f, None)],
     )
     tracer = Tracer(scene)
-    lo, hi = tracer.prims.bvh.lo.astype(np.float32), tracer.prims.bvh.hi.astype(np.float32)
-    planes = np.concatenate([lo, hi]).astype(np.float64)  # origins on the planes of every node box
+    lo, hi = lane_bounds(tracer.prims.bvh.nodes.numpy())
+    used = np.isfinite(lo[..., 0])
+    planes = np.concatenate([lo[used], hi[used]]).astype(np.float64)  # origins on the planes of every box in the BVH
     o = rng.uniform(-4.0, 4.0, (n, 3))
     pick = planes[rng.integers(0, len(planes), n)]
     for k in range(3):

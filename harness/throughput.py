@@ -50,12 +50,13 @@ import numpy as np
 import warp as wp
 
 import kernels  # noqa: F401  (configures Warp)
-from kernels.traverse import trace_any, trace_closest
+from kernels.traverse import VisitLog, trace_kernels
 from wrt.files import write_json
 from wrt.device import cpu_model, init_warp, resolve_device, upload_geometry
 from wrt.errors import WrtError
+from wrt.bvh import PLOC_RADIUS
 from wrt.geometry import build
-from wrt.renderer import TILE_PIXELS, default_threads
+from wrt.renderer import TILE_PIXELS, default_threads, scene_features
 from wrt.scene import Camera, Material, Mesh, RenderSettings, Scene
 
 T_MAX = 1.0e30  # finite in float32 for every engine; a miss reports t = T_MAX
@@ -165,7 +166,9 @@ def _nbytes(a: wp.array) -> int:
 
 
 class WrtEngine:
-    """The project's BVH: built and uploaded as the renderer does, traced by ``kernels.traverse``."""
+    """The project's BVH: built and uploaded as the renderer does, traced by ``kernels.traverse``
+    compiled for the scene's geometry, as the renderer's specialised kernels are (a triangle mesh:
+    no sphere or polygon tests)."""
 
     name = "wrt"
 
@@ -177,39 +180,50 @@ class WrtEngine:
             shapes=(Mesh(file="<procedural torus>", vertices=vertices, faces=faces, material=0),),
         )
         self.dev = dev
+        self.closest_kernel, self.any_kernel, self.visits_kernel = trace_kernels(scene_features(scene))
         t0 = time.perf_counter()
-        self.prims = build(scene)
+        self.prims = build(scene, dev)
         t1 = time.perf_counter()
         self.data = upload_geometry(self.prims, dev)
         wp.synchronize_device(dev)
         t2 = time.perf_counter()
-        bvh = self.prims.bvh
-        self.face = bvh.order  # input face of each triangle in leaf order (the mesh is the only shape)
-        leaves = bvh.count[bvh.count > 0]
+        stats = self.prims.bvh.stats
+        self.face = self.prims.bvh.order.numpy()  # input face of each triangle in leaf order (the mesh is the only shape)
         self.build = {
             "build_s": t1 - t0,
+            "bvh_build_s": stats.build_s,
+            "bvh_phases_s": stats.phases_s,
             "upload_s": t2 - t1,
-            "build_threads": 1,
-            "builder": "wrt.geometry.build: numpy binned SAH, breadth first",
-            "nodes": len(bvh.count),
-            "leaves": len(leaves),
-            "mean_leaf_triangles": float(leaves.mean()),
-            "depth": bvh.depth,
-            "bvh_host_bytes": int(sum(a.nbytes for a in (bvh.lo, bvh.hi, bvh.start, bvh.count, bvh.order, self.prims.prims))),
+            "build_threads": default_threads() if dev.is_cpu else None,
+            "builder": f"wrt.bvh: Morton order, PLOC (radius {PLOC_RADIUS}), SAH leaves, 4-wide collapse; Warp kernels on {dev}"
+            + ("" if stats.builder == "ploc" else " (balanced fallback)"),
+            "wide_nodes": stats.wide_nodes,
+            "leaves": stats.leaves,
+            "mean_leaf_triangles": stats.mean_leaf_size,
+            "sah_cost": stats.sah_cost,
+            "stack_need": stats.stack_need,
             "bvh_device_bytes": _nbytes(self.data.nodes) + _nbytes(self.data.prims),
             "triangles_device_bytes": _nbytes(self.data.tri_verts),
-            "memory_note": "exact array sizes: host = node bounds (float64), children/leaf ranges, leaf order; device = "
-            "32-byte BvhNode per node + packed id per triangle; triangles: 3 float32 vertices each (a triangle soup)",
+            "memory_note": "exact array sizes: device = 112-byte 4-wide node + packed id per triangle; triangles: 3 float32 "
+            "vertices each (a triangle soup, in leaf order)",
         }
 
     def kernel_modules(self):
-        return [trace_closest.module]
+        return [self.closest_kernel.module, self.any_kernel.module]
 
     def trace(self, query: str, o: wp.array, d: wp.array, out: tuple) -> None:
         if query == "closest":
-            wp.launch(trace_closest, dim=len(o), inputs=[self.data, o, d, 0.0, T_MAX, 0, out[0], out[1]], device=self.dev)
+            wp.launch(self.closest_kernel, dim=len(o), inputs=[self.data, o, d, 0.0, T_MAX, 0, out[0], out[1]], device=self.dev)
         else:
-            wp.launch(trace_any, dim=len(o), inputs=[self.data, o, d, 0.0, T_MAX, out[0]], device=self.dev)
+            wp.launch(self.any_kernel, dim=len(o), inputs=[self.data, o, d, 0.0, T_MAX, out[0]], device=self.dev)
+
+    def visits_per_ray(self, o: wp.array, d: wp.array) -> float:
+        """Mean wide nodes a closest-hit query visits (``kernels.traverse.trace_visits``)."""
+        log = VisitLog()
+        log.nodes = wp.zeros((len(o), 1), dtype=wp.int32, device=self.dev)
+        log.count = wp.zeros(len(o), dtype=wp.int32, device=self.dev)
+        wp.launch(self.visits_kernel, dim=len(o), inputs=[self.data, o, d, wp.zeros(len(o), dtype=float, device=self.dev), log], device=self.dev)
+        return float(log.count.numpy().mean())
 
     def faces_of(self, prim: np.ndarray) -> np.ndarray:
         return np.where(prim >= 0, self.face[np.maximum(prim, 0) >> 2], -1)
@@ -492,6 +506,7 @@ def run_throughput(triangles: int = 1_000_000, rays: int = 1 << 20, device: str 
                     same_t = (ref < T_MAX) & (np.abs(ref - answers["wp.Mesh"][0]) <= T_RTOL * np.maximum(1.0, ref))
                     wrt_face = engines[0].faces_of(answers["wrt"][1])
                     agree[query]["wp.Mesh"]["face_differs_same_t"] = int(np.count_nonzero(same_t & (wrt_face != answers["wp.Mesh"][1])))
+        info["wide_nodes_per_ray"] = engines[0].visits_per_ray(o_wp, d_wp)
         results["rays"][ray_set] = {"count": rays, **info}
         results["throughput"][ray_set] = per_query
         results["agreement"][ray_set] = agree
@@ -550,7 +565,7 @@ def format_table(results: dict) -> str:
     lines += _columns(scale)
     lines += ["", "build and memory:"]
     mib = 2.0**20
-    build = [["engine", "build s", "build threads", "kernel load s", "BVH MiB (host)", "BVH MiB (device)", "triangles MiB (device)"]]
+    build = [["engine", "build s", "build threads", "kernel load s", "BVH MiB (device)", "triangles MiB (device)"]]
     for e in engines:
         b = results["build"][e]
         build.append(
@@ -559,12 +574,18 @@ def format_table(results: dict) -> str:
                 f"{b['build_s']:.2f}",
                 str(b.get("build_threads")),
                 f"{results['compile_s'][e]:.2f}" if e in results["compile_s"] else "-",
-                f"{b['bvh_host_bytes'] / mib:.1f}" if "bvh_host_bytes" in b else "-",
                 f"{b['bvh_device_bytes'] / mib:.1f}" if "bvh_device_bytes" in b else (f"~{b['rss_growth_bytes'] / mib:.0f} (RSS growth, incl. triangles)" if b.get("rss_growth_bytes") else "-"),
                 f"{b['triangles_device_bytes'] / mib:.1f}" if "triangles_device_bytes" in b else "-",
             ]
         )
     lines += _columns(build)
+    w = results["build"]["wrt"]
+    lines += [
+        "",
+        f"wrt's tree: {w['wide_nodes']:,} 4-wide nodes, {w['leaves']:,} leaves of {w['mean_leaf_triangles']:.2f} triangles on average, "
+        f"SAH cost {w['sah_cost']:.1f}, stack need {w['stack_need']}; "
+        + ", ".join(f"{ray_set} rays visit {results['rays'][ray_set]['wide_nodes_per_ray']:.1f} nodes" for ray_set in results["rays"]),
+    ]
     lines += ["", f"agreement with wrt (hit/miss differs, or hit distance differs by more than {results['t_rtol']:g} relative):"]
     agree = [["rays", "query", "hit fraction"] + [f"{e} mismatches" for e in engines if e != "wrt"]]
     for ray_set, per_query in results["agreement"].items():

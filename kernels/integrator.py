@@ -33,7 +33,7 @@ from .lights import LightData
 from .materials import MaterialData
 from .record import CAMERA, RayRecord, record_ray
 from .sampling import Sampler, sample_1d, sample_2d
-from .traverse import SceneData, closest_hit
+from .traverse import SceneData, traversal
 from .warps import concentric_disk
 
 RECORD_MODULE = "kernels.record_variants"
@@ -68,6 +68,8 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
     the kernel in (default: this file's, or ``RECORD_MODULE`` for recording variants).
     """
 
+    trace = traversal(features)
+
     @wp.kernel(module=module or (RECORD_MODULE if record else None))
     def render_pixels(
         scene: SceneData,
@@ -94,7 +96,7 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
         time = shutter_time(cam, 0.5)
         if first_sample == 0:
             d = camera_ray_direction(cam, x, y, 0.5, 0.5)
-            t, prim = closest_hit(scene, cam.origin, d, time, 0.0, wp.inf)
+            t, prim = trace.closest_hit(scene, cam.origin, d, time, 0.0, wp.inf)
             write_aovs(film, scene, pixel, cam.origin, d, t, prim, time)
             if sampler.spp == 1:
                 if wp.static(record):
@@ -118,7 +120,7 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
             time_s = time
             if wp.static(features.motion):
                 time_s = shutter_time(cam, sample_1d(sampler, pixel, s, 4))
-            ts, prim_s = closest_hit(scene, o_s, ds, time_s, 0.0, wp.inf)
+            ts, prim_s = trace.closest_hit(scene, o_s, ds, time_s, 0.0, wp.inf)
             if wp.static(record):
                 parent = record_ray(rec, scene, pixel, s, CAMERA, o_s, ds, ts, prim_s, time_s, wp.vec3(1.0), 1, -1)
             value = radiance(scene, materials, lights, settings, o_s, ds, ts, prim_s, time_s, rec, sampler, pixel, s, parent)

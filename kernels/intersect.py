@@ -96,42 +96,48 @@ def edge_function(p: wp.vec2, q: wp.vec2) -> wp.float64:
     return wp.float64(p[0]) * wp.float64(q[1]) - wp.float64(p[1]) * wp.float64(q[0])
 
 
-@wp.func
-def intersect_triangle(o: wp.vec3, d: wp.vec3, v0: wp.vec3, v1: wp.vec3, v2: wp.vec3, t_min: float, t_max: float) -> float:
-    """Triangle (v0, v1, v2), both sides, watertight (Woop, Benthin and Wald 2013).
+@wp.struct
+class RayShear:
+    """The per-ray part of the watertight triangle test: the axis ``kz`` of ``d``'s largest
+    component, the two others ``kx``, ``ky`` (cyclic), and the shear ``sx = d[kx] / d[kz]``,
+    ``sy = d[ky] / d[kz]``. Computed once per ray (``ray_shear``), used for every triangle."""
 
-    The vertices are moved into a frame where the ray starts at the origin and runs along z
-    (translate by ``-o``, permute so that z is the largest component of ``d``, shear x and y
-    along it); the ray hits the triangle when the origin of the sheared xy-plane is inside the
-    projected triangle: the three 2D edge functions ``U, V, W`` share a sign (or are 0; either
-    sign, as both sides are hit, so the paper's swap that keeps the winding is not needed).
-    Each edge function is evaluated with its exact sign (``edge_function``), from sheared
-    vertices that are the same for every triangle sharing them, so two triangles sharing an edge
-    or a vertex never both miss a ray through it: a closed mesh has no cracks. Edges are
-    inclusive. ``U + V + W == 0`` (ray in the triangle's plane, zero-area triangle) is a miss,
-    without a scale-dependent epsilon, and so is a triangle whose float64 normal is 0 or
-    perpendicular to the ray. ``t`` is the float64 distance to the triangle's plane, rounded once
-    (the sheared values would carry the rounding of the vertices' distances from ``o``, large for
-    large triangles).
-    """
+    kx: wp.int32
+    ky: wp.int32
+    kz: wp.int32
+    sx: float
+    sy: float
+
+
+@wp.func
+def ray_shear(d: wp.vec3) -> RayShear:
+    """``RayShear`` of direction ``d`` (a zero ``d`` gives ``sx = sy = nan``: every triangle misses)."""
     ad = wp.abs(d)
     kz = int(0)
     if ad[1] > ad[kz]:
         kz = 1
     if ad[2] > ad[kz]:
         kz = 2
-    if ad[kz] == 0.0:
+    s = RayShear()
+    s.kz = kz
+    s.kx = (kz + 1) % 3
+    s.ky = (s.kx + 1) % 3
+    s.sx = d[s.kx] / d[kz]
+    s.sy = d[s.ky] / d[kz]
+    return s
+
+
+@wp.func
+def intersect_triangle_sheared(o: wp.vec3, d: wp.vec3, ray: RayShear, v0: wp.vec3, v1: wp.vec3, v2: wp.vec3, t_min: float, t_max: float) -> float:
+    """``intersect_triangle`` with the ray's shear (``ray_shear(d)``) computed by the caller."""
+    if d[ray.kz] == 0.0:
         return t_max
-    kx = (kz + 1) % 3
-    ky = (kx + 1) % 3
-    sx = d[kx] / d[kz]
-    sy = d[ky] / d[kz]
     a = v0 - o
     b = v1 - o
     c = v2 - o
-    a2 = shear(a, kx, ky, kz, sx, sy)
-    b2 = shear(b, kx, ky, kz, sx, sy)
-    c2 = shear(c, kx, ky, kz, sx, sy)
+    a2 = shear(a, ray.kx, ray.ky, ray.kz, ray.sx, ray.sy)
+    b2 = shear(b, ray.kx, ray.ky, ray.kz, ray.sx, ray.sy)
+    c2 = shear(c, ray.kx, ray.ky, ray.kz, ray.sx, ray.sy)
     zero = wp.float64(0.0)
     u = edge_function(c2, b2)
     v = edge_function(a2, c2)
@@ -154,6 +160,27 @@ def intersect_triangle(o: wp.vec3, d: wp.vec3, v0: wp.vec3, v1: wp.vec3, v2: wp.
     if t > t_min and t < t_max:
         return t
     return t_max
+
+
+@wp.func
+def intersect_triangle(o: wp.vec3, d: wp.vec3, v0: wp.vec3, v1: wp.vec3, v2: wp.vec3, t_min: float, t_max: float) -> float:
+    """Triangle (v0, v1, v2), both sides, watertight (Woop, Benthin and Wald 2013).
+
+    The vertices are moved into a frame where the ray starts at the origin and runs along z
+    (translate by ``-o``, permute so that z is the largest component of ``d``, shear x and y
+    along it: ``ray_shear``); the ray hits the triangle when the origin of the sheared xy-plane is
+    inside the projected triangle: the three 2D edge functions ``U, V, W`` share a sign (or are 0;
+    either sign, as both sides are hit, so the paper's swap that keeps the winding is not needed).
+    Each edge function is evaluated with its exact sign (``edge_function``), from sheared
+    vertices that are the same for every triangle sharing them, so two triangles sharing an edge
+    or a vertex never both miss a ray through it: a closed mesh has no cracks. Edges are
+    inclusive. ``U + V + W == 0`` (ray in the triangle's plane, zero-area triangle) is a miss,
+    without a scale-dependent epsilon, and so is a triangle whose float64 normal is 0 or
+    perpendicular to the ray. ``t`` is the float64 distance to the triangle's plane, rounded once
+    (the sheared values would carry the rounding of the vertices' distances from ``o``, large for
+    large triangles).
+    """
+    return intersect_triangle_sheared(o, d, ray_shear(d), v0, v1, v2, t_min, t_max)
 
 
 @wp.func

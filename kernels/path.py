@@ -36,7 +36,7 @@ from .optics import fresnel_dielectric, reflect, refract
 from .record import REFLECTED, REFRACTED, SCATTERED, SHADOW_BLOCKED, SHADOW_LIT, STRAIGHT, TOTAL_INTERNAL, RayRecord, record_ray
 from .sampling import Sampler, sample_1d, sample_2d
 from .spawn import hit_error, spawn_origin
-from .traverse import NO_HIT, SceneData, any_hit, closest_hit, geometric_normal, prim_shape
+from .traverse import NO_HIT, SceneData, Traversal, geometric_normal, prim_shape, traversal
 from .warps import cosine_hemisphere, frame, power_heuristic
 
 RR_DEPTH = wp.constant(5)
@@ -85,7 +85,7 @@ def sample_bsdf(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, u
     return wi, eval_brdf(materials, m, n, wo, wi) * (cos_theta / pdf), pdf
 
 
-def make_next_event(record: bool):
+def make_next_event(record: bool, trace: Traversal):
     """``next_event``, recording its shadow rays when ``record`` (compiled out otherwise)."""
 
     @wp.func
@@ -136,12 +136,12 @@ def make_next_event(record: bool):
                     contribution = wp.cw_mul(eval_brdf(materials, m, n, wo, wi), radiance) * (cos_theta * mis / pdf)
             if max_component(contribution) > 0.0:
                 o_shadow = spawn_origin(p, n, err, wi)
-                if not any_hit(scene, o_shadow, wi, time, 0.0, t_max):
+                if not trace.any_hit(scene, o_shadow, wi, time, 0.0, t_max):
                     total += contribution
                     if wp.static(record):
                         record_ray(rec, scene, pixel, sample, SHADOW_LIT, o_shadow, wi, t_max, NO_HIT, time, beta, depth + 1, parent)
                 elif wp.static(record):
-                    t_block, prim_block = closest_hit(scene, o_shadow, wi, time, 0.0, t_max)
+                    t_block, prim_block = trace.closest_hit(scene, o_shadow, wi, time, 0.0, t_max)
                     record_ray(rec, scene, pixel, sample, SHADOW_BLOCKED, o_shadow, wi, t_block, prim_block, time, wp.vec3(0.0), depth + 1, parent)
         return total
 
@@ -165,7 +165,8 @@ def environment_radiance(lights: LightData, bsdf_pdf_prev: float, specular: bool
 def make_path_radiance(record: bool, features: Features = ALL):
     """``path_radiance``, recording every ray it traces when ``record`` (compiled out otherwise),
     with the code of the features the scene lacks compiled out (``kernels.features``)."""
-    next_event = make_next_event(record)
+    trace = traversal(features)
+    next_event = make_next_event(record, trace)
 
     @wp.func
     def path_radiance(
@@ -202,7 +203,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
             segment_kind = int(SCATTERED)
         for _segment in range(4 * settings.max_depth + 16):
             if not traced:
-                t, prim = closest_hit(scene, o, d, time, t_from, wp.inf)
+                t, prim = trace.closest_hit(scene, o, d, time, t_from, wp.inf)
                 if wp.static(record):
                     current = record_ray(rec, scene, pixel, sample, segment_kind, o + t_last * d, d, t - t_last, prim, time, beta, depth, current)
             traced = False

@@ -4,42 +4,39 @@ Primitives are referred to by a packed id ``(index << 2) | kind`` with ``kind`` 
 ``SPHERE``, ``TRIANGLE``, ``POLYGON`` (bounded, in the BVH) and ``PLANE`` (unbounded, tested
 outside the tree); ``index`` counts within that kind's arrays. ``NO_HIT`` (-1) marks a miss.
 
-BVH layout (built on the host by ``wrt.bvh``): ``nodes[0]`` is the root. An inner node has
-``count == 0`` and its children at ``start`` and ``start + 1``; a leaf has ``count > 0``
-primitives ``prims[start : start + count]``. Traversal visits the nearer child first, keeps the
-farther one on a fixed-size stack with its entry distance, and skips popped nodes that lie beyond
-the closest hit found so far.
+The BVH is the 4-wide tree of ``kernels.bvh``; a leaf lists entries of ``prims``, the packed ids
+in leaf order. Closest hit tests a node's four child boxes together (``child_entry``), descends
+into the nearest child hit and keeps the others on a fixed-size stack with their entry distances,
+nearest on top; popped entries that lie beyond the closest hit found so far are skipped. Any hit
+stops at the first hit, in no particular order.
+
+The traversal is compiled per set of geometry features (``traversal``): the leaf test of a
+scene with triangles only has no sphere or polygon branch, and rays are moved into the frames of
+moving primitives only when something moves. ``closest_hit`` and ``any_hit`` below handle every
+scene.
 """
+import functools
+
 import warp as wp
 
-from .intersect import intersect_box, intersect_plane, intersect_polygon, intersect_sphere, intersect_triangle, safe_inverse
+from .bvh import STACK_SIZE, WideNode, child_entry, leaf_count, leaf_start
+from .features import ALL, Features, geometry_features
+from .intersect import INV_ZERO, RayShear, intersect_plane, intersect_polygon, intersect_sphere, intersect_triangle_sheared, ray_shear, safe_inverse
 
 SPHERE = wp.constant(0)
 TRIANGLE = wp.constant(1)
 POLYGON = wp.constant(2)
 PLANE = wp.constant(3)
 NO_HIT = wp.constant(-1)
-# The host builder limits the tree depth so that the stack never overflows.
-STACK_SIZE = 64
 StackInt = wp.types.vector(length=STACK_SIZE, dtype=wp.int32)
 StackFloat = wp.types.vector(length=STACK_SIZE, dtype=wp.float32)
-
-
-@wp.struct
-class BvhNode:
-    """Axis-aligned bounds and either two children (``count == 0``) or a leaf's primitive range."""
-
-    lo: wp.vec3
-    hi: wp.vec3
-    start: wp.int32
-    count: wp.int32
 
 
 @wp.struct
 class SceneData:
     """All geometry of a scene on one device, world space, float32."""
 
-    nodes: wp.array(dtype=BvhNode)
+    nodes: wp.array(dtype=WideNode)  # the BVH (kernels.bvh); empty without bounded primitives
     prims: wp.array(dtype=wp.int32)  # packed ids in leaf order
     sphere_center: wp.array(dtype=wp.vec3)
     sphere_radius: wp.array(dtype=float)
@@ -88,21 +85,6 @@ def ray_origin_at(scene: SceneData, prim: wp.int32, o: wp.vec3, time: float) -> 
 
 
 @wp.func
-def intersect_prim(scene: SceneData, prim: wp.int32, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float) -> float:
-    """Dispatch one bounded primitive (packed id) to its intersection test, at ray time ``time``."""
-    kind = prim & 3
-    i = prim >> 2
-    o_rel = ray_origin_at(scene, prim, o, time)
-    if kind == TRIANGLE:
-        return intersect_triangle(o_rel, d, scene.tri_verts[3 * i], scene.tri_verts[3 * i + 1], scene.tri_verts[3 * i + 2], t_min, t_max)
-    if kind == SPHERE:
-        return intersect_sphere(o_rel, d, scene.sphere_center[i], scene.sphere_radius[i], t_min, t_max)
-    return intersect_polygon(
-        o_rel, d, scene.poly_normal[i], scene.poly_offset[i], scene.poly_axis[i], scene.poly_uv, scene.poly_start[i], scene.poly_count[i], t_min, t_max
-    )
-
-
-@wp.func
 def closest_plane(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float):
     """Nearest of the unbounded planes (tested outside the BVH): ``(t, prim)`` as ``closest_hit``."""
     hit = int(NO_HIT)
@@ -114,17 +96,73 @@ def closest_plane(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: 
     return t_max, hit
 
 
+@wp.func
+def sort_pair(ea: float, ca: wp.int32, eb: float, cb: wp.int32):
+    """``(ea, ca), (eb, cb)`` ordered by entry distance, without a branch."""
+    swap = eb < ea
+    return wp.where(swap, eb, ea), wp.where(swap, cb, ca), wp.where(swap, ea, eb), wp.where(swap, ca, cb)
+
+
 @wp.struct
 class VisitLog:
     """BVH nodes a closest-hit query visited, per ray (``wrt rays --show-bvh``)."""
 
-    nodes: wp.array2d(dtype=wp.int32)  # (rays, capacity): node indices in visiting order
+    nodes: wp.array2d(dtype=wp.int32)  # (rays, capacity): wide-node indices in visiting order
     count: wp.array(dtype=wp.int32)  # visits per ray (more than the capacity: the row is cut short)
 
 
-def make_closest_hit(log_visits: bool):
-    """The closest-hit traversal, appending every node it visits to row ``row`` of ``log`` when
-    ``log_visits`` (compiled out otherwise)."""
+def _leaf_entry(features: Features):
+    """``leaf_entry(scene, k)``: the packed id of primitive-list entry ``k``. With a single
+    primitive kind the k-th entry is the k-th primitive of that kind (``wrt.geometry.build``
+    reorders each kind to leaf order), so the id is computed, not loaded."""
+    kinds = [(features.spheres, SPHERE), (features.triangles, TRIANGLE), (features.polygons, POLYGON)]
+    present = [kind for flag, kind in kinds if flag]
+    only = present[0] if len(present) == 1 else -1
+
+    @wp.func
+    def leaf_entry(scene: SceneData, k: wp.int32) -> wp.int32:
+        if wp.static(only >= 0):
+            return (k << 2) | wp.static(only)
+        return scene.prims[k]
+
+    return leaf_entry
+
+
+def _intersect_prim(features: Features):
+    """``intersect_prim`` compiled for the primitive kinds ``features`` has (and ray motion only
+    when something moves)."""
+    kinds = [features.spheres, features.triangles, features.polygons]
+    single = sum(kinds) == 1
+
+    @wp.func
+    def intersect_prim(scene: SceneData, prim: wp.int32, o: wp.vec3, d: wp.vec3, shear: RayShear, time: float, t_min: float, t_max: float) -> float:
+        """Dispatch one bounded primitive (packed id) to its intersection test, at ray time ``time``;
+        ``shear`` is ``ray_shear(d)``."""
+        kind = prim & 3
+        i = prim >> 2
+        o_rel = o
+        if wp.static(features.moving):
+            o_rel = ray_origin_at(scene, prim, o, time)
+        if wp.static(features.triangles):
+            if wp.static(single) or kind == TRIANGLE:
+                return intersect_triangle_sheared(o_rel, d, shear, scene.tri_verts[3 * i], scene.tri_verts[3 * i + 1], scene.tri_verts[3 * i + 2], t_min, t_max)
+        if wp.static(features.spheres):
+            if wp.static(single) or kind == SPHERE:
+                return intersect_sphere(o_rel, d, scene.sphere_center[i], scene.sphere_radius[i], t_min, t_max)
+        if wp.static(features.polygons):
+            return intersect_polygon(
+                o_rel, d, scene.poly_normal[i], scene.poly_offset[i], scene.poly_axis[i], scene.poly_uv, scene.poly_start[i], scene.poly_count[i], t_min, t_max
+            )
+        return t_max
+
+    return intersect_prim
+
+
+def _closest_hit(features: Features, log_visits: bool):
+    """The closest-hit traversal for ``features``' primitive kinds, appending every wide node it
+    visits to row ``row`` of ``log`` when ``log_visits`` (compiled out otherwise)."""
+    intersect_prim = _intersect_prim(features)
+    leaf_entry = _leaf_entry(features)
 
     @wp.func
     def closest_hit_logged(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float, log: VisitLog, row: wp.int32):
@@ -132,111 +170,153 @@ def make_closest_hit(log_visits: bool):
         if scene.nodes.shape[0] == 0:
             return t_max, hit
         inv_d = safe_inverse(d)
-        root = scene.nodes[0]
-        if intersect_box(o, inv_d, root.lo, root.hi, t_max) >= t_max:
-            return t_max, hit
+        moves = inv_d[0] != INV_ZERO and inv_d[1] != INV_ZERO and inv_d[2] != INV_ZERO
+        shear = ray_shear(d)
         stack = StackInt()
         stack_t = StackFloat()
         sp = int(0)
-        node = int(0)
+        ref = int(0)
         while True:
-            nd = scene.nodes[node]
-            if wp.static(log_visits):
-                k = log.count[row]
-                if k < log.nodes.shape[1]:
-                    log.nodes[row, k] = node
-                log.count[row] = k + 1
-            descend = bool(False)
-            if nd.count > 0:
-                for k in range(nd.start, nd.start + nd.count):
-                    prim = scene.prims[k]
-                    t = intersect_prim(scene, prim, o, d, time, t_min, t_max)
+            if ref >= 0:
+                if wp.static(log_visits):
+                    k = log.count[row]
+                    if k < log.nodes.shape[1]:
+                        log.nodes[row, k] = ref
+                    log.count[row] = k + 1
+                node = scene.nodes[ref]
+                entry = child_entry(node, o, inv_d, moves, t_max)
+                # the hit children nearest first: a sorting network on (entry, child) pairs
+                e0 = entry[0]
+                e1 = entry[1]
+                e2 = entry[2]
+                e3 = entry[3]
+                c0 = node.child[0]
+                c1 = node.child[1]
+                c2 = node.child[2]
+                c3 = node.child[3]
+                e0, c0, e1, c1 = sort_pair(e0, c0, e1, c1)
+                e2, c2, e3, c3 = sort_pair(e2, c2, e3, c3)
+                e0, c0, e2, c2 = sort_pair(e0, c0, e2, c2)
+                e1, c1, e3, c3 = sort_pair(e1, c1, e3, c3)
+                e1, c1, e2, c2 = sort_pair(e1, c1, e2, c2)
+                if e0 < wp.inf:  # descend into the nearest, keep the others nearest on top
+                    if e3 < wp.inf:
+                        stack[sp] = c3
+                        stack_t[sp] = e3
+                        sp += 1
+                    if e2 < wp.inf:
+                        stack[sp] = c2
+                        stack_t[sp] = e2
+                        sp += 1
+                    if e1 < wp.inf:
+                        stack[sp] = c1
+                        stack_t[sp] = e1
+                        sp += 1
+                    ref = c0
+                    continue
+            else:
+                start = leaf_start(ref)
+                for k in range(start, start + leaf_count(ref)):
+                    prim = leaf_entry(scene, k)
+                    t = intersect_prim(scene, prim, o, d, shear, time, t_min, t_max)
                     if t < t_max:
                         t_max = t
                         hit = prim
-            else:
-                left = scene.nodes[nd.start]
-                right = scene.nodes[nd.start + 1]
-                t_left = intersect_box(o, inv_d, left.lo, left.hi, t_max)
-                t_right = intersect_box(o, inv_d, right.lo, right.hi, t_max)
-                if t_left < t_max and t_right < t_max:
-                    descend = True
-                    if t_left <= t_right:
-                        node = nd.start
-                        stack[sp] = nd.start + 1
-                        stack_t[sp] = t_right
-                    else:
-                        node = nd.start + 1
-                        stack[sp] = nd.start
-                        stack_t[sp] = t_left
-                    sp += 1
-                elif t_left < t_max:
-                    descend = True
-                    node = nd.start
-                elif t_right < t_max:
-                    descend = True
-                    node = nd.start + 1
-            if not descend:
-                # pop the nearest pending node that can still hold a closer hit
-                found = bool(False)
-                while sp > 0 and not found:
-                    sp -= 1
-                    if stack_t[sp] < t_max:
-                        node = stack[sp]
-                        found = True
-                if not found:
-                    break
+            # pop the nearest pending child that can still hold a closer hit
+            found = bool(False)
+            while sp > 0 and not found:
+                sp -= 1
+                if stack_t[sp] < t_max:
+                    ref = stack[sp]
+                    found = True
+            if not found:
+                break
         return t_max, hit
 
     return closest_hit_logged
 
 
-_closest_hit = make_closest_hit(False)
+def _any_hit(features: Features):
+    """The any-hit traversal for ``features``' primitive kinds."""
+    intersect_prim = _intersect_prim(features)
+    leaf_entry = _leaf_entry(features)
 
-
-@wp.func
-def closest_hit(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float):
-    """Nearest intersection in ``(t_min, t_max)`` at ray time ``time``: returns ``(t, prim)``;
-    ``prim == NO_HIT`` on a miss."""
-    t, prim = _closest_hit(scene, o, d, time, t_min, t_max, VisitLog(), 0)
-    return t, prim
-
-
-@wp.func
-def any_hit(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float) -> bool:
-    """Whether anything lies in ``(t_min, t_max)`` along the ray at ray time ``time`` (for shadow
-    rays); stops at the first hit."""
-    for i in range(scene.plane_point.shape[0]):
-        if intersect_plane(ray_origin_at(scene, (i << 2) | PLANE, o, time), d, scene.plane_point[i], scene.plane_normal[i], t_min, t_max) < t_max:
-            return True
-    if scene.nodes.shape[0] == 0:
-        return False
-    inv_d = safe_inverse(d)
-    stack = StackInt()
-    stack[0] = 0
-    sp = int(1)
-    while sp > 0:
-        sp -= 1
-        nd = scene.nodes[stack[sp]]
-        if intersect_box(o, inv_d, nd.lo, nd.hi, t_max) < t_max:
-            if nd.count > 0:
-                for k in range(nd.start, nd.start + nd.count):
-                    if intersect_prim(scene, scene.prims[k], o, d, time, t_min, t_max) < t_max:
-                        return True
+    @wp.func
+    def any_hit(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float) -> bool:
+        """Whether anything lies in ``(t_min, t_max)`` along the ray at ray time ``time`` (for shadow
+        rays); stops at the first hit."""
+        for i in range(scene.plane_point.shape[0]):
+            if intersect_plane(ray_origin_at(scene, (i << 2) | PLANE, o, time), d, scene.plane_point[i], scene.plane_normal[i], t_min, t_max) < t_max:
+                return True
+        if scene.nodes.shape[0] == 0:
+            return False
+        inv_d = safe_inverse(d)
+        moves = inv_d[0] != INV_ZERO and inv_d[1] != INV_ZERO and inv_d[2] != INV_ZERO
+        shear = ray_shear(d)
+        stack = StackInt()
+        stack[0] = 0
+        sp = int(1)
+        while sp > 0:
+            sp -= 1
+            ref = stack[sp]
+            if ref >= 0:
+                node = scene.nodes[ref]
+                entry = child_entry(node, o, inv_d, moves, t_max)
+                for k in range(4):
+                    if entry[k] < wp.inf:
+                        stack[sp] = node.child[k]
+                        sp += 1
             else:
-                stack[sp] = nd.start
-                stack[sp + 1] = nd.start + 1
-                sp += 2
-    return False
+                start = leaf_start(ref)
+                for k in range(start, start + leaf_count(ref)):
+                    if intersect_prim(scene, leaf_entry(scene, k), o, d, shear, time, t_min, t_max) < t_max:
+                        return True
+        return False
+
+    return any_hit
+
+
+class Traversal:
+    """``closest_hit`` and ``any_hit`` compiled for one set of scene features (``traversal``)."""
+
+    def __init__(self, features: Features):
+        self.features = features
+        self.closest_hit_logged = _closest_hit(features, log_visits=True)
+        closest_hit_unlogged = _closest_hit(features, log_visits=False)
+
+        @wp.func
+        def closest_hit(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float):
+            """Nearest intersection in ``(t_min, t_max)`` at ray time ``time``: returns ``(t, prim)``;
+            ``prim == NO_HIT`` on a miss."""
+            t, prim = closest_hit_unlogged(scene, o, d, time, t_min, t_max, VisitLog(), 0)
+            return t, prim
+
+        self.closest_hit = closest_hit
+        self.any_hit = _any_hit(features)
+
+
+@functools.cache
+def traversal(features: Features) -> Traversal:
+    """The traversal functions for the geometry of ``features`` (its primitive kinds and motion)."""
+    return Traversal(geometry_features(features))
+
+
+_all = traversal(ALL)
+closest_hit = _all.closest_hit
+any_hit = _all.any_hit
+
+
+_intersect_any_kind = _intersect_prim(ALL)
 
 
 @wp.func
 def closest_hit_brute_force(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float):
     """Reference for ``closest_hit``: every primitive tested, no tree. Same return values."""
     t_max, hit = closest_plane(scene, o, d, time, t_min, t_max)
+    shear = ray_shear(d)
     for k in range(scene.prims.shape[0]):
         prim = scene.prims[k]
-        t = intersect_prim(scene, prim, o, d, time, t_min, t_max)
+        t = _intersect_any_kind(scene, prim, o, d, shear, time, t_min, t_max)
         if t < t_max:
             t_max = t
             hit = prim
@@ -262,48 +342,59 @@ def geometric_normal(scene: SceneData, prim: wp.int32, p: wp.vec3, time: float) 
     return scene.plane_normal[i]
 
 
-@wp.kernel
-def trace_closest(
-    scene: SceneData,
-    origins: wp.array(dtype=wp.vec3),
-    directions: wp.array(dtype=wp.vec3),
-    t_min: float,
-    t_max: float,
-    brute_force: wp.int32,
-    out_t: wp.array(dtype=float),
-    out_prim: wp.array(dtype=wp.int32),
-):
-    """Closest hit of a batch of rays at time 0 (tests, stress suite, benchmarks); ``brute_force != 0``
-    skips the BVH."""
-    i = wp.tid()
-    if brute_force != 0:
-        t, prim = closest_hit_brute_force(scene, origins[i], directions[i], 0.0, t_min, t_max)
-    else:
-        t, prim = closest_hit(scene, origins[i], directions[i], 0.0, t_min, t_max)
-    out_t[i] = t
-    out_prim[i] = prim
+def _trace_kernels(trace: Traversal, module: str | None):
+    @wp.kernel(module=module)
+    def trace_closest(
+        scene: SceneData,
+        origins: wp.array(dtype=wp.vec3),
+        directions: wp.array(dtype=wp.vec3),
+        t_min: float,
+        t_max: float,
+        brute_force: wp.int32,
+        out_t: wp.array(dtype=float),
+        out_prim: wp.array(dtype=wp.int32),
+    ):
+        """Closest hit of a batch of rays at time 0 (tests, stress suite, benchmarks); ``brute_force != 0``
+        skips the BVH."""
+        i = wp.tid()
+        if brute_force != 0:
+            t, prim = closest_hit_brute_force(scene, origins[i], directions[i], 0.0, t_min, t_max)
+        else:
+            t, prim = trace.closest_hit(scene, origins[i], directions[i], 0.0, t_min, t_max)
+        out_t[i] = t
+        out_prim[i] = prim
+
+    @wp.kernel(module=module)
+    def trace_any(
+        scene: SceneData,
+        origins: wp.array(dtype=wp.vec3),
+        directions: wp.array(dtype=wp.vec3),
+        t_min: float,
+        t_max: float,
+        out_hit: wp.array(dtype=wp.int32),
+    ):
+        """Any-hit (occlusion) query of a batch of rays at time 0: 1 where something lies in (t_min, t_max)."""
+        i = wp.tid()
+        out_hit[i] = wp.where(trace.any_hit(scene, origins[i], directions[i], 0.0, t_min, t_max), 1, 0)
+
+    @wp.kernel(module=module)
+    def trace_visits(scene: SceneData, origins: wp.array(dtype=wp.vec3), directions: wp.array(dtype=wp.vec3), times: wp.array(dtype=float), log: VisitLog):
+        """Replay the closest-hit query of recorded rays (``t`` in ``(0, inf)``), logging the BVH nodes
+        each visits: the same traversal code as the render kernels'."""
+        i = wp.tid()
+        trace.closest_hit_logged(scene, origins[i], directions[i], times[i], 0.0, wp.inf, log, i)
+
+    return trace_closest, trace_any, trace_visits
 
 
-@wp.kernel
-def trace_any(
-    scene: SceneData,
-    origins: wp.array(dtype=wp.vec3),
-    directions: wp.array(dtype=wp.vec3),
-    t_min: float,
-    t_max: float,
-    out_hit: wp.array(dtype=wp.int32),
-):
-    """Any-hit (occlusion) query of a batch of rays at time 0: 1 where something lies in (t_min, t_max)."""
-    i = wp.tid()
-    out_hit[i] = wp.where(any_hit(scene, origins[i], directions[i], 0.0, t_min, t_max), 1, 0)
+trace_closest, trace_any, trace_visits = _trace_kernels(_all, None)
 
 
-_closest_hit_visiting = make_closest_hit(True)
-
-
-@wp.kernel
-def trace_visits(scene: SceneData, origins: wp.array(dtype=wp.vec3), directions: wp.array(dtype=wp.vec3), times: wp.array(dtype=float), log: VisitLog):
-    """Replay the closest-hit query of recorded rays (``t`` in ``(0, inf)``), logging the BVH nodes
-    each visits: the same traversal code as the render kernels'."""
-    i = wp.tid()
-    _closest_hit_visiting(scene, origins[i], directions[i], times[i], 0.0, wp.inf, log, i)
+@functools.cache
+def trace_kernels(features: Features):
+    """``(trace_closest, trace_any, trace_visits)`` batch kernels compiled for the geometry of
+    ``features``, each variant in a Warp module of its own (the all-features ones in this one)."""
+    key = geometry_features(features)
+    if key == geometry_features(ALL):
+        return trace_closest, trace_any, trace_visits
+    return _trace_kernels(traversal(key), f"wrt_trace_{key.key}")

@@ -27,14 +27,16 @@ RADIANCE_FACTORIES = {
 def relevant(integrator: str, features: Features) -> Features:
     """``features`` with the flags that do not pay for a variant of ``integrator`` set: each
     variant costs a compilation (seconds) the first time it is used, so only flags that remove
-    measurable work are specialised on (see docs/performance.md): the lens and shutter sampling of
-    the pixel loop for every integrator; lights and the branch stack for whitted; lights and
-    dielectrics for path (its mirror test is a load and a compare: path ignores ``specular``)."""
+    measurable work are specialised on (see docs/performance.md): the geometry (primitive kinds,
+    moving surfaces) and the lens and shutter sampling of the pixel loop for every integrator;
+    lights and the branch stack for whitted; lights and dielectrics for path (its mirror test is
+    a load and a compare: path ignores ``specular``)."""
+    geometry = {"moving": features.moving, "spheres": features.spheres, "triangles": features.triangles, "polygons": features.polygons}
     if integrator == "raycast":
-        return Features(lens=features.lens, motion=features.motion)
+        return Features(lens=features.lens, motion=features.motion, **geometry)
     if integrator == "whitted":
-        return Features(lights=features.lights, specular=features.specular, dielectric=features.dielectric, lens=features.lens, motion=features.motion)
-    return Features(lights=features.lights, dielectric=features.dielectric, lens=features.lens, motion=features.motion)
+        return Features(lights=features.lights, specular=features.specular, dielectric=features.dielectric, lens=features.lens, motion=features.motion, **geometry)
+    return Features(lights=features.lights, dielectric=features.dielectric, lens=features.lens, motion=features.motion, **geometry)
 
 
 def render_kernel(integrator: str, features: Features):

@@ -53,7 +53,7 @@ from .optics import fresnel_dielectric, reflect, refract
 from .sampling import Sampler
 from .record import REFLECTED, REFRACTED, SHADOW_BLOCKED, SHADOW_LIT, STRAIGHT, TOTAL_INTERNAL, RayRecord, record_ray
 from .spawn import hit_error, spawn_origin
-from .traverse import NO_HIT, SceneData, any_hit, closest_hit, geometric_normal, prim_shape
+from .traverse import NO_HIT, SceneData, Traversal, geometric_normal, prim_shape, traversal
 
 BRANCHES = 32  # pending branches per camera ray
 MAX_SEGMENTS = wp.constant(4096)  # hard stop per camera ray, whatever happens (deferred branches: heaviest first)
@@ -83,58 +83,63 @@ def heaviest_branch(throughput: BranchVec3, count: wp.int32) -> wp.int32:
     return best
 
 
-@wp.func
-def shadow_transmittance(
-    scene: SceneData, materials: MaterialData, settings: IntegratorSettings, o: wp.vec3, w: wp.vec3, t_max: float, time: float
-) -> wp.vec3:
-    """Fraction of a light's radiance reaching ``o`` from direction ``w`` over distance ``t_max``.
+def make_shadows(trace: Traversal):
+    """``shadow_transmittance`` and ``shadow_blocker`` over the traversal ``trace``."""
 
-    Opaque mode (default, physical for a ray tracer without caustics): 0 if anything is in the
-    way, else 1. Filtered mode (the lecture's): dielectrics let the shadow ray through in a
-    straight line, attenuated by Beer-Lambert over the length inside them; anything else blocks.
-    """
-    if settings.filtered_shadows == 0:
-        if any_hit(scene, o, w, time, 0.0, t_max):
-            return wp.vec3(0.0)
-        return wp.vec3(1.0)
-    transmittance = wp.vec3(1.0)
-    for _k in range(SHADOW_CROSSINGS):
-        t, prim = closest_hit(scene, o, w, time, 0.0, t_max)
-        if prim == NO_HIT:
-            return transmittance
-        m = materials.shape_material[prim_shape(scene, prim)]
-        if materials.type[m] != DIELECTRIC:
-            return wp.vec3(0.0)
-        p = o + t * w
-        n = geometric_normal(scene, prim, p, time)
-        if wp.dot(w, n) > 0.0:  # leaving: the segment just travelled was inside
-            transmittance = wp.cw_mul(transmittance, beer_lambert(materials.sigma[m], t))
-        o_next = spawn_origin(p, n, hit_error(o, p, t), w)
-        t_max = t_max - t
-        o = o_next
-    return wp.vec3(0.0)
+    @wp.func
+    def shadow_transmittance(
+        scene: SceneData, materials: MaterialData, settings: IntegratorSettings, o: wp.vec3, w: wp.vec3, t_max: float, time: float
+    ) -> wp.vec3:
+        """Fraction of a light's radiance reaching ``o`` from direction ``w`` over distance ``t_max``.
+
+        Opaque mode (default, physical for a ray tracer without caustics): 0 if anything is in the
+        way, else 1. Filtered mode (the lecture's): dielectrics let the shadow ray through in a
+        straight line, attenuated by Beer-Lambert over the length inside them; anything else blocks.
+        """
+        if settings.filtered_shadows == 0:
+            if trace.any_hit(scene, o, w, time, 0.0, t_max):
+                return wp.vec3(0.0)
+            return wp.vec3(1.0)
+        transmittance = wp.vec3(1.0)
+        for _k in range(SHADOW_CROSSINGS):
+            t, prim = trace.closest_hit(scene, o, w, time, 0.0, t_max)
+            if prim == NO_HIT:
+                return transmittance
+            m = materials.shape_material[prim_shape(scene, prim)]
+            if materials.type[m] != DIELECTRIC:
+                return wp.vec3(0.0)
+            p = o + t * w
+            n = geometric_normal(scene, prim, p, time)
+            if wp.dot(w, n) > 0.0:  # leaving: the segment just travelled was inside
+                transmittance = wp.cw_mul(transmittance, beer_lambert(materials.sigma[m], t))
+            o_next = spawn_origin(p, n, hit_error(o, p, t), w)
+            t_max = t_max - t
+            o = o_next
+        return wp.vec3(0.0)
+
+    @wp.func
+    def shadow_blocker(scene: SceneData, materials: MaterialData, settings: IntegratorSettings, o: wp.vec3, w: wp.vec3, t_max: float, time: float):
+        """Recording only: ``(t, prim)`` of the surface that stopped a blocked shadow ray from ``o``
+        along unit ``w``: the first surface hit, or with filtered shadows the first one that is not a
+        dielectric (``NO_HIT`` and ``t_max`` if there is none)."""
+        t_total = float(0.0)
+        for _k in range(SHADOW_CROSSINGS):
+            t, prim = trace.closest_hit(scene, o, w, time, 0.0, t_max - t_total)
+            if prim == NO_HIT or settings.filtered_shadows == 0:
+                return t_total + t, prim
+            if materials.type[materials.shape_material[prim_shape(scene, prim)]] != DIELECTRIC:
+                return t_total + t, prim
+            p = o + t * w
+            o = spawn_origin(p, geometric_normal(scene, prim, p, time), hit_error(o, p, t), w)
+            t_total += t
+        return t_max, NO_HIT
+
+    return shadow_transmittance, shadow_blocker
 
 
-@wp.func
-def shadow_blocker(scene: SceneData, materials: MaterialData, settings: IntegratorSettings, o: wp.vec3, w: wp.vec3, t_max: float, time: float):
-    """Recording only: ``(t, prim)`` of the surface that stopped a blocked shadow ray from ``o``
-    along unit ``w``: the first surface hit, or with filtered shadows the first one that is not a
-    dielectric (``NO_HIT`` and ``t_max`` if there is none)."""
-    t_total = float(0.0)
-    for _k in range(SHADOW_CROSSINGS):
-        t, prim = closest_hit(scene, o, w, time, 0.0, t_max - t_total)
-        if prim == NO_HIT or settings.filtered_shadows == 0:
-            return t_total + t, prim
-        if materials.type[materials.shape_material[prim_shape(scene, prim)]] != DIELECTRIC:
-            return t_total + t, prim
-        p = o + t * w
-        o = spawn_origin(p, geometric_normal(scene, prim, p, time), hit_error(o, p, t), w)
-        t_total += t
-    return t_max, NO_HIT
-
-
-def make_direct_light(record: bool):
+def make_direct_light(record: bool, trace: Traversal):
     """``direct_light``, recording its shadow rays when ``record`` (compiled out otherwise)."""
+    shadow_transmittance, shadow_blocker = make_shadows(trace)
 
     @wp.func
     def direct_light(
@@ -184,7 +189,8 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
     """``whitted_radiance``, recording every ray it traces when ``record`` (compiled out otherwise),
     with the code of the features the scene lacks compiled out (``kernels.features``): without
     mirrors and dielectrics there is no branch stack and the camera ray's hit is the whole tree."""
-    direct_light = make_direct_light(record)
+    trace = traversal(features)
+    direct_light = make_direct_light(record, trace)
 
     @wp.func
     def whitted_radiance(
@@ -234,7 +240,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                 pending_parent = BranchInt()
         for _segment in range(MAX_SEGMENTS):
             if not traced:
-                t, prim = closest_hit(scene, o, d, time, t_from, wp.inf)
+                t, prim = trace.closest_hit(scene, o, d, time, t_from, wp.inf)
                 if wp.static(record):
                     current = record_ray(rec, scene, pixel, sample, segment_kind, o + t_last * d, d, t - t_last, prim, time, throughput, depth, segment_parent)
             traced = False

@@ -1,38 +1,117 @@
-"""BVH build (wrt/bvh.py) and traversal (kernels/traverse.py) against brute force."""
+"""BVH build on the device (wrt/bvh.py, kernels/bvh_build.py) and traversal (kernels/traverse.py)
+against brute force, the tree's invariants, and its quality against the binned-SAH reference."""
 import numpy as np
 import pytest
 
 from conftest import Tracer, make_scene
-from wrt.bvh import MAX_DEPTH, build_bvh
+from harness.binned_sah import build_bvh as build_binned_sah
+from harness.binned_sah import sah_cost
+from kernels.bvh import MAX_LEAF, STACK_SIZE
+from kernels.bvh_build import INTERSECTION_COST, TRAVERSAL_COST
+from wrt.bvh import build_bvh, lane_bounds
+from wrt.geometry import round_outward
 
 
 def random_boxes(rng, n):
+    """float32 boxes (rounded outward from float64 ones), as ``wrt.geometry`` hands them to the build."""
     c = rng.uniform(-10, 10, size=(n, 3))
     r = rng.uniform(0.0, 0.5, size=(n, 3))
-    return c - r, c + r
+    return round_outward(c - r, c + r)
 
 
-@pytest.mark.parametrize("n", [1, 2, 3, 17, 1000, 20000])
+def check_tree(bvh, lo, hi):
+    """The invariants of a 4-wide BVH over float32 boxes ``lo``, ``hi``: every primitive listed
+    once; depth-first numbering; each lane's box holds its subtree; leaves of 1..MAX_LEAF primitives; the stack need the build reports is the exact
+    worst case, and within the traversal's stack. Returns the leaf sizes."""
+    n = len(lo)
+    nodes = bvh.nodes.numpy()
+    order = bvh.order.numpy()
+    assert np.array_equal(np.sort(order), np.arange(n))  # every primitive exactly once
+    lane_lo, lane_hi = lane_bounds(nodes)
+    child = nodes["child"]
+    used = np.isfinite(lane_lo[..., 0])
+    leaf_sizes = []
+    need = np.zeros(len(nodes), dtype=np.int64)
+    size = np.ones(len(nodes), dtype=np.int64)
+    for w in range(len(nodes) - 1, -1, -1):  # children have larger indices: bottom up
+        inner = [c for c in child[w][used[w]] if c >= 0]
+        assert all(c > w for c in inner)
+        if inner:
+            # depth first: each inner child starts right after the previous one's subtree
+            expected = w + 1
+            for c in sorted(inner):
+                assert c == expected
+                expected += size[c]
+            size[w] = 1 + sum(size[c] for c in inner)
+        need[w] = used[w].sum() - 1 + max((need[c] for c in inner), default=0)
+        for k in np.flatnonzero(used[w]):
+            c = child[w][k]
+            if c >= 0:  # the child node's lanes lie inside this lane
+                kid = used[c]
+                assert np.all(lane_lo[c][kid] >= lane_lo[w][k]) and np.all(lane_hi[c][kid] <= lane_hi[w][k])
+            else:
+                packed = -1 - c
+                start, count = packed >> 3, packed & 7
+                assert 1 <= count <= MAX_LEAF
+                members = order[start : start + count]
+                assert np.all(lo[members] >= lane_lo[w][k]) and np.all(hi[members] <= lane_hi[w][k])
+                leaf_sizes.append(count)
+    assert size[0] == len(nodes)
+    assert need[0] == bvh.stats.stack_need <= STACK_SIZE
+    assert sum(leaf_sizes) == n and len(leaf_sizes) == bvh.stats.leaves
+    return np.array(leaf_sizes)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 5, 17, 1000, 20000])
 def test_build_invariants(rng, n):
     lo, hi = random_boxes(rng, n)
-    bvh = build_bvh(lo, hi)
-    assert np.array_equal(np.sort(bvh.order), np.arange(n))  # every primitive exactly once
-    inner = np.flatnonzero(bvh.count == 0)
-    leaves = np.flatnonzero(bvh.count > 0)
-    for node in inner:  # children adjacent, inside their parent
-        kids = [bvh.start[node], bvh.start[node] + 1]
-        assert (bvh.lo[kids] >= bvh.lo[node]).all() and (bvh.hi[kids] <= bvh.hi[node]).all()
-    for node in leaves:  # a leaf's box holds its primitives
-        members = bvh.order[bvh.start[node] : bvh.start[node] + bvh.count[node]]
-        assert (lo[members] >= bvh.lo[node]).all() and (hi[members] <= bvh.hi[node]).all()
-    assert bvh.count[leaves].sum() == n
-    assert bvh.depth <= MAX_DEPTH
+    bvh = build_bvh(lo, hi, "cpu")
+    assert bvh.stats.builder == "ploc"
+    check_tree(bvh, lo, hi)
 
 
-def test_identical_centroids_are_still_split():
-    lo = np.zeros((100, 3))
-    bvh = build_bvh(lo, lo + 1.0)
-    assert bvh.count.max() <= 4 and np.array_equal(np.sort(bvh.order), np.arange(100))
+def test_build_is_deterministic(rng):
+    lo, hi = random_boxes(rng, 5000)
+    a, b = build_bvh(lo, hi, "cpu"), build_bvh(lo, hi, "cpu")
+    assert np.array_equal(a.order.numpy(), b.order.numpy())
+    assert a.nodes.numpy().tobytes() == b.nodes.numpy().tobytes()
+
+
+def test_identical_boxes_still_cluster():
+    """Ties of the nearest-neighbour search (equal union areas everywhere) still pair clusters up in
+    many places at once, so the build ends in about log n iterations, not n."""
+    lo = np.zeros((1000, 3), dtype=np.float32)
+    bvh = build_bvh(lo, lo + 1.0, "cpu")
+    sizes = check_tree(bvh, lo, lo + 1.0)
+    assert sizes.max() <= MAX_LEAF
+    assert bvh.stats.ploc_iterations < 40
+
+
+def test_deep_tree_falls_back_to_the_balanced_tree():
+    """Boxes at 2^k along a line make PLOC chain them one by one (each merge's nearest neighbour is the
+    cluster of everything before it): a tree too deep for the traversal stack. The build detects it
+    and builds the balanced tree, whose stack need is bounded by construction."""
+    x = 2.0 ** np.arange(120)
+    lo, hi = round_outward(np.stack([x, np.zeros_like(x), np.zeros_like(x)], axis=1), np.stack([x + 0.5, np.ones_like(x), np.ones_like(x)], axis=1))
+    bvh = build_bvh(lo, hi, "cpu")
+    assert bvh.stats.builder == "balanced"
+    check_tree(bvh, lo, hi)
+
+
+def test_sah_cost_is_close_to_the_binned_sah_reference():
+    """The PLOC tree of a closed mesh costs (SAH, same constants) at most a little more than the
+    top-down binned-SAH tree of the reference builder, and leaves hold 1..4 triangles, about 2 on
+    average."""
+    from harness.throughput import torus_mesh
+
+    v, f = torus_mesh(20000)
+    tri = v.astype(np.float32)[f]
+    lo, hi = tri.min(axis=1), tri.max(axis=1)
+    bvh = build_bvh(lo, hi, "cpu")
+    sizes = check_tree(bvh, lo, hi)
+    reference = sah_cost(build_binned_sah(lo.astype(np.float64), hi.astype(np.float64)), float(TRAVERSAL_COST), float(INTERSECTION_COST))
+    assert bvh.stats.sah_cost <= 1.1 * reference
+    assert 1.5 <= sizes.mean() <= MAX_LEAF
 
 
 def mixed_scene(rng, n_tris=6000, n_spheres=300):

@@ -277,30 +277,35 @@ def test_path_recording_follows_the_bsdf_and_samples_the_light():
 
 def test_show_bvh_logs_the_nodes_the_traversal_visits(tmp_path):
     """`--show-bvh`: the render kernels' closest-hit traversal, replayed for each recorded ray,
-    logs the root first, only nodes whose box the ray meets, and the leaf holding the hit."""
+    logs the root first (always visited: its children's boxes are the first test), then only
+    nodes whose box the ray meets, and a node with a leaf holding the hit."""
+    from wrt.bvh import lane_bounds, node_bounds
+    from wrt.device import resolve_device
     from wrt.geometry import build
 
     showcase = os.path.join(os.path.dirname(__file__), "..", "examples", "showcase.toml")
     scene = wrt.load_scene(showcase)
     tree = trace_rays(scene, [(330, 150), (450, 200), (5, 5)], bvh=True)
-    bvh = build(scene).bvh  # the same deterministic build the recording used
-    np.testing.assert_array_equal(tree.bvh_lo, bvh.lo.astype(np.float32))
+    nodes = build(scene, resolve_device("cpu")).bvh.nodes.numpy()  # the same deterministic build the recording used
+    lo, hi = node_bounds(nodes)
+    np.testing.assert_array_equal(tree.bvh_lo, lo)
+    lane_lo, lane_hi = lane_bounds(nodes)
     for row in range(len(tree)):
-        nodes = tree.visit_node[tree.visit_row == row]
-        if len(nodes) == 0:
+        visited = tree.visit_node[tree.visit_row == row]
+        if len(visited) == 0:
             continue
-        assert nodes[0] == 0 and len(set(nodes.tolist())) == len(nodes)
+        assert visited[0] == 0 and len(set(visited.tolist())) == len(visited)
         o, d = tree.origin[row].astype(np.float64), tree.direction[row].astype(np.float64)
         with np.errstate(divide="ignore", invalid="ignore"):
-            t0, t1 = (bvh.lo[nodes] - o) / d, (bvh.hi[nodes] - o) / d
+            t0, t1 = (lo[visited[1:]] - o) / d, (hi[visited[1:]] - o) / d
         near = np.nanmax(np.minimum(t0, t1), axis=1)
         far = np.nanmin(np.maximum(t0, t1), axis=1)
         assert np.all(near <= far * (1 + 1e-5) + 1e-6)  # every visited box meets the ray
         if tree.hit[row]:
             p = tree.end[row].astype(np.float64)
-            leaves = nodes[bvh.count[nodes] > 0]
-            inside = np.all((bvh.lo[leaves] - 1e-4 <= p) & (p <= bvh.hi[leaves] + 1e-4), axis=1)
-            assert inside.any()  # the hit primitive's leaf was visited
+            leaf = nodes["child"][visited] < 0  # (V, 4): leaf lanes of the visited nodes
+            inside = np.all((lane_lo[visited] - 1e-4 <= p) & (p <= lane_hi[visited] + 1e-4), axis=2)
+            assert (inside & leaf).any()  # the hit primitive's leaf was tested
     assert len(tree.visit_node) > 10
     out = tmp_path / "bvh.vtm"
     assert main(["rays", showcase, "--pixel", "330", "150", "--show-bvh", "--export", str(out)]) == 0

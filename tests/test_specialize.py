@@ -19,9 +19,17 @@ AREA = {"type": "area", "corner": [-1, 3, -1], "edge_u": [2, 0, 0], "edge_v": [0
 
 def test_features_follow_the_scene():
     plain = make_scene([FLOOR], materials=DIFFUSE)
-    assert scene_features(plain) == Features(lights=False, specular=False, dielectric=False, lens=False, motion=False)
+    assert scene_features(plain) == Features(
+        lights=False, specular=False, dielectric=False, lens=False, motion=False, moving=False, spheres=False, triangles=False, polygons=False
+    )
+    mesh = make_scene([{"type": "mesh", "file": "examples/meshes/tetra.obj"}], scene_dir=".")
+    assert (scene_features(mesh).triangles, scene_features(mesh).spheres, scene_features(mesh).polygons) == (True, False, False)
     rich = make_scene(
-        [FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "glass", "velocity": [1, 0, 0]}],
+        [
+            FLOOR,
+            {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "glass", "velocity": [1, 0, 0]},
+            {"type": "triangle", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "material": "white"},
+        ],
         materials=DIFFUSE + [GLASS],
         lights=[AREA],
         camera={**CAMERA, "aperture_radius": 0.1, "shutter": [0, 1]},
@@ -29,6 +37,7 @@ def test_features_follow_the_scene():
     assert scene_features(rich) == ALL
     still = make_scene([{"type": "sphere", "center": [0, 0, 0], "radius": 1, "velocity": [1, 0, 0]}], camera={**CAMERA, "shutter": [2, 2]})
     assert not scene_features(still).motion  # moving shapes, but a closed shutter: no time to sample
+    assert scene_features(still).moving  # ... though at time 2 the sphere is not where it was at 0
 
 
 def test_dielectric_implies_specular():
@@ -41,6 +50,8 @@ def test_variants_are_built_once_and_only_for_flags_that_pay():
     assert render_kernel("whitted", plain) is render_kernel("whitted", plain)
     assert render_kernel("path", ALL) is render_kernel("path", Features(specular=True))
     assert relevant("raycast", plain) == Features(lens=False, motion=False)
+    triangles_only = Features(moving=False, spheres=False, polygons=False)
+    assert relevant("raycast", triangles_only) == triangles_only  # geometry flags pay for every integrator
     assert relevant("path", plain).specular  # the mirror test is a compare: not worth a variant
 
 

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from harness.throughput import ENGINES, QUERIES, RAY_SETS, embree_version, format_table, main, torus_mesh
+from kernels.bvh import MAX_LEAF, STACK_SIZE
 
 TRIANGLES = 20_000
 RAYS = 8192  # two tiles of wrt.renderer.TILE_PIXELS: the all-threads runs have work for two threads
@@ -67,12 +68,13 @@ def test_builds_and_memory_reported(results):
     for engine in results["engines"]:
         build = results["build"][engine]
         assert build["build_s"] > 0
-    assert results["build"]["wrt"]["bvh_host_bytes"] > 0
+    assert results["build"]["wrt"]["wide_nodes"] > 0 and results["build"]["wrt"]["sah_cost"] > 0
+    assert 0 < results["build"]["wrt"]["stack_need"] <= STACK_SIZE
     for engine in ("wrt", "wp.Mesh"):
         assert results["build"][engine]["bvh_device_bytes"] > 0
         assert results["build"][engine]["triangles_device_bytes"] > 0
         assert results["compile_s"][engine] >= 0
-    assert 1.0 <= results["build"]["wrt"]["mean_leaf_triangles"] <= 4.0  # wrt.bvh.MAX_LEAF
+    assert 1.0 <= results["build"]["wrt"]["mean_leaf_triangles"] <= MAX_LEAF
 
 
 def test_engines_agree(results):

@@ -1,183 +1,228 @@
-"""Bounding volume hierarchy build on the host: binned surface area heuristic, breadth first.
+"""BVH build on the render device: the host side, which launches the kernels of
+``kernels.bvh_build`` and checks the result.
 
-The tree is built one level at a time with vectorised numpy over all nodes of the level, so a
-100k-primitive build takes well under a second without compiled code. Output layout is what
-``kernels.traverse`` walks (see its docstring): node 0 is the root, an inner node's children are
-adjacent (``start``, ``start + 1``), a leaf owns ``order[start : start + count]``.
+``build_bvh(lo, hi, device)`` takes the primitives' float32 bounds and builds the 4-wide BVH of ``kernels.bvh`` where it will be traversed: Morton codes,
+radix sort, PLOC clustering (radius ``PLOC_RADIUS``) with SAH leaves of at most ``MAX_LEAF``
+primitives, and the depth-first collapse to four children per node. Each step is a Warp launch
+on ``device``; the host only reads back a cluster count per PLOC iteration and a node count per
+level of the collapse. On the CPU the nearest-neighbour search, nearly all of the work, is split
+into chunks launched from a thread pool, one per core (a Warp CPU launch runs on one thread).
 
-References
-----------
-I. Wald, "On fast Construction of SAH-based Bounding Volume Hierarchies", IEEE RT 2007 (binning).
-M. Pharr, W. Jakob, G. Humphreys, pbrt-v4, sec. 7.3 (SAH costs).
+Depth is bounded by construction: the traversal stack holds ``STACK_SIZE`` entries, and every
+tree records the most entries a traversal of it can need. A PLOC tree needing more (a pathological
+distribution, such as primitives spaced in a geometric progression) is rebuilt as the balanced
+Morton-order tree, of depth ``ceil(log2 n)``, opened breadth first, whose need is at most 3 per
+two levels: ``3 * ceil(log2(n) / 2) <= 48`` entries for any ``n < 2^31``.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import os
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
 
 import numpy as np
+import warp as wp
 
-TRAVERSAL_COST = 0.5  # cost of visiting an inner node, relative to one primitive test (pbrt-v4)
-MAX_LEAF = 4  # a node with more primitives than this is always split (when it can be)
-BINS = 16
-MAX_DEPTH = 60  # must stay below kernels.traverse.STACK_SIZE
+from kernels.bvh import STACK_SIZE, WideNode
+from kernels.bvh_build import (
+    BinaryNode,
+    count_inner,
+    emit_wide,
+    init_leaves,
+    morton_codes,
+    pair_neighbours,
+    ploc_flags,
+    ploc_merge,
+    ploc_nearest,
+)
+
+PLOC_RADIUS = 16  # clusters searched on either side (Meister and Bittner's choice for quality)
+CHUNK = 1 << 16  # clusters per CPU launch of the nearest-neighbour search and the merge
+
+__all__ = ["BvhStats", "DeviceBvh", "build_bvh", "lane_bounds", "node_bounds"]
 
 
-@dataclass(frozen=True)
-class Bvh:
-    """Flat BVH arrays. ``order[k]`` is the input index of the k-th primitive in leaf order."""
+@dataclass
+class BvhStats:
+    """What the build made, for reports: ``builder`` is "ploc" or "balanced" (the fallback)."""
 
-    lo: np.ndarray  # (M, 3) float64 node bounds
-    hi: np.ndarray  # (M, 3)
-    start: np.ndarray  # (M,) int32: first child (inner) or first entry of ``order`` (leaf)
-    count: np.ndarray  # (M,) int32: 0 for inner nodes, number of primitives for leaves
-    order: np.ndarray  # (N,) int64
+    primitives: int = 0
+    builder: str = "ploc"
+    wide_nodes: int = 0
+    leaves: int = 0
+    stack_need: int = 0  # traversal stack entries the tree can need (<= STACK_SIZE)
+    sah_cost: float = 0.0  # of the binary tree with its leaves, normalised by the root's area
+    ploc_iterations: int = 0
+    build_s: float = 0.0  # wall seconds, uploads and read-backs included
+    phases_s: dict = field(default_factory=dict)
 
     @property
-    def depth(self) -> int:
-        """Number of levels (1 for a single leaf); 0 for an empty tree."""
-        if len(self.count) == 0:
-            return 0
-        level = np.zeros(len(self.count), dtype=np.int64)
-        inner = np.flatnonzero(self.count == 0)  # parents precede children (breadth-first ids)
-        for node in inner:
-            level[self.start[node] : self.start[node] + 2] = level[node] + 1
-        return int(level.max()) + 1
+    def mean_leaf_size(self) -> float:
+        return self.primitives / max(self.leaves, 1)
 
 
-def _area(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """Surface area of boxes (..., 3); empty boxes (lo > hi) have area 0."""
-    e = np.maximum(hi - lo, 0.0)
-    return 2.0 * (e[..., 0] * e[..., 1] + e[..., 1] * e[..., 2] + e[..., 2] * e[..., 0])
+@dataclass
+class DeviceBvh:
+    """A BVH on a device: ``nodes`` (``kernels.bvh.WideNode``) and ``order`` (the input index of
+    each primitive-list entry, leaf by leaf)."""
+
+    nodes: wp.array
+    order: wp.array
+    stats: BvhStats
 
 
-def _binned_sah(lo, hi, centroid, seg, n_seg, c_lo, c_hi, n_bins):
-    """Best split of each node in a group: returns (cost, axis, split bin, bins of every primitive).
+def _threads(device) -> int:
+    if device.is_cuda:
+        return 1
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
-    ``seg[k]`` is the node (0 .. n_seg-1) of primitive k. Cost is the unnormalised SAH sum
-    ``N_left A_left + N_right A_right``, infinite where no binned split separates the primitives.
+
+def _last(a: wp.array, m: int) -> int:
+    return int(a[m - 1 : m].numpy()[0])
+
+
+class _Builder:
+    """One build: the arrays of the binary tree and the clusters, on ``device``."""
+
+    def __init__(self, lo32: np.ndarray, hi32: np.ndarray, device, pool: ThreadPoolExecutor | None):
+        n = len(lo32)
+        self.n, self.device, self.pool = n, device, pool
+        self.lo = wp.array(lo32, dtype=wp.vec3, device=device)
+        self.hi = wp.array(hi32, dtype=wp.vec3, device=device)
+        centre = 0.5 * (lo32.astype(np.float64) + hi32.astype(np.float64))
+        c_lo, c_hi = centre.min(axis=0), centre.max(axis=0)
+        extent = c_hi - c_lo
+        scale = np.divide(1.0, extent, out=np.zeros(3), where=extent > 0.0)
+        keys = wp.empty(2 * n, dtype=wp.int32, device=device)
+        self.sorted = wp.empty(2 * n, dtype=wp.int32, device=device)
+        wp.launch(morton_codes, dim=n, inputs=[self.lo, self.hi, wp.vec3(*c_lo), wp.vec3(*scale), keys, self.sorted], device=device)
+        wp.utils.radix_sort_pairs(keys, self.sorted, n, 0, 30)
+
+    def tree(self, breadth_first: bool) -> tuple[wp.array, int, int]:
+        """Cluster the primitives into a binary tree (PLOC, or pairs when ``breadth_first``):
+        returns the tree, its root and the iterations taken."""
+        n, dev = self.n, self.device
+        size = 2 * n - 1
+        tree = wp.empty(2 * n - 1, dtype=BinaryNode, device=dev)
+        clusters = [tuple(wp.empty(n, dtype=t, device=dev) for t in (wp.vec3, wp.vec3, wp.int32)) for _ in range(2)]
+        nn, survive, merge, survive_sum, merge_sum = (wp.empty(n, dtype=wp.int32, device=dev) for _ in range(5))
+        wp.launch(init_leaves, dim=n, inputs=[self.lo, self.hi, self.sorted, tree, *clusters[0]], device=dev)
+        m, next_node, iterations = n, n, 0
+        while m > 1:
+            c_lo, c_hi, c_node = clusters[iterations % 2]
+            out = clusters[(iterations + 1) % 2]
+            if breadth_first:
+                wp.launch(pair_neighbours, dim=m, inputs=[m, nn], device=dev)
+            else:
+                self._chunked(ploc_nearest, m, [c_lo, c_hi, m, PLOC_RADIUS, nn])
+            wp.launch(ploc_flags, dim=m, inputs=[nn, survive, merge], device=dev)
+            wp.utils.array_scan(survive[:m], survive_sum[:m], inclusive=True)
+            wp.utils.array_scan(merge[:m], merge_sum[:m], inclusive=True)
+            self._chunked(ploc_merge, m, [tree, c_lo, c_hi, c_node, nn, survive, survive_sum, merge, merge_sum, next_node, int(breadth_first), *out])
+            next_node += _last(merge_sum, m)
+            m = _last(survive_sum, m)
+            iterations += 1
+        return tree, next_node - 1, iterations
+
+    def _chunked(self, kernel, m: int, inputs: list) -> None:
+        """Launch ``kernel(*inputs, first, ...)`` over ``m`` threads: in chunks from the thread pool
+        on the CPU (``first`` the chunk's offset, the kernel's argument after ``inputs``)."""
+        if self.pool is None or m <= CHUNK:
+            wp.launch(kernel, dim=m, inputs=[*inputs, 0], device=self.device)
+            return
+        jobs = [self.pool.submit(wp.launch, kernel, dim=min(CHUNK, m - first), inputs=[*inputs, first], device=self.device) for first in range(0, m, CHUNK)]
+        for job in jobs:
+            job.result()
+
+    def wide(self, tree: wp.array, root: int) -> tuple[wp.array, wp.array, int]:
+        """Collapse ``tree`` into the depth-first 4-wide node array; returns the nodes, the
+        primitive order and the number of leaves."""
+        dev = self.device
+        total = max(1, int(tree[root : root + 1].numpy()["wide_nodes"][0]))
+        nodes = wp.empty(total, dtype=WideNode, device=dev)
+        order = wp.empty(self.n, dtype=wp.int32, device=dev)
+        first = np.zeros(total, dtype=np.int32)
+        first[0] = root
+        level = [wp.array(first, dtype=wp.int32, device=dev)] + [wp.zeros(total, dtype=wp.int32, device=dev) for _ in range(2)]
+        spare = [wp.empty(total, dtype=wp.int32, device=dev) for _ in range(3)]
+        counts, counts_sum = wp.empty(total, dtype=wp.int32, device=dev), wp.empty(total, dtype=wp.int32, device=dev)
+        width = 1
+        while width > 0:
+            wp.launch(count_inner, dim=width, inputs=[tree, level[0], counts], device=dev)
+            wp.utils.array_scan(counts[:width], counts_sum[:width], inclusive=True)
+            wp.launch(emit_wide, dim=width, inputs=[tree, *level, counts, counts_sum, nodes, order, *spare], device=dev)
+            width = _last(counts_sum, width)
+            level, spare = spare, level
+        return nodes, order, int(np.count_nonzero(nodes.numpy()["child"] < 0))
+
+
+def build_bvh(lo: np.ndarray, hi: np.ndarray, device) -> DeviceBvh:
+    """Build the BVH of primitives with float32 bounds ``lo``, ``hi`` (N, 3) on ``device``; each
+    box must hold everything its primitive's intersection test can hit (``wrt.geometry`` rounds
+    outward where float32 bounds are not exact).
+
+    Returns a ``DeviceBvh`` whose ``order`` lists input indices leaf by leaf (empty for N = 0:
+    no nodes). Raises ``RuntimeError`` if even the balanced tree would overflow the traversal
+    stack (impossible below 2^31 primitives).
     """
-    n_seg_bins = n_seg * n_bins
-    best_cost = np.full(n_seg, np.inf)
-    best_axis = np.zeros(n_seg, dtype=np.int64)
-    best_split = np.zeros(n_seg, dtype=np.int64)
-    bins = np.empty((len(seg), 3), dtype=np.int64)
-    for a in range(3):
-        extent = (c_hi[:, a] - c_lo[:, a])[seg]
-        scale = np.divide(n_bins, extent, out=np.zeros_like(extent), where=extent > 0)
-        b = np.clip(((centroid[:, a] - c_lo[seg, a]) * scale).astype(np.int64), 0, n_bins - 1)
-        bins[:, a] = b
-        key = seg * n_bins + b
-        counts = np.bincount(key, minlength=n_seg_bins).reshape(n_seg, n_bins)
-        blo = np.full((n_seg_bins, 3), np.inf)
-        bhi = np.full((n_seg_bins, 3), -np.inf)
-        for k in range(3):
-            np.minimum.at(blo[:, k], key, lo[:, k])
-            np.maximum.at(bhi[:, k], key, hi[:, k])
-        blo = blo.reshape(n_seg, n_bins, 3)
-        bhi = bhi.reshape(n_seg, n_bins, 3)
-        # split s puts bins [0, s] left and [s + 1, BINS) right
-        n_left = np.cumsum(counts, axis=1)[:, :-1]
-        n_right = np.cumsum(counts[:, ::-1], axis=1)[:, ::-1][:, 1:]
-        a_left = _area(np.minimum.accumulate(blo, axis=1), np.maximum.accumulate(bhi, axis=1))[:, :-1]
-        a_right = _area(
-            np.minimum.accumulate(blo[:, ::-1], axis=1)[:, ::-1], np.maximum.accumulate(bhi[:, ::-1], axis=1)[:, ::-1]
-        )[:, 1:]
-        cost = n_left * a_left + n_right * a_right
-        cost[(n_left == 0) | (n_right == 0)] = np.inf
-        split = np.argmin(cost, axis=1)
-        c = cost[np.arange(n_seg), split]
-        better = c < best_cost
-        best_cost[better], best_axis[better], best_split[better] = c[better], a, split[better]
-    return best_cost, best_axis, best_split, bins
-
-
-def _split_level(lo, hi, centroid, seg, seg_count, c_lo, c_hi):
-    """``_binned_sah`` for all nodes of a level, grouped by size: a node of n primitives gets the
-    smallest power of two >= n bins (at most ``BINS``), so the many small nodes near the leaves
-    do not pay for 16 mostly empty bins."""
-    n_seg = len(seg_count)
-    n_bins = np.minimum(BINS, 2 ** np.ceil(np.log2(np.maximum(seg_count, 2)))).astype(np.int64)
-    cost, axis, split = np.full(n_seg, np.inf), np.zeros(n_seg, np.int64), np.zeros(n_seg, np.int64)
-    bins = np.zeros((len(seg), 3), dtype=np.int64)
-    for nb in np.unique(n_bins):
-        nodes = np.flatnonzero(n_bins == nb)
-        local = np.full(n_seg, -1)
-        local[nodes] = np.arange(len(nodes))
-        prims = np.flatnonzero(local[seg] >= 0)
-        c, a, s, b = _binned_sah(lo[prims], hi[prims], centroid[prims], local[seg[prims]], len(nodes), c_lo[nodes], c_hi[nodes], nb)
-        cost[nodes], axis[nodes], split[nodes], bins[prims] = c, a, s, b
-    return cost, axis, split, bins
-
-
-def build_bvh(lo: np.ndarray, hi: np.ndarray) -> Bvh:
-    """Build a BVH over primitives with bounds ``lo``, ``hi`` (N, 3).
-
-    Each level's nodes are split at the binned-SAH optimum (16 bins per axis over centroid
-    bounds); a node becomes a leaf when it holds at most ``MAX_LEAF`` primitives and the split
-    would not pay, or at depth ``MAX_DEPTH``. Nodes whose centroids cannot be separated by bins
-    (all equal) are halved in input order.
-    """
-    lo = np.asarray(lo, dtype=np.float64)
-    hi = np.asarray(hi, dtype=np.float64)
+    t0 = time.perf_counter()
+    device = wp.get_device(device)
     n = len(lo)
+    stats = BvhStats(primitives=n)
     if n == 0:
-        empty = np.zeros((0, 3))
-        return Bvh(empty, empty, np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0, np.int64))
-    centroid = 0.5 * (lo + hi)
-    cap = 2 * n  # a binary tree with n leaves or fewer has at most 2n - 1 nodes
-    node_lo, node_hi = np.empty((cap, 3)), np.empty((cap, 3))
-    node_start, node_count = np.zeros(cap, np.int64), np.zeros(cap, np.int64)
-    order = np.empty(n, dtype=np.int64)
-    n_ordered = 0
-    n_nodes = 1
-    # the current level: its primitives, contiguous per node, and its nodes
-    active = np.arange(n)
-    seg_start = np.zeros(1, dtype=np.int64)
-    seg_count = np.array([n], dtype=np.int64)
-    seg_node = np.zeros(1, dtype=np.int64)
-    depth = 1
-    while len(seg_node):
-        n_seg = len(seg_node)
-        seg = np.repeat(np.arange(n_seg), seg_count)
-        a_lo, a_hi, a_c = lo[active], hi[active], centroid[active]
-        node_lo[seg_node] = np.minimum.reduceat(a_lo, seg_start, axis=0)
-        node_hi[seg_node] = np.maximum.reduceat(a_hi, seg_start, axis=0)
-        c_lo = np.minimum.reduceat(a_c, seg_start, axis=0)
-        c_hi = np.maximum.reduceat(a_c, seg_start, axis=0)
-        cost, axis, split, bins = _split_level(a_lo, a_hi, a_c, seg, seg_count, c_lo, c_hi)
-        cost = TRAVERSAL_COST + cost / np.maximum(_area(node_lo[seg_node], node_hi[seg_node]), 1e-300)
-        can_split = seg_count > 1
-        is_leaf = ~can_split | ((seg_count <= MAX_LEAF) & (seg_count <= cost)) | (depth >= MAX_DEPTH)
-        # leaves: emit their primitives
-        leaf_prims = is_leaf[seg]
-        leaf_nodes = seg_node[is_leaf]
-        node_start[leaf_nodes] = n_ordered + np.concatenate(([0], np.cumsum(seg_count[is_leaf])[:-1]))
-        node_count[leaf_nodes] = seg_count[is_leaf]
-        emitted = active[leaf_prims]
-        order[n_ordered : n_ordered + len(emitted)] = emitted
-        n_ordered += len(emitted)
-        # inner nodes: partition their primitives into two children
-        inner = np.flatnonzero(~is_leaf)
-        if len(inner) == 0:
-            break
-        rank = np.arange(len(active)) - seg_start[seg]
-        by_sah = np.isfinite(cost)[seg]
-        right = np.where(by_sah, bins[np.arange(len(active)), axis[seg]] > split[seg], 2 * rank >= seg_count[seg])
-        keep = ~leaf_prims
-        key = 2 * seg[keep] + right[keep]
-        perm = np.argsort(key, kind="stable")
-        active = active[keep][perm]
-        child_count = np.bincount(key, minlength=2 * n_seg).reshape(n_seg, 2)[inner].ravel()
-        node_start[seg_node[inner]] = n_nodes + 2 * np.arange(len(inner))
-        seg_node = n_nodes + np.arange(2 * len(inner))
-        n_nodes += 2 * len(inner)
-        seg_count = child_count
-        seg_start = np.concatenate(([0], np.cumsum(seg_count)[:-1]))
-        depth += 1
-    return Bvh(
-        lo=node_lo[:n_nodes],
-        hi=node_hi[:n_nodes],
-        start=node_start[:n_nodes].astype(np.int32),
-        count=node_count[:n_nodes].astype(np.int32),
-        order=order,
-    )
+        empty = wp.empty(0, dtype=WideNode, device=device)
+        return DeviceBvh(empty, wp.empty(0, dtype=wp.int32, device=device), stats)
+    lo32, hi32 = np.ascontiguousarray(lo, dtype=np.float32), np.ascontiguousarray(hi, dtype=np.float32)
+    threads = _threads(device)
+    pool = ThreadPoolExecutor(max_workers=threads) if threads > 1 else None
+    try:
+        phases = {}
+        t1 = time.perf_counter()
+        builder = _Builder(lo32, hi32, device, pool)
+        wp.synchronize_device(device)
+        phases["morton_sort_s"] = time.perf_counter() - t1
+        t1 = time.perf_counter()
+        tree, root, iterations = builder.tree(breadth_first=False)
+        stack = int(tree[root : root + 1].numpy()["stack"][0])
+        if stack > STACK_SIZE:
+            stats.builder = "balanced"
+            tree, root, iterations = builder.tree(breadth_first=True)
+            stack = int(tree[root : root + 1].numpy()["stack"][0])
+            if stack > STACK_SIZE:
+                raise RuntimeError(f"BVH of {n} primitives needs {stack} traversal stack entries, more than {STACK_SIZE}")
+        phases["cluster_s"] = time.perf_counter() - t1
+        t1 = time.perf_counter()
+        nodes, order, leaves = builder.wide(tree, root)
+        phases["collapse_s"] = time.perf_counter() - t1
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    top = tree[root : root + 1].numpy()[0]
+    cost = top["cost"]
+    e = np.maximum(top["hi"].astype(np.float64) - top["lo"], 0.0)
+    area = 2.0 * (e[0] * e[1] + e[1] * e[2] + e[2] * e[0])
+    stats.wide_nodes = len(nodes)
+    stats.leaves = leaves
+    stats.stack_need = stack
+    stats.sah_cost = float(cost) / area if area > 0 else float(cost)
+    stats.ploc_iterations = iterations
+    stats.phases_s = phases
+    stats.build_s = time.perf_counter() - t0
+    return DeviceBvh(nodes, order, stats)
+
+
+
+def lane_bounds(nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Boxes of every child lane of host-side wide nodes (``DeviceBvh.nodes.numpy()``): ``lo``,
+    ``hi`` of shape (M, 4, 3), float32; an unused lane is ``+inf`` throughout."""
+    lo = np.stack([nodes["lo_x"], nodes["lo_y"], nodes["lo_z"]], axis=-1)
+    hi = np.stack([nodes["hi_x"], nodes["hi_y"], nodes["hi_z"]], axis=-1)
+    return lo, hi
+
+
+def node_bounds(nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Box of each wide node (the union of its children's boxes), (M, 3) float32 each."""
+    lo, hi = lane_bounds(nodes)
+    used = np.isfinite(lo[..., 0])[..., None]
+    return np.where(used, lo, np.inf).min(axis=1), np.where(used, hi, -np.inf).max(axis=1)

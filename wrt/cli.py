@@ -39,6 +39,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("-o", "--output", required=True, help="output image, .exr or .png (written atomically)")
     r.add_argument("--spp", type=int, help="samples per pixel (default: the scene's [render] spp)")
     r.add_argument("--seed", type=int, help="random seed (default: the scene's [render] seed)")
+    r.add_argument("--sampler", choices=("independent", "stratified", "sobol"), help="random numbers (default: the scene's [render] sampler)")
     r.add_argument("--width", type=int, help="image width in pixels (default: the scene's)")
     r.add_argument("--height", type=int, help="image height in pixels (default: the scene's)")
     r.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
@@ -201,7 +202,7 @@ def _render(args) -> int:
     messages = init_warp()
     if args.device.startswith("cuda") and messages:
         print(messages, end="", file=sys.stderr)
-    scene = override_render(load_scene(args.scene, strict=args.strict), width=args.width, height=args.height, spp=args.spp, seed=args.seed)
+    scene = override_render(load_scene(args.scene, strict=args.strict), width=args.width, height=args.height, spp=args.spp, seed=args.seed, sampler=args.sampler)
     pixels = scene.render.width * scene.render.height
 
     def write(result) -> None:

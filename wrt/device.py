@@ -18,7 +18,7 @@ from kernels.integrator import IntegratorSettings
 from kernels.lights import AREA, DIRECTIONAL, ENVIRONMENT, POINT, SPHERE_LIGHT, SPOT, LightData
 from kernels.materials import DIELECTRIC, DIFFUSE, EMITTER, GLOSSY, MIRROR, PHONG, MaterialData
 from kernels.sampling import INDEPENDENT, SOBOL, STRATIFIED, Sampler
-from kernels.traverse import BvhNode, SceneData
+from kernels.traverse import SceneData
 
 from .errors import WrtError
 from .geometry import Primitives, polygon_projection
@@ -98,9 +98,8 @@ def _float(a: np.ndarray, device) -> wp.array:
 
 
 def upload_geometry(p: Primitives, device) -> SceneData:
-    """``SceneData`` for primitives already passed through ``wrt.geometry.build``."""
-    nodes = np.zeros(len(p.bvh.count), dtype=BvhNode.numpy_dtype())
-    nodes["lo"], nodes["hi"], nodes["start"], nodes["count"] = p.bvh.lo, p.bvh.hi, p.bvh.start, p.bvh.count
+    """``SceneData`` for primitives already passed through ``wrt.geometry.build`` (whose BVH is
+    on ``device``)."""
     axes, uvs = [], []
     for verts, normal in zip(p.poly_verts, p.poly_normal):
         axis, uv = polygon_projection(verts, normal)
@@ -109,7 +108,7 @@ def upload_geometry(p: Primitives, device) -> SceneData:
     poly_count = np.array([len(v) for v in p.poly_verts], dtype=np.int32)
     poly_offset = [float(np.dot(n, v.mean(axis=0))) for v, n in zip(p.poly_verts, p.poly_normal)]
     s = SceneData()
-    s.nodes = wp.array(nodes, dtype=BvhNode, device=device)
+    s.nodes = p.bvh.nodes
     s.prims = _int(p.prims, device)
     s.sphere_center = _vec3(p.sphere_center, device)
     s.sphere_radius = _float(p.sphere_radius, device)

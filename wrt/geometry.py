@@ -4,8 +4,9 @@ Every ``[[shape]]`` becomes primitives of one kind: a sphere, a plane, a triangl
 a mesh's triangles; each primitive remembers its surface: the shape's index (the ``object_id``),
 or for the surface of light k (a parallelogram is a polygon, a sphere light a sphere)
 ``n_shapes + k``. Bounded
-primitives go into one BVH with mixed kinds; planes are unbounded and stay outside it. After the
-build each kind's arrays are reordered to the order the leaves visit them, for memory locality.
+primitives go into one BVH with mixed kinds (built on the render device, ``wrt.bvh``); planes are
+unbounded and stay outside it. After the build each kind's arrays are reordered to the order the
+leaves list them, for memory locality.
 """
 from __future__ import annotations
 
@@ -15,18 +16,19 @@ import numpy as np
 
 from kernels.traverse import PLANE, POLYGON, SPHERE, TRIANGLE
 
-from .bvh import Bvh, build_bvh
+from .bvh import DeviceBvh, build_bvh
 from .scene import AreaLight, Mesh, Plane, Polygon, Scene, Sphere, SphereLight, Triangle
 
 
 @dataclass
 class Primitives:
-    """All primitives of a scene by kind (world space, float64; shape ids int32)."""
+    """All primitives of a scene by kind (world space; float64, but triangle vertices float32 as
+    traced: a large mesh's triangle soup is built once, at half the size; shape ids int32)."""
 
     sphere_center: np.ndarray  # (S, 3)
     sphere_radius: np.ndarray  # (S,)
     sphere_shape: np.ndarray
-    tri_verts: np.ndarray  # (T, 3, 3): triangle, vertex, xyz
+    tri_verts: np.ndarray  # (T, 3, 3) float32: triangle, vertex, xyz
     tri_shape: np.ndarray
     poly_verts: list  # P arrays (n_i, 3)
     poly_normal: np.ndarray  # (P, 3) unit
@@ -36,7 +38,7 @@ class Primitives:
     plane_shape: np.ndarray
     surface_velocity: np.ndarray | None = None  # (shapes + lights, 3): scene units per unit time
     num_shapes: int = 0  # surfaces numbered from here on belong to lights
-    bvh: Bvh | None = None  # over the bounded primitives, see ``bounded_ids``
+    bvh: DeviceBvh | None = None  # over the bounded primitives, on the render device
     prims: np.ndarray | None = None  # (N,) packed ids in leaf order
 
     def bounded_ids(self) -> np.ndarray:
@@ -60,15 +62,36 @@ class Primitives:
         return out
 
     def bounds(self, shutter: tuple[float, float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
-        """Axis-aligned bounds (N, 3) of the bounded primitives, in ``bounded_ids`` order, over the
-        times of ``shutter``: a moving primitive's box covers its whole sweep."""
-        r = self.sphere_radius[:, None]
-        lo = np.concatenate([self.sphere_center - r, self.tri_verts.min(axis=1)] + [v.min(axis=0, keepdims=True) for v in self.poly_verts])
-        hi = np.concatenate([self.sphere_center + r, self.tri_verts.max(axis=1)] + [v.max(axis=0, keepdims=True) for v in self.poly_verts])
+        """float32 boxes (N, 3) holding each bounded primitive as the device holds it (float32
+        values), in ``bounded_ids`` order, over the times of ``shutter``: a moving primitive's box
+        covers its whole sweep. Triangle and polygon boxes are exact; sphere boxes and sweeps are
+        computed in float64 and rounded outward."""
+        center, radius = _f32(self.sphere_center), _f32(self.sphere_radius)[:, None]
+        sphere_lo, sphere_hi = round_outward(center - radius, center + radius)
+        polys = [v.astype(np.float32) for v in self.poly_verts]
+        lo = np.concatenate([sphere_lo, self.tri_verts.min(axis=1)] + [v.min(axis=0, keepdims=True) for v in polys])
+        hi = np.concatenate([sphere_hi, self.tri_verts.max(axis=1)] + [v.max(axis=0, keepdims=True) for v in polys])
         shapes = np.concatenate([self.sphere_shape, self.tri_shape, self.poly_shape]).astype(np.int64)
         v = self.surface_velocity[shapes]
-        moves = [v * shutter[0], v * shutter[1]]
-        return lo + np.minimum(*moves), hi + np.maximum(*moves)
+        moving = np.flatnonzero(np.any(v != 0.0, axis=1) & (shutter[0] != 0.0 or shutter[1] != 0.0))
+        if len(moving):
+            sweep = [v[moving] * shutter[0], v[moving] * shutter[1]]
+            lo[moving], hi[moving] = round_outward(lo[moving] + np.minimum(*sweep), hi[moving] + np.maximum(*sweep))
+        return lo, hi
+
+
+def round_outward(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """float32 bounds containing the float64 boxes [lo, hi]: each value rounded toward its side."""
+    lo32 = np.asarray(lo, dtype=np.float64).astype(np.float32)
+    hi32 = np.asarray(hi, dtype=np.float64).astype(np.float32)
+    lo32 = np.where(lo32 > lo, np.nextafter(lo32, np.float32(-np.inf)), lo32)
+    hi32 = np.where(hi32 < hi, np.nextafter(hi32, np.float32(np.inf)), hi32)
+    return lo32, hi32
+
+
+def _f32(a: np.ndarray) -> np.ndarray:
+    """``a`` rounded to float32, as the device holds it, in float64."""
+    return np.asarray(a, dtype=np.float64).astype(np.float32).astype(np.float64)
 
 
 def flatten(scene: Scene) -> Primitives:
@@ -85,7 +108,7 @@ def flatten(scene: Scene) -> Primitives:
         elif isinstance(shape, Polygon):
             polys.append((shape.vertices, shape.normal, i))
         elif isinstance(shape, Mesh):
-            tri_blocks.append(shape.vertices[shape.faces])
+            tri_blocks.append(shape.vertices.astype(np.float32)[shape.faces])
             tri_shape_blocks.append(np.full(len(shape.faces), i, dtype=np.int32))
     for k, light in enumerate(scene.lights):
         surface = len(scene.shapes) + k
@@ -96,7 +119,7 @@ def flatten(scene: Scene) -> Primitives:
             normal = np.cross(u, v)
             polys.append(([c, c + u, c + u + v, c + v], tuple(normal / np.linalg.norm(normal)), surface))
     velocity = [shape.velocity for shape in scene.shapes] + [(0.0, 0.0, 0.0)] * len(scene.lights)
-    tri_blocks.insert(0, np.asarray([v for v, _ in tris], dtype=np.float64).reshape(-1, 3, 3))
+    tri_blocks.insert(0, np.asarray([v for v, _ in tris], dtype=np.float32).reshape(-1, 3, 3))
     tri_shape_blocks.insert(0, np.asarray([s for _, s in tris], dtype=np.int32))
     return Primitives(
         sphere_center=np.asarray([c for c, _, _ in spheres], dtype=np.float64).reshape(-1, 3),
@@ -120,12 +143,13 @@ def _leaf_order(kind: int, ids: np.ndarray) -> np.ndarray:
     return ids[(ids & 3) == kind] >> 2
 
 
-def build(scene: Scene) -> Primitives:
-    """Flatten ``scene``, build the BVH over its bounded primitives and reorder to leaf order."""
+def build(scene: Scene, device) -> Primitives:
+    """Flatten ``scene``, build the BVH over its bounded primitives on ``device`` (a Warp device)
+    and reorder to leaf order."""
     p = flatten(scene)
     ids = p.bounded_ids()
-    bvh = build_bvh(*p.bounds(scene.camera.shutter))
-    ids = ids[bvh.order]
+    bvh = build_bvh(*p.bounds(scene.camera.shutter), device)
+    ids = ids[bvh.order.numpy()]
     s = _leaf_order(SPHERE, ids)
     t = _leaf_order(TRIANGLE, ids)
     g = _leaf_order(POLYGON, ids)

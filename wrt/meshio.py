@@ -6,7 +6,9 @@ implement the scene format's object-to-world convention (scale, then rotate, the
 
 PLY files are parsed here with numpy rather than by VTK: VTK's ``vtkPLYReader`` (VTK 9.7)
 crashes the process with a segmentation fault on a truncated binary PLY file or on a face
-index far out of range, which no Python code can catch. Every other format is read by
+index far out of range, which no Python code can catch. A PLY file of triangles never touches
+VTK (nor imports pyvista, which takes a fifth of a second): its arrays are checked and returned
+as they are; polygons with more vertices are triangulated by VTK. Every other format is read by
 pyvista's VTK readers, with their console output silenced and their errors collected.
 """
 
@@ -18,8 +20,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pyvista as pv
-from vtkmodules.util.numpy_support import vtk_to_numpy
 
 from wrt.errors import MeshFileError
 
@@ -59,10 +59,11 @@ def load_mesh(path):
     path = Path(path)
     _check_mesh_path(path)
     if path.suffix.lower() == ".ply":
-        dataset = _read_ply(path)
-    else:
-        dataset = _read_with_vtk(path)
-    return _triangles(dataset, path)
+        points, counts, indices = _read_ply(path)
+        if len(counts) and np.all(counts == 3):
+            return _checked_triangles(points, indices.reshape(-1, 3), path)
+        return _triangles(_polydata(points, counts, indices), path)
+    return _triangles(_read_with_vtk(path), path)
 
 
 def transform_matrix(translate=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0), rotate=(0.0, 0.0, 0.0)):
@@ -182,6 +183,8 @@ def _read_with_vtk(path):
     VTK errors to the root logger and raises on some readers but not others. VTK's console
     output is silenced and its error messages are collected into a MeshFileError instead.
     """
+    import pyvista as pv
+
     with pv.vtk_verbosity("off"), pv.VtkErrorCatcher(send_to_logging=False) as catcher:
         reader = pv.get_reader(str(path)).reader
         reader.Update()
@@ -205,8 +208,22 @@ def _vtk_message(alert):
     return re.sub(r" \(0x[0-9a-fA-F]+\)", "", useful[0])
 
 
+def _checked_triangles(points, faces, path):
+    """``(vertices, faces)`` of a triangle mesh whose face indices and vertices are valid, else
+    MeshFileError (the checks of ``_triangles``, without VTK)."""
+    outside = np.count_nonzero((faces < 0) | (faces >= len(points)))
+    if outside:
+        raise MeshFileError(f"{path}: {outside} of {faces.size} face vertex indices are out of range for {len(points)} vertices")
+    bad_points = np.count_nonzero(~np.all(np.isfinite(points), axis=1))
+    if bad_points:
+        raise MeshFileError(f"{path}: {bad_points} of {len(points)} vertices are NaN or infinite")
+    return np.asarray(points, dtype=np.float64), faces.astype(np.int32)
+
+
 def _triangles(dataset, path):
     """Validate a dataset read from `path` and return its surface as (vertices, faces) arrays."""
+    import pyvista as pv
+
     n_points = dataset.n_points
     point_ids = _cell_point_ids(dataset)
     outside = np.count_nonzero((point_ids < 0) | (point_ids >= n_points))
@@ -231,6 +248,9 @@ def _triangles(dataset, path):
 
 def _cell_point_ids(dataset):
     """All point indices the cells of `dataset` refer to (empty for implicitly connected grids)."""
+    import pyvista as pv
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
     if isinstance(dataset, pv.PolyData):
         cells = (dataset.GetVerts(), dataset.GetLines(), dataset.GetPolys(), dataset.GetStrips())
         return np.concatenate([vtk_to_numpy(c.GetConnectivityArray()) for c in cells])
@@ -275,7 +295,7 @@ class _PlyElement:
 
 
 def _read_ply(path):
-    """Parse a PLY file into a PolyData of its vertices and polygon faces.
+    """Parse a PLY file into its vertices (V, 3), face sizes (F,) and flat vertex indices.
 
     Raises MeshFileError for any file that is not a complete, well-formed PLY file.
     """
@@ -284,13 +304,14 @@ def _read_ply(path):
     except OSError as err:
         raise MeshFileError(f"{path}: cannot read ({err.strerror})") from None
     try:
-        return _ply_polydata(data)
+        return _ply_arrays(data)
     except _PlyError as err:
         raise MeshFileError(f"{path}: not a readable mesh ({err})") from None
 
 
-def _ply_polydata(data):
-    """Build a PolyData from the bytes of a PLY file; raise _PlyError if they are malformed."""
+def _ply_arrays(data):
+    """Vertices, face sizes and flat face vertex indices from the bytes of a PLY file; raise
+    _PlyError if they are malformed."""
     encoding, elements, body_start = _parse_ply_header(data)
     if encoding == "ascii":
         body = _ascii_as_binary(data[body_start:])
@@ -304,7 +325,13 @@ def _ply_polydata(data):
     points = np.column_stack([vertex[axis] for axis in "xyz"]).astype(np.float64)
     face = values.get("face", {})
     counts, indices = next((face[name] for name in _PLY_FACE_LISTS if name in face), ([], []))
-    counts, indices = _integers(counts, "face size"), _integers(indices, "vertex index")
+    return points, _integers(counts, "face size"), _integers(indices, "vertex index")
+
+
+def _polydata(points, counts, indices):
+    """A PolyData of polygon faces (``counts[i]`` vertices each, listed in ``indices``)."""
+    import pyvista as pv
+
     starts = np.cumsum(counts) - counts
     return pv.PolyData(points, faces=np.insert(indices, starts, counts))
 

@@ -21,6 +21,7 @@ import warp as wp
 from kernels.record import ENTERING, ESCAPED, HIT, KIND_NAMES, SHADOW_BLOCKED, SHADOW_LIT, RayRecord, Segment
 from kernels.traverse import VisitLog, trace_visits
 
+from .bvh import node_bounds
 from .device import resolve_device
 from .errors import WrtError
 from .loader import override_render
@@ -74,7 +75,8 @@ class RayTree:
         in order (``visit_row``: the segment's row; replayed by the render kernels' traversal
         code from the segment's start, ``kernels.traverse.trace_visits``); empty otherwise.
     bvh_lo, bvh_hi : (M, 3) float32
-        Bounds of every BVH node (index = ``visit_node``) with ``bvh=True``; empty otherwise.
+        Bounds of every node of the 4-wide BVH (index = ``visit_node``; a node's box is the union
+        of its children's) with ``bvh=True``; empty otherwise.
     """
 
     scene: Scene
@@ -192,8 +194,7 @@ def trace_rays(
     visit_row, visit_node, bvh_lo, bvh_hi = (np.zeros(0, dtype=np.int64),) * 2 + (np.zeros((0, 3), dtype=np.float32),) * 2
     if bvh:
         visit_row, visit_node = bvh_visits(frame, seg, dev)
-        nodes = frame.geometry.nodes.numpy()
-        bvh_lo, bvh_hi = nodes["lo"], nodes["hi"]
+        bvh_lo, bvh_hi = node_bounds(frame.geometry.nodes.numpy())
     index = np.array([y * w + x for x, y in chosen])
     rgb = frame.film.rgb.numpy()[index]
     position = frame.film.position.numpy()[index]

@@ -38,7 +38,7 @@ from kernels.whitted import whitted_record
 from .device import camera_data, integrator_settings, resolve_device, sampler_data, upload_geometry, upload_lights, upload_materials
 from .errors import WrtError
 from .geometry import build
-from .scene import Scene
+from .scene import AreaLight, Mesh, Polygon, Scene, Sphere, SphereLight, Triangle
 
 RECORD_KERNELS = {"raycast": raycast_record, "whitted": whitted_record, "path": path_record}
 TILE_PIXELS = 4096  # pixels per CPU launch: small enough to balance two threads, large enough to amortise a launch
@@ -55,12 +55,17 @@ def scene_features(scene: Scene) -> Features:
     used = {scene.materials[shape.material] for shape in scene.shapes}
     kinds = {m.type for m in used}
     moving = any(any(shape.velocity) for shape in scene.shapes)
+    shapes = {type(shape) for shape in scene.shapes} | {type(light) for light in scene.lights}
     return Features(
         lights=bool(scene.lights),
         specular=bool(kinds & {"mirror", "dielectric"}),
         dielectric="dielectric" in kinds,
         lens=scene.camera.aperture_radius > 0.0,
         motion=moving and scene.camera.shutter[1] > scene.camera.shutter[0],
+        moving=moving,
+        spheres=bool(shapes & {Sphere, SphereLight}),
+        triangles=bool(shapes & {Triangle, Mesh}),
+        polygons=bool(shapes & {Polygon, AreaLight}),
     )
 
 
@@ -142,7 +147,7 @@ def prepare(scene: Scene, dev: wp.context.Device) -> DeviceScene:
     """Build the BVH of ``scene`` and upload it, its materials, lights, settings, camera and a film."""
     w, h = scene.render.width, scene.render.height
     t0 = time.perf_counter()
-    prims = build(scene)
+    prims = build(scene, dev)
     build_time = time.perf_counter() - t0
     with wp.ScopedDevice(dev):
         film = Film()
