@@ -107,9 +107,10 @@ def init_leaves(
     c_lo: wp.array(dtype=wp.vec3),
     c_hi: wp.array(dtype=wp.vec3),
     c_node: wp.array(dtype=wp.int32),
+    first: wp.int32,
 ):
-    """Node i holds the i-th primitive in Morton order; it is cluster i."""
-    i = wp.tid()
+    """Node i holds the i-th primitive in Morton order; it is cluster i (``i = first + tid``)."""
+    i = first + wp.tid()
     p = sorted_prims[i]
     node = BinaryNode()
     node.lo = lo[p]
@@ -293,9 +294,9 @@ def ploc_merge(
 
 
 @wp.kernel
-def count_inner(tree: wp.array(dtype=BinaryNode), f_node: wp.array(dtype=wp.int32), counts: wp.array(dtype=wp.int32)):
-    """Inner children (wide nodes of the next level) of each node of the current level."""
-    e = wp.tid()
+def count_inner(tree: wp.array(dtype=BinaryNode), f_node: wp.array(dtype=wp.int32), counts: wp.array(dtype=wp.int32), first: wp.int32):
+    """Inner children (wide nodes of the next level) of node ``first + tid`` of the current level."""
+    e = first + wp.tid()
     node = tree[f_node[e]]
     n = int(0)
     for s in range(4):
@@ -337,11 +338,13 @@ def emit_wide(
     next_node: wp.array(dtype=wp.int32),
     next_wide: wp.array(dtype=wp.int32),
     next_offset: wp.array(dtype=wp.int32),
+    first: wp.int32,
 ):
     """Write the wide node of each entry of the current level (binary node ``f_node``, wide index
     ``f_wide``, first primitive-list entry ``f_offset``), its leaves' primitives, and the entries
-    of its inner children to the next level (at ``counts_sum - counts``, an exclusive prefix sum)."""
-    e = wp.tid()
+    of its inner children to the next level (at ``counts_sum - counts``, an exclusive prefix sum);
+    entry ``first + tid``."""
+    e = first + wp.tid()
     b = f_node[e]
     kids = tree[b].wide
     if kids[0] < 0:  # a root that is a leaf: one lane

@@ -37,8 +37,8 @@ from kernels.bvh_build import (
     ploc_nearest,
 )
 
-PLOC_RADIUS = 16  # clusters searched on either side (Meister and Bittner's choice for quality)
-CHUNK = 1 << 16  # clusters per CPU launch of the nearest-neighbour search and the merge
+PLOC_RADIUS = 8  # clusters searched on either side
+CHUNK = 1 << 16  # threads per CPU launch of the build's larger kernels
 
 __all__ = ["BvhStats", "DeviceBvh", "build_bvh", "lane_bounds", "node_bounds"]
 
@@ -107,7 +107,7 @@ class _Builder:
         tree = wp.empty(2 * n - 1, dtype=BinaryNode, device=dev)
         clusters = [tuple(wp.empty(n, dtype=t, device=dev) for t in (wp.vec3, wp.vec3, wp.int32)) for _ in range(2)]
         nn, survive, merge, survive_sum, merge_sum = (wp.empty(n, dtype=wp.int32, device=dev) for _ in range(5))
-        wp.launch(init_leaves, dim=n, inputs=[self.lo, self.hi, self.sorted, tree, *clusters[0]], device=dev)
+        self._chunked(init_leaves, n, [self.lo, self.hi, self.sorted, tree, *clusters[0]])
         m, next_node, iterations = n, n, 0
         while m > 1:
             c_lo, c_hi, c_node = clusters[iterations % 2]
@@ -149,9 +149,9 @@ class _Builder:
         counts, counts_sum = wp.empty(total, dtype=wp.int32, device=dev), wp.empty(total, dtype=wp.int32, device=dev)
         width = 1
         while width > 0:
-            wp.launch(count_inner, dim=width, inputs=[tree, level[0], counts], device=dev)
+            self._chunked(count_inner, width, [tree, level[0], counts])
             wp.utils.array_scan(counts[:width], counts_sum[:width], inclusive=True)
-            wp.launch(emit_wide, dim=width, inputs=[tree, *level, counts, counts_sum, nodes, order, *spare], device=dev)
+            self._chunked(emit_wide, width, [tree, *level, counts, counts_sum, nodes, order, *spare])
             width = _last(counts_sum, width)
             level, spare = spare, level
         return nodes, order, int(np.count_nonzero(nodes.numpy()["child"] < 0))
