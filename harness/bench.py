@@ -57,10 +57,10 @@ from wrt.loader import load_scene, override_render, parse_scene
 from wrt.mitsuba_xml import load_mitsuba
 from wrt.scene import Mesh, Scene
 
-from . import mitsuba_peer
+from . import mitsuba_peer, targets, wholeprocess
 from .references import REFERENCE_SEED
 from .score import convergence_slope, rmse, ssim
-from .throughput import format_table, run_throughput
+from .throughput import build_scaling, format_table, run_throughput
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SAMPLERS = ("independent", "stratified", "sobol")
@@ -73,6 +73,10 @@ DEFAULT_BUDGET_S = 6.0  # render seconds per curve in the full run
 QUICK_BUDGET_S = 0.5
 FULL_TRIANGLES, FULL_RAYS = 1_000_000, 1 << 20  # the ray-throughput part (harness.throughput)
 QUICK_TRIANGLES, QUICK_RAYS = 20_000, 8192
+BUILD_SIZES = (100_000, 1_000_000, 4_000_000)  # build time against size, on the CPU
+PATH_SPP, QUICK_PATH_SPP = 256, 16  # the whole-process path-tracing comparison (harness.wholeprocess)
+PATH_RES, QUICK_PATH_RES = 128, 32
+WHOLE_PROCESS_REPEATS = 5
 MIN_TRIANGLES = 1000
 THROUGHPUT_REPEATS = 5
 REFERENCE_SAMPLER = "sobol"
@@ -509,6 +513,30 @@ def table(results: dict) -> str:
     return "\n".join(["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows] + [""] + lines)
 
 
+def peers(out_dir: str, speed: dict, triangles: int, device: str, quick: bool) -> dict:
+    """Build time against size, the whole-process comparisons with Mitsuba 3, and the table of
+    ``harness.targets``: printed, and written to ``out_dir/targets.json``."""
+    log = lambda text: print(text, file=sys.stderr, flush=True)  # noqa: E731
+    sizes = (max(MIN_TRIANGLES, triangles // 10), triangles) if quick else BUILD_SIZES
+    log("build time against size:")
+    builds = build_scaling(list(sizes), device, repeats=1 if quick else 3)
+    repeats = 1 if quick else WHOLE_PROCESS_REPEATS
+    log(f"whole process, {triangles:,}-triangle mesh, against Mitsuba 3:")
+    mesh = wholeprocess.run_mesh(triangles, repeats, device, log)
+    res, spp = (QUICK_PATH_RES, QUICK_PATH_SPP) if quick else (PATH_RES, PATH_SPP)
+    cornell = BenchScene(wholeprocess.CORNELL_XML, params={"res": res})
+    reference = reference_image(cornell, os.path.join(out_dir, "references"), MIN_REFERENCE_SPP, device, log)
+    log(f"whole process, path tracing {os.path.basename(cornell.path)} at {spp} spp, against Mitsuba 3:")
+    path = wholeprocess.run_path(spp, repeats, reference["rgb"].astype(np.float64), res, ("independent",) if quick else SAMPLERS, device, log)
+    table = targets.rows(speed, builds, mesh, path)
+    summary = {"machine": speed["machine"], "device": device, "build_scaling": builds, "whole_process_mesh": mesh, "whole_process_path": path, "table": table}
+    write_json(os.path.join(out_dir, "targets.json"), summary)
+    lines = [f"{b['triangles']:>10,} triangles: wrt {b['wrt_s']:.3f} s, wp.Mesh {b['wp_mesh_s']:.3f} s" for b in builds]
+    print("\nBVH build against size (CPU):\n" + "\n".join(lines))
+    print("\nwrt against its peers (ratios above 1: wrt ahead):\n" + targets.format_rows(table, path) + f"\nwrote {out_dir}/targets.json")
+    return summary
+
+
 def command(paths: list[str], budget_s: float | None, out_dir: str, device: str, quick: bool, triangles: int | None = None) -> int:
     """``wrt bench``: run, print the tables, write the files; 0 on success. ``triangles``: size of
     the ray-throughput mesh (``harness.throughput``; default 1M, 20k with ``quick``; 0 skips it)."""
@@ -535,8 +563,9 @@ def command(paths: list[str], budget_s: float | None, out_dir: str, device: str,
     print(f"\n{results['machine']['cpu']}, {results['machine']['cores']} cores, device {device}; {results['total_s']:.0f} s; wrote {out_dir}/results.json, results.csv and plots")
     if triangles:
         rays = QUICK_RAYS if quick else FULL_RAYS
-        speed = run_throughput(triangles, rays, device=device, repeats=1 if quick else THROUGHPUT_REPEATS)
+        speed = run_throughput(triangles, rays, device=device, repeats=1 if quick else THROUGHPUT_REPEATS, reference_sah=not quick)
         speed["command"] = f"wrt bench (--triangles {triangles})"
         write_json(os.path.join(out_dir, "throughput.json"), speed)
         print("\n" + format_table(speed) + f"\nwrote {out_dir}/throughput.json")
+        peers(out_dir, speed, triangles, device, quick)
     return 0

@@ -415,7 +415,49 @@ def _agreement(ref: np.ndarray, other: np.ndarray, query: str) -> dict:
     }
 
 
-def run_throughput(triangles: int = 1_000_000, rays: int = 1 << 20, device: str = "cpu", repeats: int = 3, threads: int | None = None, embree: bool = True) -> dict:
+def binned_sah_reference(vertices: np.ndarray, faces: np.ndarray) -> dict:
+    """The SAH cost (with wrt's constants) of the top-down binned-SAH tree of the numpy reference
+    builder (``harness.binned_sah``, wrt's builder before the device build) on the same mesh."""
+    from kernels.bvh_build import INTERSECTION_COST, TRAVERSAL_COST
+
+    from .binned_sah import build_bvh, sah_cost
+
+    tri = vertices.astype(np.float32)[faces].astype(np.float64)
+    t0 = time.perf_counter()
+    bvh = build_bvh(tri.min(axis=1), tri.max(axis=1))
+    seconds = time.perf_counter() - t0
+    leaves = bvh.count[bvh.count > 0]
+    return {
+        "builder": "harness.binned_sah: numpy, 16 bins, top down, breadth first (binary)",
+        "build_s": seconds,
+        "sah_cost": sah_cost(bvh, float(TRAVERSAL_COST), float(INTERSECTION_COST)),
+        "binary_nodes": len(bvh.count),
+        "leaves": len(leaves),
+        "mean_leaf_triangles": float(leaves.mean()),
+    }
+
+
+def build_scaling(sizes: list[int], device: str = "cpu", repeats: int = 3) -> list[dict]:
+    """Build seconds of wrt (``wrt.geometry.build``: from mesh arrays to the device BVH and
+    leaf-ordered triangles) and of ``wp.Mesh`` (from points and indices on the device) on tori of
+    ``sizes`` triangles, the fastest of ``repeats`` each, alternating."""
+    init_warp()
+    dev = resolve_device(device)
+    rows = []
+    for n in sizes:
+        vertices, faces = torus_mesh(n)
+        wrt_s, mesh_s = [], []
+        for _ in range(repeats):
+            engine = WrtEngine(vertices, faces, dev)
+            wrt_s.append(engine.build["build_s"])
+            mesh_s.append(WarpMeshEngine(vertices, faces, dev).build["build_s"])
+        rows.append({"triangles": len(faces), "wrt_s": min(wrt_s), "wp_mesh_s": min(mesh_s), "wrt_phases_s": engine.build["bvh_phases_s"], "sah_cost": engine.build["sah_cost"]})
+    return rows
+
+
+def run_throughput(
+    triangles: int = 1_000_000, rays: int = 1 << 20, device: str = "cpu", repeats: int = 3, threads: int | None = None, embree: bool = True, reference_sah: bool = False
+) -> dict:
     """Measure closest-hit and any-hit ray throughput of every engine; JSON-serialisable results.
 
     Parameters
@@ -432,6 +474,9 @@ def run_throughput(triangles: int = 1_000_000, rays: int = 1 << 20, device: str 
         Workers of the "all threads" runs (default: all available cores).
     embree : bool
         Include Embree when ``embreex`` is importable.
+    reference_sah : bool
+        Also build the binned-SAH reference tree (``binned_sah_reference``: 10-16 s at 1M triangles)
+        and report its SAH cost beside wrt's.
 
     Returns
     -------
@@ -511,6 +556,8 @@ def run_throughput(triangles: int = 1_000_000, rays: int = 1 << 20, device: str 
         results["throughput"][ray_set] = per_query
         results["agreement"][ray_set] = agree
     results["ratios"] = _ratios(results)
+    if reference_sah:
+        results["binned_sah_reference"] = binned_sah_reference(vertices, faces)
     return results
 
 
@@ -586,6 +633,12 @@ def format_table(results: dict) -> str:
         f"SAH cost {w['sah_cost']:.1f}, stack need {w['stack_need']}; "
         + ", ".join(f"{ray_set} rays visit {results['rays'][ray_set]['wide_nodes_per_ray']:.1f} nodes" for ray_set in results["rays"]),
     ]
+    ref = results.get("binned_sah_reference")
+    if ref:
+        lines.append(
+            f"binned-SAH reference tree (wrt's builder before the device build) on the same mesh: SAH cost {ref['sah_cost']:.1f}, "
+            f"{ref['leaves']:,} leaves of {ref['mean_leaf_triangles']:.2f} triangles, built in {ref['build_s']:.1f} s (numpy, one thread)"
+        )
     lines += ["", f"agreement with wrt (hit/miss differs, or hit distance differs by more than {results['t_rtol']:g} relative):"]
     agree = [["rays", "query", "hit fraction"] + [f"{e} mismatches" for e in engines if e != "wrt"]]
     for ray_set, per_query in results["agreement"].items():
@@ -608,10 +661,13 @@ def main(argv=None) -> int:
     parser.add_argument("--device", default="cpu", help="Warp device of the Warp engines (default cpu)")
     parser.add_argument("--threads", type=int, default=None, help="workers of the all-threads runs (default: all cores)")
     parser.add_argument("--no-embree", action="store_true", help="leave Embree out even when embreex is installed")
+    parser.add_argument("--reference-sah", action="store_true", help="also build the binned-SAH reference tree and report its SAH cost")
     parser.add_argument("-o", "--output", help="write the results as JSON here")
     args = parser.parse_args(argv)
     try:
-        results = run_throughput(args.triangles, args.rays, device=args.device, repeats=args.repeats, threads=args.threads, embree=not args.no_embree)
+        results = run_throughput(
+            args.triangles, args.rays, device=args.device, repeats=args.repeats, threads=args.threads, embree=not args.no_embree, reference_sah=args.reference_sah
+        )
     except (ValueError, WrtError) as e:
         parser.error(str(e))
     results["command"] = " ".join(["python -m harness.throughput", *(sys.argv[1:] if argv is None else argv)])

@@ -142,26 +142,28 @@ def _summary(times: list[float]) -> dict:
     return {"median_s": statistics.median(times), "min_s": min(times), "max_s": max(times), "times_s": times}
 
 
-def run_mesh(triangles: int, repeats: int, log=None) -> dict:
-    """The mesh comparison (see the module docstring): wall times of both whole processes."""
+def run_mesh(triangles: int, repeats: int, device: str = "cpu", log=None) -> dict:
+    """The mesh comparison (see the module docstring): wall times of both whole processes, wrt's
+    on ``device``."""
     variant = mitsuba_peer.variant()
     mitsuba = mitsuba_command(variant)
     with tempfile.TemporaryDirectory(prefix="wrt-bench-mesh-") as folder:
         toml, xml = mesh_scenes(folder, triangles)
-        commands = {"wrt": [wrt_command() + ["render", toml, "-o", os.path.join(folder, "wrt.exr")]] * (repeats + 1)}
+        commands = {"wrt": [wrt_command() + ["render", toml, "-o", os.path.join(folder, "wrt.exr"), "--device", device]] * (repeats + 1)}
         if mitsuba is not None:
             commands["Mitsuba"] = [mitsuba + ["-o", os.path.join(folder, "mitsuba.exr"), xml]] * (repeats + 1)
         times = alternate(commands, folder, log)
-    result = {"triangles": triangles, "pixels": MESH_SIZE * MESH_SIZE, "repeats": repeats, "mitsuba_variant": variant if mitsuba else None}
+    result = {"triangles": triangles, "pixels": MESH_SIZE * MESH_SIZE, "repeats": repeats, "device": device, "mitsuba_variant": variant if mitsuba else None}
     result.update({name: _summary(t) for name, t in times.items()})
     if "Mitsuba" in result:
         result["ratio"] = result["Mitsuba"]["median_s"] / result["wrt"]["median_s"]  # above 1: wrt is faster
     return result
 
 
-def run_path(spp: int, repeats: int, reference: np.ndarray, samplers: tuple[str, ...] = ("independent",), log=None) -> dict:
-    """The path-tracing comparison (see the module docstring): wall times, MSEs and Monte Carlo
-    efficiencies of wrt (one entry per sampler, ``wrt`` for the file's own) and Mitsuba."""
+def run_path(spp: int, repeats: int, reference: np.ndarray, res: int = 128, samplers: tuple[str, ...] = ("independent",), device: str = "cpu", log=None) -> dict:
+    """The path-tracing comparison (see the module docstring) at ``res`` x ``res`` pixels: wall
+    times, MSEs and Monte Carlo efficiencies of wrt on ``device`` (one entry per sampler, ``wrt``
+    for the file's own) and Mitsuba. ``reference``: the converged image at that size."""
     variant = mitsuba_peer.variant()
     mitsuba = mitsuba_command(variant)
     with tempfile.TemporaryDirectory(prefix="wrt-bench-path-") as folder:
@@ -171,13 +173,14 @@ def run_path(spp: int, repeats: int, reference: np.ndarray, samplers: tuple[str,
             name = "wrt" if sampler == "independent" else f"wrt {sampler}"
             outputs[name] = [os.path.join(folder, f"{name.replace(' ', '-')}-{k}.exr") for k in range(repeats + 1)]
             extra = [] if sampler == "independent" else ["--sampler", sampler]
-            commands[name] = [wrt_command() + ["render", xml, "-o", out, "--spp", str(spp), "--seed", str(k)] + extra for k, out in enumerate(outputs[name])]
+            size = ["--width", str(res), "--height", str(res), "--device", device]
+            commands[name] = [wrt_command() + ["render", xml, "-o", out, "--spp", str(spp), "--seed", str(k)] + size + extra for k, out in enumerate(outputs[name])]
         if mitsuba is not None:
             outputs["Mitsuba"] = [os.path.join(folder, f"mitsuba-{k}.exr") for k in range(repeats + 1)]
-            commands["Mitsuba"] = [mitsuba + ["-o", out, f"-Dspp={spp}", f"-Dseed={k}", xml] for k, out in enumerate(outputs["Mitsuba"])]
+            commands["Mitsuba"] = [mitsuba + ["-o", out, f"-Dspp={spp}", f"-Dseed={k}", f"-Dres={res}", xml] for k, out in enumerate(outputs["Mitsuba"])]
         times = alternate(commands, folder, log)
         errors = {name: [float(np.mean((read_image(out).rgb.astype(np.float64) - reference) ** 2)) for out in outs[1:]] for name, outs in outputs.items()}
-    result = {"scene": os.path.relpath(CORNELL_XML, ROOT), "spp": spp, "repeats": repeats, "mitsuba_variant": variant if mitsuba else None}
+    result = {"scene": os.path.relpath(CORNELL_XML, ROOT), "res": res, "spp": spp, "repeats": repeats, "device": device, "mitsuba_variant": variant if mitsuba else None}
     for name in times:
         mse = float(np.mean(errors[name]))
         entry = _summary(times[name])

@@ -4,24 +4,27 @@
 the all-features kernels (``features == ALL``) are the ones each integrator module builds at
 import; any other variant is built here into a Warp module of its own, named after the
 integrator and ``features.key``, so that adding a variant never recompiles a module that has
-already been loaded, and Warp's kernel cache keeps each compiled variant across processes.
+already been loaded, and Warp's kernel cache keeps each compiled variant across processes. An
+integrator's module is imported when its kernel is first asked for: a process pays the start-up
+cost (Warp parses every function's source at import) of the integrator it renders with only.
 """
 from __future__ import annotations
 
 import functools
+import importlib
 
 from .features import ALL, Features
 from .integrator import make_render_kernel
-from .path import make_path_radiance, path
-from .raycast import raycast, raycast_radiance
-from .whitted import make_whitted_radiance, whitted
 
-ALL_FEATURES_KERNELS = {"raycast": raycast, "whitted": whitted, "path": path}
-RADIANCE_FACTORIES = {
-    "raycast": lambda features: raycast_radiance,
-    "whitted": lambda features: make_whitted_radiance(False, features),
-    "path": lambda features: make_path_radiance(False, features),
-}
+INTEGRATORS = ("raycast", "whitted", "path")
+
+
+def _radiance(integrator: str, features: Features):
+    """The rendering (not recording) radiance function of ``integrator`` for ``features``."""
+    module = importlib.import_module(f"{__package__}.{integrator}")
+    if integrator == "raycast":
+        return module.raycast_radiance  # primary rays only: nothing to specialise in it
+    return getattr(module, f"make_{integrator}_radiance")(False, features)
 
 
 def relevant(integrator: str, features: Features) -> Features:
@@ -47,6 +50,5 @@ def render_kernel(integrator: str, features: Features):
 @functools.cache
 def _kernel(integrator: str, features: Features):
     if features == ALL:
-        return ALL_FEATURES_KERNELS[integrator]
-    radiance = RADIANCE_FACTORIES[integrator](features)
-    return make_render_kernel(radiance, features=features, module=f"wrt_{integrator}_{features.key}")
+        return getattr(importlib.import_module(f"{__package__}.{integrator}"), integrator)
+    return make_render_kernel(_radiance(integrator, features), features=features, module=f"wrt_{integrator}_{features.key}")

@@ -157,21 +157,28 @@ def build(scene: Scene, device) -> Primitives:
     """Flatten ``scene``, build the BVH over its bounded primitives on ``device`` (a Warp device)
     and reorder to leaf order."""
     p = flatten(scene)
-    ids = p.bounded_ids()
     bvh = build_bvh(*p.bounds(scene.camera.shutter), device)
-    ids = ids[bvh.order.numpy()]
-    s = _leaf_order(SPHERE, ids)
-    t = _leaf_order(TRIANGLE, ids)
-    g = _leaf_order(POLYGON, ids)
-    p.sphere_center, p.sphere_radius, p.sphere_shape = p.sphere_center[s], p.sphere_radius[s], p.sphere_shape[s]
-    p.tri_verts, p.tri_shape = p.tri_verts[t], p.tri_shape[t]
-    p.poly_verts, p.poly_normal, p.poly_shape = [p.poly_verts[k] for k in g], p.poly_normal[g], p.poly_shape[g]
-    # renumber the packed ids: the k-th primitive of a kind in leaf order now has index k
-    new_ids = np.empty_like(ids)
-    for kind in (SPHERE, TRIANGLE, POLYGON):
-        mask = (ids & 3) == kind
-        new_ids[mask] = (np.arange(mask.sum()) << 2) | kind
-    p.bvh, p.prims = bvh, new_ids.astype(np.int32)
+    order = bvh.order.numpy()
+    counts = (len(p.sphere_radius), len(p.tri_shape), len(p.poly_verts))
+    if max(counts) == len(order):  # one kind (a mesh, say): the leaf order is that kind's order
+        kind = int(np.argmax(counts))
+        s = t = g = order
+        new_ids = (np.arange(len(order), dtype=np.int32) << 2) | kind
+    else:
+        ids = p.bounded_ids()[order]
+        s, t, g = (_leaf_order(kind, ids) for kind in (SPHERE, TRIANGLE, POLYGON))
+        # renumber the packed ids: the k-th primitive of a kind in leaf order now has index k
+        new_ids = np.empty(len(ids), dtype=np.int32)
+        for kind in (SPHERE, TRIANGLE, POLYGON):
+            mask = (ids & 3) == kind
+            new_ids[mask] = (np.arange(mask.sum()) << 2) | kind
+    if counts[0]:
+        p.sphere_center, p.sphere_radius, p.sphere_shape = p.sphere_center[s], p.sphere_radius[s], p.sphere_shape[s]
+    if counts[1]:
+        p.tri_verts, p.tri_shape = p.tri_verts[t], p.tri_shape[t]
+    if counts[2]:
+        p.poly_verts, p.poly_normal, p.poly_shape = [p.poly_verts[k] for k in g], p.poly_normal[g], p.poly_shape[g]
+    p.bvh, p.prims = bvh, new_ids
     return p
 
 

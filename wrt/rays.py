@@ -1,7 +1,7 @@
 """Trace chosen pixels with the scene's integrator and return every ray it traced: the ray trees.
 
 The rays come from the render kernels themselves, in their recording variant
-(``wrt.renderer.RECORD_KERNELS``, see ``kernels.record``), launched over the chosen pixels with
+(``RECORD_KERNELS``, see ``kernels.record``), launched over the chosen pixels with
 the same set-up as ``wrt.render``: same camera rays, same samples for the same seed, same
 decisions. Nothing is re-implemented in Python.
 
@@ -18,16 +18,20 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from kernels.path import path_record
+from kernels.raycast import raycast_record
 from kernels.record import ENTERING, ESCAPED, HIT, KIND_NAMES, SHADOW_BLOCKED, SHADOW_LIT, RayRecord, Segment
 from kernels.traverse import VisitLog, trace_visits
+from kernels.whitted import whitted_record
 
 from .bvh import node_bounds
 from .device import resolve_device
 from .errors import WrtError
 from .loader import override_render
-from .renderer import RECORD_KERNELS, prepare
+from .renderer import prepare
 from .scene import Scene
 
+RECORD_KERNELS = {"raycast": raycast_record, "whitted": whitted_record, "path": path_record}  # all three, before any launch
 DEFAULT_CAPACITY = 1 << 18  # segments (about 30 MB); a whitted camera ray is at most 512 plus its shadow rays
 MAX_VISITS = 512  # BVH nodes logged per replayed ray (--show-bvh)
 

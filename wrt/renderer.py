@@ -13,7 +13,7 @@ render with the samples done.
 
 ``prepare`` is the one set-up path (BVH build, uploads, film) for every launch of an integrator
 kernel: ``render`` launches the rendering variants over the image, ``wrt.rays`` the recording
-variants (``RECORD_KERNELS``) over chosen pixels.
+variants over chosen pixels.
 """
 from __future__ import annotations
 
@@ -29,18 +29,14 @@ import warp as wp
 
 from kernels.features import ALL, Features
 from kernels.film import LUMINANCE_WEIGHTS, Film
-from kernels.raycast import raycast_record
 from kernels.record import RayRecord
-from kernels.path import path_record
 from kernels.variants import render_kernel
-from kernels.whitted import whitted_record
 
 from .device import camera_data, integrator_settings, resolve_device, sampler_data, upload_geometry, upload_lights, upload_materials
 from .errors import WrtError
 from .geometry import build
 from .scene import AreaLight, Mesh, Polygon, Scene, Sphere, SphereLight, Triangle
 
-RECORD_KERNELS = {"raycast": raycast_record, "whitted": whitted_record, "path": path_record}
 TILE_PIXELS = 4096  # pixels per CPU launch: small enough to balance two threads, large enough to amortise a launch
 PASS_SECONDS = 1.0  # wall seconds a pass of a progressive render aims at
 AOV_NAMES = ("depth", "normal", "object_id", "position")
