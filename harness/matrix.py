@@ -22,7 +22,7 @@ import tomllib
 from dataclasses import dataclass, field
 
 from wrt.errors import WrtError
-from wrt.loader import parse_scene
+from wrt.loader import override_render, parse_scene
 from wrt.scene import Mesh, Scene
 
 HARNESS_DIR = os.path.dirname(os.path.abspath(__file__))
@@ -30,6 +30,7 @@ FEATURES_FILE = os.path.join(HARNESS_DIR, "features.toml")
 # SSIM of the id images below which the geometry oracle disagrees: exact agreement scores 1; a
 # plane's horizon (the rasteriser's plane is a finite patch) and rasteriser edge rules cost up to ~0.01
 GEOMETRY_THRESHOLD = 0.98
+MATRIX_SAMPLER = "independent"  # unless a feature's scene names one (see load_feature_scene)
 _PATH_PART = re.compile(r"^(?P<key>[A-Za-z_]\w*)(\[(?P<sel>[^\]]+)\])?$")
 
 
@@ -157,8 +158,15 @@ def scene_document(feature: Feature, wrong: bool = False) -> dict:
 
 
 def load_feature_scene(feature: Feature, wrong: bool = False) -> Scene:
-    """The validated scene of a feature (or of its wrong variant)."""
-    return parse_scene(scene_document(feature, wrong), file=feature.scene, scene_dir=os.path.dirname(feature.scene))
+    """The validated scene of a feature (or of its wrong variant), with the ``MATRIX_SAMPLER``
+    unless the scene names a sampler: the Z-test (``harness.score.z_test``) scales a reference's
+    per-sample variance by 1/spp, which holds for independent samples, not for the faster
+    convergence of the default (sobol) on smooth pixels."""
+    doc = scene_document(feature, wrong)
+    scene = parse_scene(doc, file=feature.scene, scene_dir=os.path.dirname(feature.scene))
+    if "sampler" not in doc["render"]:
+        scene = override_render(scene, source=f"feature {feature.name!r}", sampler=MATRIX_SAMPLER)
+    return scene
 
 
 def scene_hash(feature: Feature) -> str:

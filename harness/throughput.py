@@ -54,8 +54,8 @@ from kernels.traverse import VisitLog, trace_kernels
 from wrt.files import write_json
 from wrt.device import cpu_model, init_warp, resolve_device, upload_geometry
 from wrt.errors import WrtError
-from wrt.bvh import PLOC_RADIUS
-from wrt.geometry import build
+from wrt.bvh import PLOC_RADIUS, build_bvh
+from wrt.geometry import build, flatten
 from wrt.renderer import TILE_PIXELS, default_threads, scene_features
 from wrt.scene import Camera, Material, Mesh, RenderSettings, Scene
 
@@ -165,6 +165,16 @@ def _nbytes(a: wp.array) -> int:
     return int(a.size) * wp.types.type_size_in_bytes(a.dtype)
 
 
+def _mesh_scene(vertices: np.ndarray, faces: np.ndarray) -> Scene:
+    """A scene of the mesh alone (camera and materials do not matter to a BVH)."""
+    return Scene(
+        render=RenderSettings(),
+        camera=Camera(origin=(0.0, 0.0, 5.0), look_at=(0.0, 0.0, 0.0)),
+        materials=(Material(name="mesh"),),
+        shapes=(Mesh(file="<procedural torus>", vertices=vertices, faces=faces, material=0),),
+    )
+
+
 class WrtEngine:
     """The project's BVH: built and uploaded as the renderer does, traced by ``kernels.traverse``
     compiled for the scene's geometry, as the renderer's specialised kernels are (a triangle mesh:
@@ -173,12 +183,7 @@ class WrtEngine:
     name = "wrt"
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray, dev):
-        scene = Scene(
-            render=RenderSettings(),
-            camera=Camera(origin=(0.0, 0.0, 5.0), look_at=(0.0, 0.0, 0.0)),
-            materials=(Material(name="mesh"),),
-            shapes=(Mesh(file="<procedural torus>", vertices=vertices, faces=faces, material=0),),
-        )
+        scene = _mesh_scene(vertices, faces)
         self.dev = dev
         self.closest_kernel, self.any_kernel, self.visits_kernel = trace_kernels(scene_features(scene))
         t0 = time.perf_counter()
@@ -438,20 +443,29 @@ def binned_sah_reference(vertices: np.ndarray, faces: np.ndarray) -> dict:
 
 
 def build_scaling(sizes: list[int], device: str = "cpu", repeats: int = 3) -> list[dict]:
-    """Build seconds of wrt (``wrt.geometry.build``: from mesh arrays to the device BVH and
-    leaf-ordered triangles) and of ``wp.Mesh`` (from points and indices on the device) on tori of
-    ``sizes`` triangles, the fastest of ``repeats`` each, alternating."""
+    """Build seconds on tori of ``sizes`` triangles, the fastest of ``repeats`` each, alternating:
+    ``wrt_s``, wrt's BVH from the triangle soup (``Primitives.bounds`` and ``wrt.bvh.build_bvh``,
+    what ``wp.Mesh`` does from its points and indices); ``wp_mesh_s``, ``wp.Mesh`` from points and
+    indices already on the device; ``wrt_scene_s``, all of ``wrt.geometry.build`` (the soup from the
+    mesh, the BVH, the triangles reordered to leaf order)."""
     init_warp()
     dev = resolve_device(device)
     rows = []
     for n in sizes:
         vertices, faces = torus_mesh(n)
-        wrt_s, mesh_s = [], []
+        scene = _mesh_scene(vertices, faces)
+        soup = flatten(scene)
+        wrt_s, scene_s, mesh_s = [], [], []
         for _ in range(repeats):
-            engine = WrtEngine(vertices, faces, dev)
-            wrt_s.append(engine.build["build_s"])
+            t0 = time.perf_counter()
+            bvh = build_bvh(*soup.bounds(), dev)
+            wp.synchronize_device(dev)
+            wrt_s.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            build(scene, dev)
+            scene_s.append(time.perf_counter() - t0)
             mesh_s.append(WarpMeshEngine(vertices, faces, dev).build["build_s"])
-        rows.append({"triangles": len(faces), "wrt_s": min(wrt_s), "wp_mesh_s": min(mesh_s), "wrt_phases_s": engine.build["bvh_phases_s"], "sah_cost": engine.build["sah_cost"]})
+        rows.append({"triangles": len(faces), "wrt_s": min(wrt_s), "wp_mesh_s": min(mesh_s), "wrt_scene_s": min(scene_s), "wrt_phases_s": bvh.stats.phases_s, "sah_cost": bvh.stats.sah_cost})
     return rows
 
 
