@@ -38,8 +38,7 @@ import warp as wp
 from .bvh import MAX_LEAF, WideNode, leaf_ref
 from .sampling import pcg_hash
 
-import os
-TRAVERSAL_COST = wp.constant(float(os.environ.get("CT", "1.0")))  # SAH cost of visiting a binary node, relative to one primitive test
+TRAVERSAL_COST = wp.constant(2.0)  # SAH cost of visiting a binary node, relative to one primitive test (measured choice: docs/performance.md)
 INTERSECTION_COST = wp.constant(1.0)
 MORTON_SCALE = wp.constant(1023.0)  # 10 bits per axis
 MORTON_1 = wp.constant(wp.uint32(0x00010001))
