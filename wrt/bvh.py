@@ -1,12 +1,13 @@
 """BVH build on the render device: the host side, which launches the kernels of
 ``kernels.bvh_build`` and checks the result.
 
-``build_bvh(lo, hi, device)`` takes the primitives' float32 bounds and builds the 4-wide BVH of ``kernels.bvh`` where it will be traversed: Morton codes,
-radix sort, PLOC clustering (radius ``PLOC_RADIUS``) with SAH leaves of at most ``MAX_LEAF``
-primitives, and the depth-first collapse to four children per node. Each step is a Warp launch
-on ``device``; the host only reads back a cluster count per PLOC iteration and a node count per
-level of the collapse. On the CPU the nearest-neighbour search, nearly all of the work, is split
-into chunks launched from a thread pool, one per core (a Warp CPU launch runs on one thread).
+``build_bvh(lo, hi, device)`` takes the primitives' float32 bounds and builds the 4-wide BVH of
+``kernels.bvh`` where it will be traversed: Morton codes, radix sort, PLOC clustering (radius
+``PLOC_RADIUS``) with SAH leaves of at most ``kernels.bvh.MAX_LEAF`` primitives, and the
+depth-first collapse to four children per node. Each step is a Warp launch on ``device``; the host
+only reads back a cluster count per PLOC iteration and a node count per level of the collapse.
+On the CPU the larger kernels (nearest neighbours, merges, leaf set-up, collapse) are split into
+chunks launched from a thread pool, one worker per core (a Warp CPU launch runs on one thread).
 
 Depth is bounded by construction: the traversal stack holds ``STACK_SIZE`` entries, and every
 tree records the most entries a traversal of it can need. A PLOC tree needing more (a pathological
@@ -103,7 +104,6 @@ class _Builder:
         """Cluster the primitives into a binary tree (PLOC, or pairs when ``breadth_first``):
         returns the tree, its root and the iterations taken."""
         n, dev = self.n, self.device
-        size = 2 * n - 1
         tree = wp.empty(2 * n - 1, dtype=BinaryNode, device=dev)
         clusters = [tuple(wp.empty(n, dtype=t, device=dev) for t in (wp.vec3, wp.vec3, wp.int32)) for _ in range(2)]
         nn, survive, merge, survive_sum, merge_sum = (wp.empty(n, dtype=wp.int32, device=dev) for _ in range(5))
@@ -210,7 +210,6 @@ def build_bvh(lo: np.ndarray, hi: np.ndarray, device) -> DeviceBvh:
     stats.phases_s = phases
     stats.build_s = time.perf_counter() - t0
     return DeviceBvh(nodes, order, stats)
-
 
 
 def lane_bounds(nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
