@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from harness import bench
+from harness.targets import TARGETS
 from wrt.cli import main
 
 
@@ -117,3 +118,17 @@ def test_command_line_runs_both_parts(tmp_path, capsys):
     assert 1500 < speed["mesh"]["triangles"] <= 2000 and speed["command"] == "wrt bench (--triangles 2000)"  # about N
     with open(tmp_path / "results.json") as f:
         assert json.load(f)["scenes"][0]["name"].endswith("soft_shadows")
+    # the table against the peers: every row present, every measured ratio finite and positive
+    assert "wrt against its peers" in out
+    with open(tmp_path / "targets.json") as f:
+        targets = json.load(f)
+    assert [r["row"] for r in targets["table"]] == list(TARGETS)
+    for r in targets["table"]:
+        assert r["ratio"] is None or (math.isfinite(r["ratio"]) and r["ratio"] > 0), r
+        assert r["met"] == (None if r["ratio"] is None else r["ratio"] >= r["target"])
+    assert [b["triangles"] for b in targets["build_scaling"]] == sorted(b["triangles"] for b in targets["build_scaling"])
+    path = targets["whole_process_path"]
+    for name in ("wrt", "Mitsuba") if "Mitsuba" in path else ("wrt",):
+        # 16 spp against a 256-spp reference of the same scene: the error is the image's noise
+        assert 0 < path[name]["mse"] < 0.5 and path[name]["median_s"] > 0
+    assert targets["whole_process_mesh"]["wrt"]["median_s"] > 0
