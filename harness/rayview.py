@@ -41,7 +41,7 @@ from wrt.loader import load_scene
 from wrt.rays import DEFAULT_CAPACITY, RayTree, grid_pixels, trace_rays
 from wrt.scene import DirectionalLight, Mesh, Plane, PointLight, Polygon, Sphere, SpotLight, Triangle
 
-# colour of each kind (indices of kernels.record.KIND_NAMES)
+# colour of each kind (indices of wrt.kernels.record.KIND_NAMES)
 KIND_COLORS = ("#1f5fbf", "#f0a202", "#c1121f", "#2a9d3f", "#8e44ad", "#e056b5", "#16a3b8", "#7a5c3e")
 GEOMETRY_OPACITY = 0.25
 PLANE_OPACITY = 0.12  # planes are large: fainter, so they do not veil the rays

@@ -1,7 +1,7 @@
 """The stress suite behind ``wrt stress``: adversarial rays through the real Warp kernels.
 
 Every case builds its scene in memory, shoots rays through the kernels the renderer uses
-(``kernels.traverse.trace_closest`` / ``trace_any``, ``kernels.stress.trace_spawned``, or
+(``wrt.kernels.traverse.trace_closest`` / ``trace_any``, ``wrt.kernels.stress.trace_spawned``, or
 ``wrt.render`` with the raycast and whitted integrators) and counts the rays that break the
 case's rule. A case passes when that count is zero. The bounds and what each case measures are
 documented in ``docs/stress.md``.
@@ -21,9 +21,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
-import kernels  # noqa: F401  (configures Warp)
-from kernels import spawn
-from kernels.traverse import NO_HIT, SPHERE, trace_any, trace_closest
+import wrt.kernels  # noqa: F401  (configures Warp)
+from wrt.kernels import spawn
+from wrt.kernels.traverse import NO_HIT, SPHERE, trace_any, trace_closest
 from wrt.device import upload_geometry
 from wrt.files import write_atomic
 from wrt.bvh import lane_bounds
@@ -316,8 +316,8 @@ def _plane_ids(tracer):
 
 
 def trace_spawned_batch(tracer, origins, directions, shadow_local, ior, offset_scale=1.0):
-    """Run ``kernels.stress.trace_spawned``; returns its outputs as numpy arrays by name."""
-    from kernels.stress import trace_spawned
+    """Run ``wrt.kernels.stress.trace_spawned``; returns its outputs as numpy arrays by name."""
+    from wrt.kernels.stress import trace_spawned
 
     n = len(origins)
     names = [

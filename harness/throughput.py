@@ -9,7 +9,7 @@ hit with its distance, ``any`` hit: occlusion yes/no), three engines:
 
 - ``wrt``: the project's BVH, built as the renderer builds it (``wrt.geometry.build``: numpy
   binned SAH) and uploaded by ``wrt.device.upload_geometry``, traced by the kernels
-  ``kernels.traverse.trace_closest`` and ``trace_any``;
+  ``wrt.kernels.traverse.trace_closest`` and ``trace_any``;
 - ``wp.Mesh``: Warp's own mesh BVH (SAH, leaf size 4, built in C++) with ``wp.mesh_query_ray``
   and ``wp.mesh_query_ray_anyhit`` (``mesh_closest``, ``mesh_any`` below);
 - ``Embree``: Embree 4 through the optional ``embreex`` package (``pip install -e '.[bench]'``),
@@ -49,8 +49,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import warp as wp
 
-import kernels  # noqa: F401  (configures Warp)
-from kernels.traverse import VisitLog, trace_kernels
+import wrt.kernels  # noqa: F401  (configures Warp)
+from wrt.kernels.traverse import VisitLog, trace_kernels
 from wrt.files import write_json
 from wrt.device import cpu_model, init_warp, resolve_device, upload_geometry
 from wrt.errors import WrtError
@@ -176,7 +176,7 @@ def _mesh_scene(vertices: np.ndarray, faces: np.ndarray) -> Scene:
 
 
 class WrtEngine:
-    """The project's BVH: built and uploaded as the renderer does, traced by ``kernels.traverse``
+    """The project's BVH: built and uploaded as the renderer does, traced by ``wrt.kernels.traverse``
     compiled for the scene's geometry, as the renderer's specialised kernels are (a triangle mesh:
     no sphere or polygon tests)."""
 
@@ -223,7 +223,7 @@ class WrtEngine:
             wp.launch(self.any_kernel, dim=len(o), inputs=[self.data, o, d, 0.0, T_MAX, out[0]], device=self.dev)
 
     def visits_per_ray(self, o: wp.array, d: wp.array) -> float:
-        """Mean wide nodes a closest-hit query visits (``kernels.traverse.trace_visits``)."""
+        """Mean wide nodes a closest-hit query visits (``wrt.kernels.traverse.trace_visits``)."""
         log = VisitLog()
         log.nodes = wp.zeros((len(o), 1), dtype=wp.int32, device=self.dev)
         log.count = wp.zeros(len(o), dtype=wp.int32, device=self.dev)
@@ -423,7 +423,7 @@ def _agreement(ref: np.ndarray, other: np.ndarray, query: str) -> dict:
 def binned_sah_reference(vertices: np.ndarray, faces: np.ndarray) -> dict:
     """The SAH cost (with wrt's constants) of the top-down binned-SAH tree of the numpy reference
     builder (``harness.binned_sah``, wrt's builder before the device build) on the same mesh."""
-    from kernels.bvh_build import INTERSECTION_COST, TRAVERSAL_COST
+    from wrt.kernels.bvh_build import INTERSECTION_COST, TRAVERSAL_COST
 
     from .binned_sah import build_bvh, sah_cost
 

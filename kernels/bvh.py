@@ -1,6 +1,6 @@
 """The device BVH: a 4-wide tree of ``WideNode``s, and the ray-box test of a node's four children.
 
-Layout (built by ``kernels.bvh_build``, walked by ``kernels.traverse``): ``nodes[0]`` is the
+Layout (built by ``wrt.kernels.bvh_build``, walked by ``wrt.kernels.traverse``): ``nodes[0]`` is the
 root; nodes are numbered depth first, so a subtree's nodes are contiguous. Each node holds the
 bounds of up to ``WIDTH`` children side by side, one lane per child in each of six ``vec4``
 (``lo_x`` ... ``hi_z``), and a ``vec4i`` of child references:

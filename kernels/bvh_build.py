@@ -1,5 +1,5 @@
 """BVH construction on the render device: Morton order, PLOC clustering with SAH leaves, and the
-depth-first collapse into the 4-wide tree of ``kernels.bvh``. ``wrt.bvh`` drives the launches.
+depth-first collapse into the 4-wide tree of ``wrt.kernels.bvh``. ``wrt.bvh`` drives the launches.
 
 1. ``morton_codes``: 30-bit Morton codes of the primitives' box centres, then sorted
    (``wp.utils.radix_sort_pairs``): the initial clusters, one primitive each, in Morton order.
@@ -13,7 +13,7 @@ depth-first collapse into the 4-wide tree of ``kernels.bvh``. ``wrt.bvh`` drives
    on every run of a device.
    ``pair_neighbours`` is the fallback: it pairs clusters 2i and 2i+1 (a Morton-order median tree,
    depth ``ceil(log2 n)``), used when a PLOC tree would need a deeper traversal stack than
-   ``kernels.bvh.STACK_SIZE`` (see ``wrt.bvh``).
+   ``wrt.kernels.bvh.STACK_SIZE`` (see ``wrt.bvh``).
 3. Each new node decides bottom up, by the surface area heuristic, whether its subtree becomes
    one leaf (at most ``MAX_LEAF`` primitives, and only if that is cheaper than splitting:
    ``INTERSECTION_COST * n * area <= TRAVERSAL_COST * area + cost(left) + cost(right)``), and,

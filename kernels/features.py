@@ -4,10 +4,10 @@ Each integrator's kernel is built per distinct ``Features`` value by a factory w
 bodies test the flags with ``wp.static``, so a feature the scene does not use is not in the
 generated code at all: no shadow rays or light sampling without lights, no branch stack,
 Fresnel or media bookkeeping without mirrors and dielectrics, no lens or shutter-time sampling
-with a pinhole camera or nothing moving; and in the traversal (``kernels.traverse``) no test of a
+with a pinhole camera or nothing moving; and in the traversal (``wrt.kernels.traverse``) no test of a
 primitive kind the scene lacks, and no per-primitive ray motion when no surface moves. ``ALL`` (every flag set) is the all-features kernel that
 renders any scene. Variants compile on first use, each into its own Warp module (see
-``kernels.variants``), and land in Warp's kernel cache.
+``wrt.kernels.variants``), and land in Warp's kernel cache.
 """
 from __future__ import annotations
 

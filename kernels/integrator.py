@@ -1,7 +1,7 @@
 """The pixel loop shared by every integrator, and the settings they read.
 
 ``make_render_kernel(radiance)`` builds a kernel that, for each pixel of a tile, traces the
-pixel-centre camera ray at mid-shutter, writes the AOVs (``kernels.film``), and averages
+pixel-centre camera ray at mid-shutter, writes the AOVs (``wrt.kernels.film``), and averages
 ``radiance(...)`` over ``spp`` samples: the centre ray itself when ``spp == 1``; otherwise film
 positions drawn from the pixel filter, lens positions and shutter times, from the sampler.
 ``radiance`` receives the camera ray and its first hit already found, so a one-sample render
@@ -17,7 +17,7 @@ happen in the same order however the samples are cut into passes, so the image i
 to a one-pass render.
 
 ``make_render_kernel(radiance, record=True)`` builds the recording variant of the same loop: it
-also appends every camera ray of a sample to a ``kernels.record.RayRecord`` and hands its index
+also appends every camera ray of a sample to a ``wrt.kernels.record.RayRecord`` and hands its index
 to ``radiance`` as the parent of what follows (the pixel-centre AOV ray of a render with
 ``spp > 1`` is not a sample and is not recorded). The rendering variant compiles the recording
 out. Recording variants go to their own Warp module, ``RECORD_MODULE``, so that loading a render
@@ -36,7 +36,7 @@ from .sampling import Sampler, sample_1d, sample_2d
 from .traverse import SceneData, traversal
 from .warps import concentric_disk
 
-RECORD_MODULE = "kernels.record_variants"
+RECORD_MODULE = "wrt.kernels.record_variants"
 
 
 @wp.struct
@@ -56,7 +56,7 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
     ``radiance(scene, materials, lights, settings, o, d, t, prim, time, rec, sampler, pixel, sample, parent) -> vec3``.
 
     ``sampler``, ``pixel`` and ``sample`` key the random numbers of integrators that sample
-    (``kernels.sampling``); the pixel loop uses dimensions 0-1 (position in the pixel), 2-3 (lens)
+    (``wrt.kernels.sampling``); the pixel loop uses dimensions 0-1 (position in the pixel), 2-3 (lens)
     and 4 (time in the shutter interval); ``time`` is the ray time of the camera ray.
 
     ``rec``, ``pixel``, ``sample`` and ``parent`` (the record index of the camera ray) are for

@@ -1,7 +1,7 @@
 """Lights on the device, and what delta lights (point, directional, spot) deliver to a point.
 
 Every light of the scene is one row of ``LightData``; area, sphere and environment lights are
-sampled by ``kernels.emitters``. Units: point and spot ``intensity`` in W/sr, directional
+sampled by ``wrt.kernels.emitters``. Units: point and spot ``intensity`` in W/sr, directional
 ``irradiance`` in W/m^2, area/sphere/environment ``radiance`` in W/(m^2 sr) (RGB).
 A point light at distance d delivers irradiance ``I / d^2`` on a surface facing it; the
 integrator multiplies by the BRDF and the cosine at the receiver.
@@ -51,7 +51,7 @@ def light_incident(lights: LightData, i: wp.int32, p: wp.vec3):
     kind = lights.type[i]
     if kind == DIRECTIONAL:
         return -lights.direction[i], wp.inf, lights.power[i]
-    if kind > SPOT:  # not a delta light: see kernels.emitters
+    if kind > SPOT:  # not a delta light: see wrt.kernels.emitters
         return wp.vec3(0.0, 0.0, 1.0), 0.0, wp.vec3(0.0)
     to_light = lights.position[i] - p
     dist2 = wp.dot(to_light, to_light)

@@ -4,7 +4,7 @@ Types (``MaterialData.type``): ``DIFFUSE`` (Lambert, albedo/pi), ``PHONG`` (albe
 energy-normalised Phong lobe ``specular (n + 2) / (2 pi) cos^n alpha``, alpha between the
 mirror direction of ``wi`` and ``wo``), ``MIRROR`` (perfect specular, ``reflectance``) and
 ``DIELECTRIC`` (smooth glass: ``ior``, Beer-Lambert ``sigma``), ``GLOSSY`` (GGX conductor of
-``roughness`` alpha with the constant Fresnel factor ``reflectance``, ``kernels.microfacet``) and
+``roughness`` alpha with the constant Fresnel factor ``reflectance``, ``wrt.kernels.microfacet``) and
 ``EMITTER`` (the surface of an area or sphere light: reflects nothing). Any type may emit
 ``emission`` (W/(m^2 sr)) from its front side. ``base_color`` is what the raycast integrator shows.
 

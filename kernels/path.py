@@ -5,11 +5,11 @@ Per camera sample one path is traced:
 
 - at diffuse, Phong and glossy surfaces, every light is sampled once (next-event estimation):
   delta lights (point, directional, spot) with a shadow ray; area, sphere and environment lights
-  by ``kernels.emitters`` with a shadow ray, weighted against BSDF sampling by the power heuristic;
+  by ``wrt.kernels.emitters`` with a shadow ray, weighted against BSDF sampling by the power heuristic;
   then the path continues in a direction drawn from the BSDF (cosine-weighted for diffuse and
   Phong, GGX visible normals for glossy);
 - mirrors reflect; dielectrics reflect with probability F (exact Fresnel) or refract, with
-  Beer-Lambert absorption and the nested-media rules of ``kernels.media``;
+  Beer-Lambert absorption and the nested-media rules of ``wrt.kernels.media``;
 - emission is added where the path hits an emitter's front: fully after the camera or a specular
   bounce, MIS-weighted after a BSDF sample when the emitter is a light that NEE also samples
   (emissive materials of shapes are found by BSDF sampling only); paths leaving the scene see the
@@ -18,7 +18,7 @@ Per camera sample one path is traced:
   min(0.95, largest channel of its throughput) and divides by it (unbiased; Mitsuba's rr_depth 5).
 
 ``max_depth`` counts segments (camera ray = 1; a shadow ray of a hit on segment k is segment
-k + 1), as Mitsuba 3's. Random numbers come from the render's sampler (``kernels.sampling``):
+k + 1), as Mitsuba 3's. Random numbers come from the render's sampler (``wrt.kernels.sampling``):
 dimensions 0-4 are the camera's (pixel position, lens, time), ``bounce_dim(depth, j)`` are the
 BSDF sample (j = 0, 1: a 2D pair), the Fresnel choice (2) and roulette (3) at each bounce, and
 ``light_dim(depth, i)`` the 2D sample of light i. A path's shapes stay at its camera ray's time.
@@ -164,7 +164,7 @@ def environment_radiance(lights: LightData, bsdf_pdf_prev: float, specular: bool
 
 def make_path_radiance(record: bool, features: Features = ALL):
     """``path_radiance``, recording every ray it traces when ``record`` (compiled out otherwise),
-    with the code of the features the scene lacks compiled out (``kernels.features``)."""
+    with the code of the features the scene lacks compiled out (``wrt.kernels.features``)."""
     trace = traversal(features)
     next_event = make_next_event(record, trace)
 

@@ -1,6 +1,6 @@
 """Ray recording: the buffer the render kernels fill with every segment they trace, when asked.
 
-The integrators are compiled in two variants (``kernels.integrator.make_render_kernel(...,
+The integrators are compiled in two variants (``wrt.kernels.integrator.make_render_kernel(...,
 record=...)``). In the recording variant each ray the kernel traces is appended here, in the
 order the thread traced it, through an atomic counter; in the rendering variant the calls are
 compiled out (``wp.static``) and the buffer is never touched.
@@ -34,7 +34,7 @@ parent     int32     buffer index of the segment whose end this one starts from,
 ========== ========= ==============================================================================
 
 Kinds: ``STRAIGHT`` is a ray continuing unbent through a false interface (the surface of a
-dielectric that does not own the space, see ``kernels.whitted``); ``TOTAL_INTERNAL`` is a
+dielectric that does not own the space, see ``wrt.kernels.whitted``); ``TOTAL_INTERNAL`` is a
 reflection at a dielectric past the critical angle. ``SCATTERED`` is a direction drawn from a
 diffuse, Phong or glossy BSDF (the path integrator). Later integrators add kinds at the end.
 

@@ -2,7 +2,7 @@
 
 ``trace_spawned`` follows a batch of rays to their first hit and, from each hit, spawns the
 secondary rays an integrator would spawn there (shadow, mirror reflection, refraction), with the
-one origin offset of ``kernels.spawn`` and the optics of ``kernels.optics``, then traces them.
+one origin offset of ``wrt.kernels.spawn`` and the optics of ``wrt.kernels.optics``, then traces them.
 The suite checks on the host that none of them falls back onto the surface it leaves.
 """
 import warp as wp

@@ -4,7 +4,7 @@ Primitives are referred to by a packed id ``(index << 2) | kind`` with ``kind`` 
 ``SPHERE``, ``TRIANGLE``, ``POLYGON`` (bounded, in the BVH) and ``PLANE`` (unbounded, tested
 outside the tree); ``index`` counts within that kind's arrays. ``NO_HIT`` (-1) marks a miss.
 
-The BVH is the 4-wide tree of ``kernels.bvh``; a leaf lists entries of ``prims``, the packed ids
+The BVH is the 4-wide tree of ``wrt.kernels.bvh``; a leaf lists entries of ``prims``, the packed ids
 in leaf order. Closest hit tests a node's four child boxes together (``child_entry``), descends
 into the nearest child hit and keeps the others on a fixed-size stack with their entry distances,
 nearest on top; popped entries that lie beyond the closest hit found so far are skipped. Any hit
@@ -36,7 +36,7 @@ StackFloat = wp.types.vector(length=STACK_SIZE, dtype=wp.float32)
 class SceneData:
     """All geometry of a scene on one device, world space, float32."""
 
-    nodes: wp.array(dtype=WideNode)  # the BVH (kernels.bvh); empty without bounded primitives
+    nodes: wp.array(dtype=WideNode)  # the BVH (wrt.kernels.bvh); empty without bounded primitives
     prims: wp.array(dtype=wp.int32)  # packed ids in leaf order
     sphere_center: wp.array(dtype=wp.vec3)
     sphere_radius: wp.array(dtype=float)

@@ -26,11 +26,11 @@ A ray that goes straight on through a surface (a false interface between media, 
 index-matched one) keeps its origin and direction: only its ``t_min`` moves past the hit by the
 hit's error bound, so an ior-1.0 object is exactly invisible at any distance from the origin.
 
-Media: each branch carries the stack of dielectrics it is inside (``kernels.media``): nested
+Media: each branch carries the stack of dielectrics it is inside (``wrt.kernels.media``): nested
 and overlapping dielectrics, with ``priority`` for overlaps.
 
 Recording: ``whitted_record`` is the same integrator with every traced ray appended to a
-``kernels.record.RayRecord``: each segment traced in the loop (kind ``REFLECTED``,
+``wrt.kernels.record.RayRecord``: each segment traced in the loop (kind ``REFLECTED``,
 ``REFRACTED``, ``TOTAL_INTERNAL`` or ``STRAIGHT`` through a false interface) and each shadow ray
 (``SHADOW_LIT`` to the light, or ``SHADOW_BLOCKED`` ending where it was stopped). Branches that
 are cut (depth, throughput, stack bound) are not traced and so not recorded. The decisions are
@@ -187,7 +187,7 @@ def make_direct_light(record: bool, trace: Traversal):
 
 def make_whitted_radiance(record: bool, features: Features = ALL):
     """``whitted_radiance``, recording every ray it traces when ``record`` (compiled out otherwise),
-    with the code of the features the scene lacks compiled out (``kernels.features``): without
+    with the code of the features the scene lacks compiled out (``wrt.kernels.features``): without
     mirrors and dielectrics there is no branch stack and the camera ray's hit is the whole tree."""
     trace = traversal(features)
     direct_light = make_direct_light(record, trace)

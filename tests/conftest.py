@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import kernels  # noqa: F401  (configures Warp)
+import wrt.kernels  # noqa: F401  (configures Warp)
 from harness.stress import Tracer as PrimitiveTracer
 from wrt.device import init_warp
 from wrt.loader import parse_scene

@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 
 import wrt
 import wrt.renderer
-from kernels.film import Film
+from wrt.kernels.film import Film
 from wrt.cli import main
 from wrt.errors import WrtError
 from wrt.loader import load_scene, parse_scene

@@ -6,8 +6,8 @@ import pytest
 from conftest import Tracer, make_scene
 from harness.binned_sah import build_bvh as build_binned_sah
 from harness.binned_sah import sah_cost
-from kernels.bvh import MAX_LEAF, STACK_SIZE
-from kernels.bvh_build import INTERSECTION_COST, TRAVERSAL_COST
+from wrt.kernels.bvh import MAX_LEAF, STACK_SIZE
+from wrt.kernels.bvh_build import INTERSECTION_COST, TRAVERSAL_COST
 from wrt.bvh import build_bvh, lane_bounds
 from wrt.geometry import round_outward
 

@@ -3,11 +3,11 @@ import numpy as np
 import pytest
 import warp as wp
 
-import kernels  # noqa: F401
-from kernels.emitters import emitter_pdf, sample_emitter
-from kernels.lights import AREA, ENVIRONMENT, SPHERE_LIGHT, LightData
-from kernels.sampling import independent_1d as sample_1d
-from kernels.warps import concentric_disk, cosine_hemisphere, frame, power_heuristic
+import wrt.kernels  # noqa: F401
+from wrt.kernels.emitters import emitter_pdf, sample_emitter
+from wrt.kernels.lights import AREA, ENVIRONMENT, SPHERE_LIGHT, LightData
+from wrt.kernels.sampling import independent_1d as sample_1d
+from wrt.kernels.warps import concentric_disk, cosine_hemisphere, frame, power_heuristic
 
 
 def one_light(kind, position=(0, 0, 0), edge_u=(0, 0, 0), edge_v=(0, 0, 0), radius=0.0, radiance=(1, 1, 1)):

@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 import warp as wp
 
-import kernels  # noqa: F401
-from kernels.optics import fresnel_dielectric, reflect, refract
+import wrt.kernels  # noqa: F401
+from wrt.kernels.optics import fresnel_dielectric, reflect, refract
 
 
 @wp.kernel

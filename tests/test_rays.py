@@ -11,7 +11,7 @@ from skimage.io import imread
 import wrt
 from conftest import make_scene
 from harness import rayview
-from kernels.record import CAMERA, REFLECTED, REFRACTED, SCATTERED, SHADOW_BLOCKED, SHADOW_LIT, STRAIGHT, TOTAL_INTERNAL
+from wrt.kernels.record import CAMERA, REFLECTED, REFRACTED, SCATTERED, SHADOW_BLOCKED, SHADOW_LIT, STRAIGHT, TOTAL_INTERNAL
 from wrt.cli import main
 from wrt.rays import trace_rays
 
@@ -263,7 +263,7 @@ def test_path_recording_follows_the_bsdf_and_samples_the_light():
     parents = tree.parent[scattered]
     offset = np.linalg.norm(tree.origin[scattered] - tree.end[parents], axis=1)
     o, p = tree.origin[parents], tree.end[parents]
-    bound = 16 * 2.0**-24 * (np.abs(o).max(axis=1) + np.abs(p).max(axis=1) + np.linalg.norm(p - o, axis=1))  # kernels.spawn
+    bound = 16 * 2.0**-24 * (np.abs(o).max(axis=1) + np.abs(p).max(axis=1) + np.linalg.norm(p - o, axis=1))  # wrt.kernels.spawn
     assert np.all(offset <= 1.01 * bound + 1e-7)
     facing = np.where((np.sum((tree.end[parents] - tree.origin[parents]) * tree.normal[parents], axis=1) < 0)[:, None], tree.normal[parents], -tree.normal[parents])
     assert np.all(np.sum((tree.end[scattered] - tree.origin[scattered]) * facing, axis=1) > 0)

@@ -1,4 +1,4 @@
-"""The samplers (kernels.sampling) and pixel filters (kernels.camera), checked on their numbers:
+"""The samplers (wrt.kernels.sampling) and pixel filters (wrt.kernels.camera), checked on their numbers:
 uniformity, the stratification each sampler promises, determinism, and faster convergence
 where the theory says so."""
 import math
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 import warp as wp
 
-from kernels.camera import BOX, GAUSSIAN, GAUSSIAN_RADIUS, GAUSSIAN_SIGMA, TENT, filter_offset
-from kernels.sampling import Sampler, sample_1d, sample_2d
+from wrt.kernels.camera import BOX, GAUSSIAN, GAUSSIAN_RADIUS, GAUSSIAN_SIGMA, TENT, filter_offset
+from wrt.kernels.sampling import Sampler, sample_1d, sample_2d
 from wrt.device import SAMPLER_CODES, sampler_data
 
 

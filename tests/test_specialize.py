@@ -5,8 +5,8 @@ import pytest
 
 import wrt
 from conftest import CAMERA, make_scene
-from kernels.features import ALL, Features
-from kernels.variants import relevant, render_kernel
+from wrt.kernels.features import ALL, Features
+from wrt.kernels.variants import relevant, render_kernel
 from wrt.renderer import scene_features
 
 DIFFUSE = [{"name": "white", "albedo": [0.7, 0.7, 0.7]}]

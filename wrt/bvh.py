@@ -1,9 +1,9 @@
 """BVH build on the render device: the host side, which launches the kernels of
-``kernels.bvh_build`` and checks the result.
+``wrt.kernels.bvh_build`` and checks the result.
 
 ``build_bvh(lo, hi, device)`` takes the primitives' float32 bounds and builds the 4-wide BVH of
-``kernels.bvh`` where it will be traversed: Morton codes, radix sort, PLOC clustering (radius
-``PLOC_RADIUS``) with SAH leaves of at most ``kernels.bvh.MAX_LEAF`` primitives, and the
+``wrt.kernels.bvh`` where it will be traversed: Morton codes, radix sort, PLOC clustering (radius
+``PLOC_RADIUS``) with SAH leaves of at most ``wrt.kernels.bvh.MAX_LEAF`` primitives, and the
 depth-first collapse to four children per node. Each step is a Warp launch on ``device``; the host
 only reads back a cluster count per PLOC iteration and a node count per level of the collapse.
 On the CPU the larger kernels (nearest neighbours, merges, leaf set-up, collapse) are split into
@@ -25,8 +25,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import warp as wp
 
-from kernels.bvh import STACK_SIZE, WideNode
-from kernels.bvh_build import (
+from wrt.kernels.bvh import STACK_SIZE, WideNode
+from wrt.kernels.bvh_build import (
     BinaryNode,
     count_inner,
     emit_wide,
@@ -65,7 +65,7 @@ class BvhStats:
 
 @dataclass
 class DeviceBvh:
-    """A BVH on a device: ``nodes`` (``kernels.bvh.WideNode``) and ``order`` (the input index of
+    """A BVH on a device: ``nodes`` (``wrt.kernels.bvh.WideNode``) and ``order`` (the input index of
     each primitive-list entry, leaf by leaf)."""
 
     nodes: wp.array

@@ -13,12 +13,12 @@ import tempfile
 import numpy as np
 import warp as wp
 
-from kernels.camera import BOX, GAUSSIAN, TENT, CameraData
-from kernels.integrator import IntegratorSettings
-from kernels.lights import AREA, DIRECTIONAL, ENVIRONMENT, POINT, SPHERE_LIGHT, SPOT, LightData
-from kernels.materials import DIELECTRIC, DIFFUSE, EMITTER, GLOSSY, MIRROR, PHONG, MaterialData
-from kernels.sampling import INDEPENDENT, SOBOL, STRATIFIED, Sampler
-from kernels.traverse import SceneData
+from wrt.kernels.camera import BOX, GAUSSIAN, TENT, CameraData
+from wrt.kernels.integrator import IntegratorSettings
+from wrt.kernels.lights import AREA, DIRECTIONAL, ENVIRONMENT, POINT, SPHERE_LIGHT, SPOT, LightData
+from wrt.kernels.materials import DIELECTRIC, DIFFUSE, EMITTER, GLOSSY, MIRROR, PHONG, MaterialData
+from wrt.kernels.sampling import INDEPENDENT, SOBOL, STRATIFIED, Sampler
+from wrt.kernels.traverse import SceneData
 
 from .errors import WrtError
 from .geometry import Primitives, polygon_projection
@@ -170,7 +170,7 @@ def upload_materials(scene: Scene, device) -> MaterialData:
 
 
 def upload_lights(scene: Scene, device) -> LightData:
-    """Every light of the scene, one row each in file order (see ``kernels.lights.LightData``):
+    """Every light of the scene, one row each in file order (see ``wrt.kernels.lights.LightData``):
     the surface of light k is surface ``num_shapes + k`` of the geometry."""
     rows = []
     for light in scene.lights:
@@ -227,7 +227,7 @@ def sampler_data(kind: str, spp: int, seed: int) -> Sampler:
 
 def camera_data(camera: Camera, render: RenderSettings, width: int, height: int) -> CameraData:
     """``CameraData`` for the scene-format camera convention and the ``[render]`` filter (see
-    ``kernels.camera``)."""
+    ``wrt.kernels.camera``)."""
     forward, right, up = camera.basis()
     c = CameraData()
     c.origin = wp.vec3(*camera.origin)

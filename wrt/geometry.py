@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kernels.traverse import PLANE, POLYGON, SPHERE, TRIANGLE
+from wrt.kernels.traverse import PLANE, POLYGON, SPHERE, TRIANGLE
 
 from .bvh import DeviceBvh, build_bvh
 from .scene import AreaLight, Mesh, Plane, Polygon, Scene, Sphere, SphereLight, Triangle

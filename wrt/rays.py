@@ -1,7 +1,7 @@
 """Trace chosen pixels with the scene's integrator and return every ray it traced: the ray trees.
 
 The rays come from the render kernels themselves, in their recording variant
-(``RECORD_KERNELS``, see ``kernels.record``), launched over the chosen pixels with
+(``RECORD_KERNELS``, see ``wrt.kernels.record``), launched over the chosen pixels with
 the same set-up as ``wrt.render``: same camera rays, same samples for the same seed, same
 decisions. Nothing is re-implemented in Python.
 
@@ -18,11 +18,11 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from kernels.path import path_record
-from kernels.raycast import raycast_record
-from kernels.record import ENTERING, ESCAPED, HIT, KIND_NAMES, SHADOW_BLOCKED, SHADOW_LIT, RayRecord, Segment
-from kernels.traverse import VisitLog, trace_visits
-from kernels.whitted import whitted_record
+from wrt.kernels.path import path_record
+from wrt.kernels.raycast import raycast_record
+from wrt.kernels.record import ENTERING, ESCAPED, HIT, KIND_NAMES, SHADOW_BLOCKED, SHADOW_LIT, RayRecord, Segment
+from wrt.kernels.traverse import VisitLog, trace_visits
+from wrt.kernels.whitted import whitted_record
 
 from .bvh import node_bounds
 from .device import resolve_device
@@ -77,7 +77,7 @@ class RayTree:
     visit_row, visit_node : (V,) int
         With ``bvh=True``: the BVH nodes the closest-hit query of each non-shadow segment visits,
         in order (``visit_row``: the segment's row; replayed by the render kernels' traversal
-        code from the segment's start, ``kernels.traverse.trace_visits``); empty otherwise.
+        code from the segment's start, ``wrt.kernels.traverse.trace_visits``); empty otherwise.
     bvh_lo, bvh_hi : (M, 3) float32
         Bounds of every node of the 4-wide BVH (index = ``visit_node``; a node's box is the union
         of its children's) with ``bvh=True``; empty otherwise.
@@ -233,7 +233,7 @@ def trace_rays(
 
 def bvh_visits(frame, seg: np.ndarray, dev) -> tuple[np.ndarray, np.ndarray]:
     """``(row, node)`` of every BVH node the closest-hit query of each recorded non-shadow segment
-    visits, in order: the segments replayed through ``kernels.traverse.trace_visits``."""
+    visits, in order: the segments replayed through ``wrt.kernels.traverse.trace_visits``."""
     rows = np.flatnonzero(~np.isin(seg["kind"], [SHADOW_LIT, SHADOW_BLOCKED]))
     if len(rows) == 0 or frame.geometry.nodes.shape[0] == 0:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)

@@ -27,10 +27,10 @@ from functools import partial
 import numpy as np
 import warp as wp
 
-from kernels.features import ALL, Features
-from kernels.film import LUMINANCE_WEIGHTS, Film
-from kernels.record import RayRecord
-from kernels.variants import render_kernel
+from wrt.kernels.features import ALL, Features
+from wrt.kernels.film import LUMINANCE_WEIGHTS, Film
+from wrt.kernels.record import RayRecord
+from wrt.kernels.variants import render_kernel
 
 from .device import camera_data, integrator_settings, resolve_device, sampler_data, upload_geometry, upload_lights, upload_materials
 from .errors import WrtError
@@ -47,7 +47,7 @@ ADAPTIVE_FLOOR = 0.01  # luminance below which an adaptive pixel's error is meas
 
 
 def scene_features(scene: Scene) -> Features:
-    """The ``kernels.features.Features`` ``scene`` needs: its kernels are specialised on them."""
+    """The ``wrt.kernels.features.Features`` ``scene`` needs: its kernels are specialised on them."""
     used = {scene.materials[shape.material] for shape in scene.shapes}
     kinds = {m.type for m in used}
     moving = any(any(shape.velocity) for shape in scene.shapes)
@@ -95,11 +95,11 @@ class DeviceScene:
     device: wp.context.Device
     width: int
     height: int
-    geometry: object  # kernels.traverse.SceneData
-    materials: object  # kernels.materials.MaterialData
-    lights: object  # kernels.lights.LightData
-    settings: object  # kernels.integrator.IntegratorSettings
-    camera: object  # kernels.camera.CameraData
+    geometry: object  # wrt.kernels.traverse.SceneData
+    materials: object  # wrt.kernels.materials.MaterialData
+    lights: object  # wrt.kernels.lights.LightData
+    settings: object  # wrt.kernels.integrator.IntegratorSettings
+    camera: object  # wrt.kernels.camera.CameraData
     film: Film
     build_time_s: float  # wall seconds of the BVH build
     sampler: str  # [render] sampler

@@ -34,8 +34,8 @@ class RenderSettings:
     exterior_ior: float = 1.0  # index of refraction of the medium filling the scene
     dielectric_shadows: str = "opaque"  # or "filtered": shadow rays pass dielectrics, Beer-attenuated
     min_throughput: float = 1e-4  # whitted branches whose throughput falls below this are cut
-    sampler: str = "sobol"  # random numbers (kernels.sampling): independent, stratified or sobol
-    filter: str = "box"  # pixel filter (kernels.camera): box, tent or gaussian
+    sampler: str = "sobol"  # random numbers (wrt.kernels.sampling): independent, stratified or sobol
+    filter: str = "box"  # pixel filter (wrt.kernels.camera): box, tent or gaussian
 
 
 @dataclass(frozen=True)
