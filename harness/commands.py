@@ -1,6 +1,6 @@
-"""The harness's command-line verbs (``wrt matrix``, ``wrt refs``, ``wrt compare``), called by
-``wrt.cli``. Each returns the process exit code: 0 all good, 1 a regression, 2 bad input
-(``WrtError``, raised to the CLI)."""
+"""What the harness's verbs do (``wrt matrix``, ``wrt refs``, ``wrt compare``; their arguments are
+parsed by ``wrt_harness.cli``). Each returns the process exit code: 0 all good, 1 a regression,
+2 bad input (``WrtError``, raised to the CLI)."""
 from __future__ import annotations
 
 import sys
@@ -11,7 +11,14 @@ from wrt.errors import WrtError
 from wrt.imageio import read_image
 
 from .matrix import load_features, select
-from .references import ReferenceError, calibrate, load_reference, render_reference, store, store_calibration
+from .references import (
+    ReferenceError,
+    calibrate,
+    load_reference,
+    render_reference,
+    store,
+    store_calibration,
+)
 from .run import evaluate, run_matrix
 from .score import max_error, rmse, ssim, z_test
 
@@ -94,4 +101,3 @@ def compare(a: str, b: str, threshold: float | None) -> int:
         print(f"FAIL: SSIM {score:.6f} < {threshold}")
         return 1
     return 0
-

@@ -18,8 +18,10 @@ import hashlib
 import json
 import os
 import re
-import tomllib
 from dataclasses import dataclass, field
+from importlib import resources
+
+import tomllib
 
 from wrt.errors import WrtError
 from wrt.loader import override_render, parse_scene
@@ -99,6 +101,19 @@ def _read_toml(path: str) -> dict:
         raise WrtError(f"{path}: not valid TOML: {e}") from None
 
 
+def scene_path(spec: str, base: str) -> str:
+    """The file a feature's ``scene`` names: ``PACKAGE:PATH``, a file of an installed package
+    (``wrt.examples:path/cornell_box.toml``: wrt's example scenes), or a path relative to the
+    features file's folder ``base``."""
+    package, sep, rest = spec.partition(":")
+    if sep and re.fullmatch(r"[A-Za-z_][\w.]*", package):
+        try:
+            return os.path.normpath(os.path.join(str(resources.files(package)), rest))
+        except ModuleNotFoundError:
+            raise WrtError(f"scene {spec!r}: no installed package {package!r}") from None
+    return os.path.normpath(os.path.join(base, spec))
+
+
 def load_features(path: str = FEATURES_FILE) -> list[Feature]:
     """All matrix entries, in file order."""
     doc = _read_toml(path)
@@ -110,7 +125,7 @@ def load_features(path: str = FEATURES_FILE) -> list[Feature]:
             spp = int(entry.get("spp", 1))
             feature = Feature(
                 name=str(entry["name"]),
-                scene=os.path.normpath(os.path.join(base, entry["scene"])),
+                scene=scene_path(str(entry["scene"]), base),
                 integrator=str(entry["integrator"]),
                 width=int(entry["width"]),
                 height=int(entry["height"]),

@@ -18,7 +18,6 @@ import numpy as np
 
 from wrt.scene import Mesh, Plane, Polygon, Scene, Sphere, Triangle
 
-
 # VTK render windows are not safe to use from several threads at once (``wrt matrix --jobs``)
 _VTK_LOCK = threading.Lock()
 

@@ -23,6 +23,7 @@ import json
 import os
 import statistics
 from dataclasses import dataclass
+from importlib import resources
 
 import numpy as np
 
@@ -34,7 +35,7 @@ from wrt.imageio import read_image, write_image
 from .matrix import Feature, load_feature_scene, scene_hash
 from .score import ssim, z_test
 
-REFERENCE_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "reference_images")
+REFERENCE_DIR = str(resources.files("wrt_harness.reference_images"))  # the tree's reference_images/, installed with the harness
 BATCHES = 32  # independent batches a reference is rendered in (variance estimate with 31 dof)
 REFERENCE_SEED = 1_000_000  # reference batches use seeds from here; test renders use small seeds
 CALIBRATION_SEEDS = (11, 12, 13, 14, 15, 16)

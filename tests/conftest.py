@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 import wrt.kernels  # noqa: F401  (configures Warp)
-from harness.stress import Tracer as PrimitiveTracer
+
 from wrt.device import init_warp
 from wrt.loader import parse_scene
+from wrt.trace import Tracer as PrimitiveTracer
 
 init_warp()
 
@@ -25,8 +25,8 @@ def make_scene(shapes, render=None, camera=None, materials=None, lights=None, sc
 
 
 class Tracer(PrimitiveTracer):
-    """``harness.stress.Tracer`` (closest-hit and any-hit ray batches through the real kernels),
-    with closest hits reported by shape: ``(t, shape id)``, ``t = t_max`` and -1 on a miss."""
+    """``wrt.trace.Tracer`` (closest-hit and any-hit ray batches through the real kernels), with
+    closest hits reported by shape: ``(t, shape id)``, ``t = t_max`` and -1 on a miss."""
 
     def closest(self, origins, directions, t_min=0.0, t_max=np.inf, brute_force=False):
         t, prim = super().closest(origins, directions, t_min, t_max, brute_force)

@@ -2,9 +2,9 @@
 pixels get more samples, converged ones stop, the result stays deterministic and unbiased."""
 import numpy as np
 import pytest
+from conftest import make_scene
 
 import wrt
-from conftest import make_scene
 from wrt.cli import main
 from wrt.imageio import read_image
 from wrt.renderer import ADAPTIVE_FIRST_PASS, adaptive_passes, relative_error

@@ -15,10 +15,10 @@ import pytest
 import warp as wp
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from wrt.kernels.film import Film
 
 import wrt
 import wrt.renderer
-from wrt.kernels.film import Film
 from wrt.cli import main
 from wrt.errors import WrtError
 from wrt.loader import load_scene, parse_scene

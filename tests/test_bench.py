@@ -12,9 +12,9 @@ import os
 
 import numpy as np
 import pytest
+from wrt_benchmarks import bench
+from wrt_benchmarks.targets import TARGETS
 
-from harness import bench
-from harness.targets import TARGETS
 from wrt.cli import main
 
 

@@ -2,12 +2,12 @@
 against brute force, the tree's invariants, and its quality against the binned-SAH reference."""
 import numpy as np
 import pytest
-
 from conftest import Tracer, make_scene
-from harness.binned_sah import build_bvh as build_binned_sah
-from harness.binned_sah import sah_cost
 from wrt.kernels.bvh import MAX_LEAF, STACK_SIZE
 from wrt.kernels.bvh_build import INTERSECTION_COST, TRAVERSAL_COST
+from wrt_benchmarks.binned_sah import build_bvh as build_binned_sah
+from wrt_benchmarks.binned_sah import sah_cost
+
 from wrt.bvh import build_bvh, lane_bounds
 from wrt.geometry import round_outward
 
@@ -102,7 +102,7 @@ def test_sah_cost_is_close_to_the_binned_sah_reference():
     """The PLOC tree of a closed mesh costs (SAH, same constants) at most a little more than the
     top-down binned-SAH tree of the reference builder, and leaves hold 1..4 triangles, about 2 on
     average."""
-    from harness.throughput import torus_mesh
+    from wrt_benchmarks.throughput import torus_mesh
 
     v, f = torus_mesh(20000)
     tri = v.astype(np.float32)[f]

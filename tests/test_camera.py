@@ -3,9 +3,9 @@ import math
 
 import numpy as np
 import pytest
+from conftest import make_scene
 
 import wrt
-from conftest import make_scene
 
 
 def expected_directions(origin, look_at, up, fov, w, h):

@@ -3,9 +3,9 @@ import math
 
 import numpy as np
 import pytest
+from conftest import make_scene
 
 import wrt
-from conftest import make_scene
 
 GLOW = [{"name": "glow", "albedo": [0.0, 0.0, 0.0], "emission": [1.0, 1.0, 1.0]}]
 CAMERA = {"origin": [0.0, 0.0, 5.0], "look_at": [0.0, 0.0, 0.0], "fov": 40.0}

@@ -2,7 +2,6 @@
 import numpy as np
 import pytest
 import warp as wp
-
 import wrt.kernels  # noqa: F401
 from wrt.kernels.emitters import emitter_pdf, sample_emitter
 from wrt.kernels.lights import AREA, ENVIRONMENT, SPHERE_LIGHT, LightData

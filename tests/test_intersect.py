@@ -1,7 +1,6 @@
 """Ray-primitive intersections (kernels/intersect.py) through the real closest-hit kernel."""
 import numpy as np
 import pytest
-
 from conftest import Tracer, make_scene
 
 INF = np.inf

@@ -9,11 +9,11 @@ import subprocess
 
 import numpy as np
 import pytest
+import wrt_harness.references as references
+from wrt_harness.matrix import load_features, select
+from wrt_harness.report import write_report
+from wrt_harness.run import evaluate
 
-import harness.references as references
-from harness.matrix import load_features, select
-from harness.report import write_report
-from harness.run import evaluate
 from wrt.cli import main
 from wrt.errors import WrtError
 from wrt.imageio import write_image

@@ -2,7 +2,6 @@
 import numpy as np
 import pytest
 import warp as wp
-
 import wrt.kernels  # noqa: F401
 from wrt.kernels.microfacet import ggx_d, ggx_eval, ggx_pdf, ggx_sample_visible_normal
 from wrt.kernels.sampling import independent_1d as sample_1d

@@ -4,11 +4,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from wrt_harness.mitsuba_peer import mitsuba_available, render_mitsuba
+from wrt_harness.score import ssim
 
 import wrt
 from wrt.loader import override_render
-from harness.score import ssim
-from harness.mitsuba_peer import mitsuba_available, render_mitsuba
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "mitsuba"
 AVAILABLE, REASON = mitsuba_available()

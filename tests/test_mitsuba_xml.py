@@ -6,10 +6,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from wrt_harness.mitsuba_peer import mitsuba_available, render_mitsuba
 
-from harness.mitsuba_peer import mitsuba_available, render_mitsuba
 from wrt.errors import WrtError
-from wrt.mitsuba_xml import IOR_TABLE, MAX_DEPTH, load_mitsuba, look_at_matrix, rotation_matrix
+from wrt.mitsuba_xml import (
+    IOR_TABLE,
+    MAX_DEPTH,
+    load_mitsuba,
+    look_at_matrix,
+    rotation_matrix,
+)
 from wrt.scene import Camera
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "mitsuba"

@@ -2,7 +2,6 @@
 import numpy as np
 import pytest
 import warp as wp
-
 import wrt.kernels  # noqa: F401
 from wrt.kernels.optics import fresnel_dielectric, reflect, refract
 

@@ -1,9 +1,9 @@
 """The path integrator (kernels/path.py): furnaces, closed forms, MIS-weighted emitters, determinism."""
 import numpy as np
 import pytest
+from conftest import CAMERA, make_scene
 
 import wrt
-from conftest import CAMERA, make_scene
 
 ENV = {"type": "environment", "radiance": [0.5, 0.5, 0.5]}
 

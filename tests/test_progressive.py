@@ -15,11 +15,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import make_scene
 
 import wrt
 import wrt.imageio
 import wrt.renderer
-from conftest import make_scene
 from wrt.cli import main
 from wrt.imageio import read_image
 from wrt.loader import override_render

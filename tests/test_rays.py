@@ -6,12 +6,21 @@ import sys
 import numpy as np
 import pytest
 import pyvista as pv
+from conftest import make_scene
 from skimage.io import imread
+from wrt.kernels.record import (
+    CAMERA,
+    REFLECTED,
+    REFRACTED,
+    SCATTERED,
+    SHADOW_BLOCKED,
+    SHADOW_LIT,
+    STRAIGHT,
+    TOTAL_INTERNAL,
+)
 
 import wrt
-from conftest import make_scene
-from harness import rayview
-from wrt.kernels.record import CAMERA, REFLECTED, REFRACTED, SCATTERED, SHADOW_BLOCKED, SHADOW_LIT, STRAIGHT, TOTAL_INTERNAL
+from wrt import rayview
 from wrt.cli import main
 from wrt.rays import trace_rays
 

@@ -1,9 +1,9 @@
 """Render orchestration (wrt/renderer.py), the raycast integrator and the `wrt render` command."""
 import numpy as np
+from conftest import make_scene
 
 import wrt
 import wrt.renderer
-from conftest import make_scene
 from wrt.cli import main
 from wrt.imageio import read_image
 

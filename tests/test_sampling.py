@@ -6,9 +6,16 @@ import math
 import numpy as np
 import pytest
 import warp as wp
-
-from wrt.kernels.camera import BOX, GAUSSIAN, GAUSSIAN_RADIUS, GAUSSIAN_SIGMA, TENT, filter_offset
+from wrt.kernels.camera import (
+    BOX,
+    GAUSSIAN,
+    GAUSSIAN_RADIUS,
+    GAUSSIAN_SIGMA,
+    TENT,
+    filter_offset,
+)
 from wrt.kernels.sampling import Sampler, sample_1d, sample_2d
+
 from wrt.device import SAMPLER_CODES, sampler_data
 
 

@@ -2,11 +2,11 @@
 exactly what the all-features kernels render: specialisation only removes unreachable code."""
 import numpy as np
 import pytest
-
-import wrt
 from conftest import CAMERA, make_scene
 from wrt.kernels.features import ALL, Features
 from wrt.kernels.variants import relevant, render_kernel
+
+import wrt
 from wrt.renderer import scene_features
 
 DIFFUSE = [{"name": "white", "albedo": [0.7, 0.7, 0.7]}]

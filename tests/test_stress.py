@@ -1,12 +1,16 @@
-"""The stress suite (harness/stress.py, `wrt stress`) with a small ray budget: every case passes,
+"""The stress suite (wrt/stress/, `wrt stress`) with a small ray budget: every case passes,
 and the checks have teeth (they do fail on a mesh with a hole, or without the spawn offset)."""
 import json
 
 import numpy as np
 import pytest
 
-from harness import stress
+from wrt import stress
 from wrt.cli import main
+from wrt.stress import suite
+from wrt.stress.common import CLOSED_MESHES, uv_sphere
+from wrt.stress.offsets import SPAWN_ULPS, self_intersection
+from wrt.stress.watertight import watertight_case
 
 N = 20_000  # rays per ray-batch case (`wrt stress` uses 10^6)
 
@@ -32,31 +36,31 @@ def test_case_group_passes(group):
 
 def test_watertight_reports_zero_leaks_per_mesh():
     rows = run("watertight")
-    assert set(rows) == {f"watertight: {name}" for name in stress.CLOSED_MESHES}
+    assert set(rows) == {f"watertight: {name}" for name in CLOSED_MESHES}
     for row in rows.values():
         assert row.rays >= N and row.detail == {"leaks_from_inside": 0, "leaks_from_outside": 0}
 
 
 def test_watertight_check_finds_a_hole():
     """Take one triangle out of the tessellated sphere: rays aimed at its edges now leak."""
-    v, f = stress.uv_sphere()
-    row = stress.watertight_case("holed sphere", v, np.delete(f, 100, axis=0), 20_000, np.random.default_rng(0))
+    v, f = uv_sphere()
+    row = watertight_case("holed sphere", v, np.delete(f, 100, axis=0), 20_000, np.random.default_rng(0))
     assert not row.passed and row.failures > 0
 
 
 def test_self_intersection_without_offset_fails():
     """Spawning from the raw hit point (offset scale 0) re-hits the surface: the check sees it."""
-    totals, worst = stress.self_intersection("sphere", 5_000, np.random.default_rng(0), offset_scales=(0.0, 1.0))
+    totals, worst = self_intersection("sphere", 5_000, np.random.default_rng(0), offset_scales=(0.0, 1.0))
     judged, false_hits, escapes, _ = totals[0.0]
     assert false_hits + escapes > 100
-    assert sum(totals[1.0][1:3]) == 0 and worst < stress.SPAWN_ULPS
+    assert sum(totals[1.0][1:3]) == 0 and worst < SPAWN_ULPS
 
 
 def test_self_intersection_measures_the_offset_needed():
     rows = run("self-intersection")
     for row in rows.values():
         needed = row.detail["smallest_offset_tried_without_failures_ulps"]
-        assert needed <= row.detail["offset_used_ulps"] and row.worst < stress.SPAWN_ULPS
+        assert needed <= row.detail["offset_used_ulps"] and row.worst < SPAWN_ULPS
 
 
 def test_refraction_at_the_critical_angle_samples_it_densely():
@@ -88,7 +92,7 @@ def test_results_are_deterministic():
 
 
 def test_cli_prints_the_table_writes_the_report_and_exits_by_the_result(tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr(stress, "CASES", [group for group in stress.CASES if group[0] in ("watertight", "grazing")])
+    monkeypatch.setattr(suite, "CASES", [group for group in suite.CASES if group[0] in ("watertight", "grazing")])
     assert main(["stress", "--rays", "3000", "--seed", "2", "--report", str(tmp_path / "rep")]) == 0
     out = capsys.readouterr().out
     assert "watertight: bicone fan 256" in out and "grazing: rays along planes" in out and "4 of 4 cases pass" in out
@@ -99,7 +103,7 @@ def test_cli_prints_the_table_writes_the_report_and_exits_by_the_result(tmp_path
     def failing(rays, rng):
         return [stress.CaseResult("always fails", rays, 1)]
 
-    monkeypatch.setattr(stress, "CASES", [("failing", failing)])
+    monkeypatch.setattr(suite, "CASES", [("failing", failing)])
     assert main(["stress", "--rays", "10"]) == 1
     assert "FAIL" in capsys.readouterr().out
 

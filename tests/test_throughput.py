@@ -11,9 +11,16 @@ import math
 
 import numpy as np
 import pytest
-
-from harness.throughput import ENGINES, QUERIES, RAY_SETS, embree_version, format_table, main, torus_mesh
 from wrt.kernels.bvh import MAX_LEAF, STACK_SIZE
+from wrt_benchmarks.throughput import (
+    ENGINES,
+    QUERIES,
+    RAY_SETS,
+    embree_version,
+    format_table,
+    main,
+    torus_mesh,
+)
 
 TRIANGLES = 20_000
 RAYS = 8192  # two tiles of wrt.renderer.TILE_PIXELS: the all-threads runs have work for two threads

@@ -1,9 +1,9 @@
 """The whitted integrator (kernels/whitted.py) against closed forms, at the origin and far from it."""
 import numpy as np
 import pytest
+from conftest import make_scene
 
 import wrt
-from conftest import make_scene
 
 TOP = {"origin": [0, 3, 4], "look_at": [0, 0, 0], "fov": 60}
 

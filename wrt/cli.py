@@ -1,4 +1,11 @@
-"""The ``wrt`` command: a thin dispatcher (parse, call, report). User errors exit with code 2."""
+"""The ``wrt`` command: a thin dispatcher (parse, call, report). User errors exit with code 2.
+
+The library's own verbs are here: ``render``, ``rays``, ``stress``. Other installed packages add
+verbs through entry points of the group ``wrt.commands`` (the harness: ``matrix``, ``refs``,
+``compare``; the benchmarks: ``bench``): an entry point is a function that adds its subparser and
+returns the function that runs it. They are looked up only when the verb is not the library's
+(or for ``wrt --help``), so ``wrt render`` loads nothing else, and nothing here imports them.
+"""
 from __future__ import annotations
 
 import argparse
@@ -23,7 +30,12 @@ def _aov_list(text: str) -> list[str]:
     return list(dict.fromkeys(AOV_CHOICES[n] for n in names))
 
 
-def _parser() -> argparse.ArgumentParser:
+PLUGIN_GROUP = "wrt.commands"
+
+
+def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
+    """The parser, and the run function of each verb; with ``plugins``, the verbs of the
+    ``wrt.commands`` entry points too."""
     parser = argparse.ArgumentParser(prog="wrt", description="wrt: a ray tracer whose rendering runs as NVIDIA Warp kernels.")
     verbs = parser.add_subparsers(dest="verb", metavar="VERB", required=True)
     r = verbs.add_parser(
@@ -66,44 +78,6 @@ def _parser() -> argparse.ArgumentParser:
         help="also write the image to the output every N samples per pixel (its metadata spp: the samples done)",
     )
 
-    m = verbs.add_parser(
-        "matrix",
-        help="run the feature test matrix (visual regression harness)",
-        description="Render every feature of harness/features.toml (or those named), score it by SSIM and a per-pixel "
-        "Z-test against its reference and by SSIM of its object ids against a pyvista rasterisation, check "
-        "convergence, print a table. Exit 0 when all pass, 1 on a regression, 2 on bad input.",
-    )
-    m.add_argument("features", nargs="*", metavar="FEATURE", help="feature names (default: all)")
-    m.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
-    m.add_argument("--jobs", type=int, default=1, help="features rendered at once (default 1; each uses all cores)")
-    m.add_argument("--report", metavar="DIR", help="write an HTML report (DIR/index.html and PNGs)")
-
-    refs = verbs.add_parser("refs", help="regenerate or calibrate reference images", description="Manage reference_images/.")
-    refs_verbs = refs.add_subparsers(dest="refs_verb", metavar="ACTION", required=True)
-    regen = refs_verbs.add_parser(
-        "regenerate",
-        help="re-render references (all, named, or --failed), then calibrate them",
-        description="Render converged references in independent batches, refuse any that does not reproduce "
-        "across seeds, print SSIM old vs new, write each file atomically, and recalibrate the thresholds.",
-    )
-    regen.add_argument("features", nargs="*", metavar="FEATURE")
-    regen.add_argument("--failed", action="store_true", help="only features that fail (or lack a valid reference)")
-    regen.add_argument("--spp", type=int, help="reference spp (default: the matrix entry's reference_spp)")
-    regen.add_argument("--device", default="cpu")
-    cal = refs_verbs.add_parser(
-        "calibrate",
-        help="set SSIM thresholds from renders with several seeds",
-        description="Render each feature at its test spp with several seeds, record the spread of SSIM against the "
-        "reference and set the threshold under it (min - max(0.002, 3 std)); stored in reference_images/NAME.json.",
-    )
-    cal.add_argument("features", nargs="*", metavar="FEATURE")
-    cal.add_argument("--device", default="cpu")
-
-    c = verbs.add_parser("compare", help="score two images", description="SSIM (tone-mapped), RMSE and max error (linear) of A against B.")
-    c.add_argument("a", metavar="A", help="image to score (.exr or .png)")
-    c.add_argument("b", metavar="B", help="reference image")
-    c.add_argument("--threshold", type=float, help="exit 1 when SSIM is below this")
-
     rays = verbs.add_parser(
         "rays",
         help="show the rays traced for chosen pixels in 3D",
@@ -135,31 +109,13 @@ def _parser() -> argparse.ArgumentParser:
     st.add_argument("--rays", type=int, default=10**6, help="rays per ray-batch case (default 1000000)")
     st.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     st.add_argument("--report", metavar="DIR", help="also write the table as DIR/stress.json and DIR/stress.md")
+    runs = {"render": _render, "rays": _rays, "stress": _stress}
+    if plugins:
+        from importlib.metadata import entry_points
 
-    b = verbs.add_parser(
-        "bench",
-        help="benchmark error against run time, per sampler, and against Mitsuba 3",
-        description="Render each scene at a doubling series of spp (4, 8, ...) for each sampler (independent, "
-        "stratified, sobol), adaptive sampling off and on, until each curve has used its time budget; measure wall "
-        "time (after a warm-up render; compilation reported separately) and error against a converged reference "
-        "(RMSE of linear values, 1-SSIM of tone-mapped sRGB); fit log-log slopes; for Mitsuba 3 XML scenes, compare "
-        "with Mitsuba 3 at equal time; time the specialised against the all-features kernel on a diffuse-only "
-        "scene. Writes DIR/results.json, results.csv and one log-log plot per scene; then measures ray throughput "
-        "(DIR/throughput.json, see --triangles). See docs/performance.md.",
-    )
-    b.add_argument("scenes", nargs="*", metavar="SCENE", help="scene files, .toml or Mitsuba 3 .xml (default: the Cornell boxes and soft_shadows)")
-    b.add_argument("--budget", type=float, metavar="SECONDS", help="render seconds per curve (default 6; 0.5 with --quick)")
-    b.add_argument("-o", "--output", default="bench-results", metavar="DIR", help="output folder (default bench-results); references are cached in DIR/references")
-    b.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
-    b.add_argument("--quick", action="store_true", help="small images, 3 points per curve: a smoke test of the benchmark, not a measurement")
-    b.add_argument(
-        "--triangles",
-        type=int,
-        metavar="N",
-        help="also measure ray throughput (rays/s of wrt's BVH, wp.Mesh and Embree when installed) on an N-triangle mesh: "
-        "DIR/throughput.json (default 1000000; 20000 with --quick; 0 skips it)",
-    )
-    return parser
+        for ep in sorted(entry_points(group=PLUGIN_GROUP), key=lambda e: e.name):
+            runs[ep.name] = ep.load()(verbs)
+    return parser, runs
 
 
 @contextlib.contextmanager
@@ -261,32 +217,8 @@ def _render(args) -> int:
     return 0
 
 
-def _matrix(args) -> int:
-    from harness import commands
-
-    if args.jobs < 1:
-        raise WrtError(f"--jobs {args.jobs}: must be >= 1")
-    return commands.matrix(args.features, args.device, args.jobs, args.report)
-
-
-def _refs(args) -> int:
-    from harness import commands
-
-    if args.refs_verb == "regenerate":
-        if args.spp is not None and args.spp < 1:
-            raise WrtError(f"--spp {args.spp}: must be >= 1")
-        return commands.refs_regenerate(args.features, args.failed, args.spp, args.device)
-    return commands.refs_calibrate(args.features, args.device)
-
-
-def _compare(args) -> int:
-    from harness import commands
-
-    return commands.compare(args.a, args.b, args.threshold)
-
-
 def _rays(args) -> int:
-    from harness import rayview
+    from . import rayview
 
     if not args.pixel and not args.grid:
         raise WrtError("give at least one --pixel X Y or a --grid NX NY")
@@ -298,30 +230,26 @@ def _rays(args) -> int:
 
 
 def _stress(args) -> int:
-    from harness import stress
+    from . import stress
 
     if args.rays < 1:
         raise WrtError(f"--rays {args.rays}: must be >= 1")
     return stress.command(args.rays, args.seed, args.report)
 
 
-def _bench(args) -> int:
-    from harness import bench
-
-    return bench.command(args.scenes, args.budget, args.output, args.device, args.quick, args.triangles)
-
-
-VERBS = {"render": _render, "matrix": _matrix, "refs": _refs, "compare": _compare, "rays": _rays, "stress": _stress, "bench": _bench}
+LIBRARY_VERBS = ("render", "rays", "stress")
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else argv
+    parser, runs = _parser(plugins=not (argv and argv[0] in LIBRARY_VERBS))
+    args = parser.parse_args(argv)
     try:
         if args.verb != "render":
             from .device import init_warp
 
             init_warp()
-        return VERBS[args.verb](args)
+        return runs[args.verb](args)
     except WrtError as e:
         print(f"wrt: error: {e}", file=sys.stderr)
         return 2

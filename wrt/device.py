@@ -15,8 +15,24 @@ import warp as wp
 
 from wrt.kernels.camera import BOX, GAUSSIAN, TENT, CameraData
 from wrt.kernels.integrator import IntegratorSettings
-from wrt.kernels.lights import AREA, DIRECTIONAL, ENVIRONMENT, POINT, SPHERE_LIGHT, SPOT, LightData
-from wrt.kernels.materials import DIELECTRIC, DIFFUSE, EMITTER, GLOSSY, MIRROR, PHONG, MaterialData
+from wrt.kernels.lights import (
+    AREA,
+    DIRECTIONAL,
+    ENVIRONMENT,
+    POINT,
+    SPHERE_LIGHT,
+    SPOT,
+    LightData,
+)
+from wrt.kernels.materials import (
+    DIELECTRIC,
+    DIFFUSE,
+    EMITTER,
+    GLOSSY,
+    MIRROR,
+    PHONG,
+    MaterialData,
+)
 from wrt.kernels.sampling import INDEPENDENT, SOBOL, STRATIFIED, Sampler
 from wrt.kernels.traverse import SceneData
 
@@ -71,11 +87,13 @@ def cpu_model() -> str:
     return platform.machine()
 
 
-def resolve_device(name: str | None) -> wp.context.Device:
-    """The Warp device called ``name`` ("cpu", "cuda", "cuda:0"; None = "cpu").
+def resolve_device(name: str | wp.Device | None) -> wp.Device:
+    """The Warp device called ``name`` ("cpu", "cuda", "cuda:0"; None = "cpu"; a device: itself).
 
     Raises ``WrtError`` when Warp has no such device (e.g. "cuda" on a machine without a GPU).
     """
+    if isinstance(name, wp.Device):
+        return name
     name = name or "cpu"
     if name.startswith("cuda") and not wp.is_cuda_available():
         raise WrtError(f"device {name!r}: Warp found no CUDA device on this machine (use --device cpu)")

@@ -11,10 +11,10 @@ import difflib
 import math
 import os
 import sys
-import tomllib
 from collections.abc import Mapping
 
 import numpy as np
+import tomllib
 
 from .errors import MeshFileError, SceneError, WrtError
 from .meshio import apply_transform, load_mesh
@@ -22,10 +22,11 @@ from .scene import (
     DIELECTRIC_SHADOWS,
     FILTERS,
     INTEGRATORS,
-    SAMPLERS,
     MATERIAL_TYPES,
-    Camera,
+    SAMPLERS,
+    STILL,
     AreaLight,
+    Camera,
     DirectionalLight,
     EnvironmentLight,
     Material,
@@ -37,7 +38,6 @@ from .scene import (
     Scene,
     Sphere,
     SphereLight,
-    STILL,
     SpotLight,
     Triangle,
 )

@@ -20,7 +20,16 @@ import warp as wp
 
 from wrt.kernels.path import path_record
 from wrt.kernels.raycast import raycast_record
-from wrt.kernels.record import ENTERING, ESCAPED, HIT, KIND_NAMES, SHADOW_BLOCKED, SHADOW_LIT, RayRecord, Segment
+from wrt.kernels.record import (
+    ENTERING,
+    ESCAPED,
+    HIT,
+    KIND_NAMES,
+    SHADOW_BLOCKED,
+    SHADOW_LIT,
+    RayRecord,
+    Segment,
+)
 from wrt.kernels.traverse import VisitLog, trace_visits
 from wrt.kernels.whitted import whitted_record
 

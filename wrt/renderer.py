@@ -32,7 +32,15 @@ from wrt.kernels.film import LUMINANCE_WEIGHTS, Film
 from wrt.kernels.record import RayRecord
 from wrt.kernels.variants import render_kernel
 
-from .device import camera_data, integrator_settings, resolve_device, sampler_data, upload_geometry, upload_lights, upload_materials
+from .device import (
+    camera_data,
+    integrator_settings,
+    resolve_device,
+    sampler_data,
+    upload_geometry,
+    upload_lights,
+    upload_materials,
+)
 from .errors import WrtError
 from .geometry import build
 from .scene import AreaLight, Mesh, Polygon, Scene, Sphere, SphereLight, Triangle

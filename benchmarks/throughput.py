@@ -48,16 +48,17 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import warp as wp
-
 import wrt.kernels  # noqa: F401  (configures Warp)
-from wrt.kernels.traverse import VisitLog, trace_kernels
-from wrt.files import write_json
-from wrt.device import cpu_model, init_warp, resolve_device, upload_geometry
-from wrt.errors import WrtError
+from wrt.kernels.traverse import VisitLog
+
 from wrt.bvh import PLOC_RADIUS, build_bvh
+from wrt.device import cpu_model, init_warp, resolve_device
+from wrt.errors import WrtError
+from wrt.files import write_json
 from wrt.geometry import build, flatten
-from wrt.renderer import TILE_PIXELS, default_threads, scene_features
+from wrt.renderer import TILE_PIXELS, default_threads
 from wrt.scene import Camera, Material, Mesh, RenderSettings, Scene
+from wrt.trace import Tracer
 
 T_MAX = 1.0e30  # finite in float32 for every engine; a miss reports t = T_MAX
 T_RTOL = 1.0e-4  # hit distances closer than this (relative, absolute below 1) agree
@@ -176,29 +177,25 @@ def _mesh_scene(vertices: np.ndarray, faces: np.ndarray) -> Scene:
 
 
 class WrtEngine:
-    """The project's BVH: built and uploaded as the renderer does, traced by ``wrt.kernels.traverse``
-    compiled for the scene's geometry, as the renderer's specialised kernels are (a triangle mesh:
-    no sphere or polygon tests)."""
+    """The project's BVH, through ``wrt.trace.Tracer``: built and uploaded as the renderer does,
+    traced by ``wrt.kernels.traverse`` compiled for the scene's geometry, as a large render's
+    specialised kernels are (a triangle mesh: no sphere or polygon tests)."""
 
     name = "wrt"
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray, dev):
-        scene = _mesh_scene(vertices, faces)
         self.dev = dev
-        self.closest_kernel, self.any_kernel, self.visits_kernel = trace_kernels(scene_features(scene))
         t0 = time.perf_counter()
-        self.prims = build(scene, dev)
-        t1 = time.perf_counter()
-        self.data = upload_geometry(self.prims, dev)
+        self.tracer = Tracer(_mesh_scene(vertices, faces), dev, specialize=True)
         wp.synchronize_device(dev)
-        t2 = time.perf_counter()
-        stats = self.prims.bvh.stats
-        self.face = self.prims.bvh.order.numpy()  # input face of each triangle in leaf order (the mesh is the only shape)
+        seconds = time.perf_counter() - t0
+        self.data, self.closest_kernel, self.any_kernel, self.visits_kernel = self.tracer.data, self.tracer.closest_kernel, self.tracer.any_kernel, self.tracer.visits_kernel
+        stats = self.tracer.prims.bvh.stats
+        self.face = self.tracer.prims.bvh.order.numpy()  # input face of each triangle in leaf order (the mesh is the only shape)
         self.build = {
-            "build_s": t1 - t0,
+            "build_s": seconds,
             "bvh_build_s": stats.build_s,
             "bvh_phases_s": stats.phases_s,
-            "upload_s": t2 - t1,
             "build_threads": default_threads() if dev.is_cpu else None,
             "builder": f"wrt.bvh: Morton order, PLOC (radius {PLOC_RADIUS}), SAH leaves, 4-wide collapse; Warp kernels on {dev}"
             + ("" if stats.builder == "ploc" else " (balanced fallback)"),

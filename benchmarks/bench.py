@@ -45,8 +45,12 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from importlib import resources
 
 import numpy as np
+from wrt_harness import mitsuba_peer
+from wrt_harness.references import REFERENCE_SEED
+from wrt_harness.score import convergence_slope, rmse, ssim
 
 import wrt
 from wrt.device import cpu_model, resolve_device
@@ -57,12 +61,10 @@ from wrt.loader import load_scene, override_render, parse_scene
 from wrt.mitsuba_xml import load_mitsuba
 from wrt.scene import Mesh, Scene
 
-from . import mitsuba_peer, targets, wholeprocess
-from .references import REFERENCE_SEED
-from .score import convergence_slope, rmse, ssim
+from . import targets, wholeprocess
 from .throughput import build_scaling, format_table, run_throughput
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+EXAMPLES = str(resources.files("wrt.examples"))  # the tree's examples/, installed with wrt
 SAMPLERS = ("independent", "stratified", "sobol")
 SEED = 1  # seed of the benchmark renders (the reference uses REFERENCE_SEED and REFERENCE_SEED + 1)
 START_SPP = 4  # first point of a curve (spp = 1 would sample pixel centres only: another image)
@@ -122,7 +124,13 @@ class BenchScene:
 
 
 def _example(*parts: str) -> str:
-    return os.path.join(ROOT, "examples", *parts)
+    return os.path.join(EXAMPLES, *parts)
+
+
+def shown_path(path: str) -> str:
+    """``examples/...`` for one of wrt's examples (wherever installed), else the path as given."""
+    inside = os.path.relpath(os.path.abspath(path), EXAMPLES)
+    return path if inside.startswith("..") else os.path.join("examples", inside)
 
 
 def default_scenes(quick: bool = False) -> list[BenchScene]:
@@ -260,7 +268,7 @@ def reference_image(bench: BenchScene, folder: str, spp: int, device: str, log=N
     rgb = (0.5 * (a + b)).astype(np.float32)
     floor = 0.5 * rmse(a, b)
     os.makedirs(folder, exist_ok=True)
-    write_image(path, rgb, metadata={"spp": 2 * half, "seed": REFERENCE_SEED, "rmse_floor": floor, "render_time_s": seconds, "sampler": REFERENCE_SAMPLER, "scene": os.path.relpath(bench.path, ROOT)})
+    write_image(path, rgb, metadata={"spp": 2 * half, "seed": REFERENCE_SEED, "rmse_floor": floor, "render_time_s": seconds, "sampler": REFERENCE_SAMPLER, "scene": shown_path(bench.path)})
     return {"rgb": rgb, "spp": 2 * half, "rmse_floor": floor, "source": "rendered", "path": path, "render_s": seconds}
 
 
@@ -388,7 +396,7 @@ def run(scenes: list[BenchScene], out_dir: str, budget_s: float, device: str = "
         log(f"  reference {ref['source']}: {ref['spp']} spp, RMSE floor {ref['rmse_floor']:.3g} ({os.path.relpath(ref['path'])})")
         entry = {
             "name": bench.name,
-            "path": os.path.relpath(bench.path, ROOT),
+            "path": shown_path(bench.path),
             "width": scene.render.width,
             "height": scene.render.height,
             "max_depth": scene.render.max_depth,

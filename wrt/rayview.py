@@ -36,10 +36,19 @@ import sys
 import numpy as np
 import pyvista as pv
 
-from wrt.errors import WrtError
-from wrt.loader import load_scene
-from wrt.rays import DEFAULT_CAPACITY, RayTree, grid_pixels, trace_rays
-from wrt.scene import DirectionalLight, Mesh, Plane, PointLight, Polygon, Sphere, SpotLight, Triangle
+from .errors import WrtError
+from .loader import load_scene
+from .rays import DEFAULT_CAPACITY, RayTree, grid_pixels, trace_rays
+from .scene import (
+    DirectionalLight,
+    Mesh,
+    Plane,
+    PointLight,
+    Polygon,
+    Sphere,
+    SpotLight,
+    Triangle,
+)
 
 # colour of each kind (indices of wrt.kernels.record.KIND_NAMES)
 KIND_COLORS = ("#1f5fbf", "#f0a202", "#c1121f", "#2a9d3f", "#8e44ad", "#e056b5", "#16a3b8", "#7a5c3e")

@@ -32,16 +32,16 @@ import subprocess
 import sys
 import tempfile
 import time
+from importlib import resources
 
 import numpy as np
+from wrt_harness import mitsuba_peer
 
 from wrt.imageio import read_image
 
-from . import mitsuba_peer
 from .throughput import torus_mesh
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-CORNELL_XML = os.path.join(ROOT, "examples", "mitsuba", "cornell_box.xml")
+CORNELL_XML = str(resources.files("wrt.examples") / "mitsuba" / "cornell_box.xml")
 MESH_SIZE = 1024  # pixels, each way
 MESH_CAMERA = {"origin": (0.5, -4.0, 2.5), "look_at": (0.0, 0.0, 0.0), "up": (0.0, 0.0, 1.0), "fov": 40.0}
 
@@ -180,7 +180,7 @@ def run_path(spp: int, repeats: int, reference: np.ndarray, res: int = 128, samp
             commands["Mitsuba"] = [mitsuba + ["-o", out, f"-Dspp={spp}", f"-Dseed={k}", f"-Dres={res}", xml] for k, out in enumerate(outputs["Mitsuba"])]
         times = alternate(commands, folder, log)
         errors = {name: [float(np.mean((read_image(out).rgb.astype(np.float64) - reference) ** 2)) for out in outs[1:]] for name, outs in outputs.items()}
-    result = {"scene": os.path.relpath(CORNELL_XML, ROOT), "res": res, "spp": spp, "repeats": repeats, "device": device, "mitsuba_variant": variant if mitsuba else None}
+    result = {"scene": "examples/mitsuba/cornell_box.xml", "res": res, "spp": spp, "repeats": repeats, "device": device, "mitsuba_variant": variant if mitsuba else None}
     for name in times:
         mse = float(np.mean(errors[name]))
         entry = _summary(times[name])

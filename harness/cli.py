@@ -1,0 +1,89 @@
+"""The harness's command-line verbs: ``wrt matrix``, ``wrt refs`` and ``wrt compare``.
+
+``wrt`` finds them through the ``wrt.commands`` entry points of this package (pyproject.toml):
+each entry point (``matrix_verb`` ...) adds its subparser to ``wrt``'s and returns the function
+that runs it, so ``wrt`` never imports the harness, and this module imports nothing heavy: the
+work is in ``wrt_harness.commands``, imported when a verb runs.
+"""
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+
+from wrt.errors import WrtError
+
+Run = Callable[[argparse.Namespace], int]
+
+
+def matrix_verb(verbs) -> Run:
+    """``wrt matrix [FEATURE...] [--device] [--jobs N] [--report DIR]``."""
+    m = verbs.add_parser(
+        "matrix",
+        help="run the feature test matrix (visual regression harness)",
+        description="Render every feature of the feature list (or those named), score it by SSIM and a per-pixel "
+        "Z-test against its reference and by SSIM of its object ids against a pyvista rasterisation, check "
+        "convergence, print a table. Exit 0 when all pass, 1 on a regression, 2 on bad input.",
+    )
+    m.add_argument("features", nargs="*", metavar="FEATURE", help="feature names (default: all)")
+    m.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
+    m.add_argument("--jobs", type=int, default=1, help="features rendered at once (default 1; each uses all cores)")
+    m.add_argument("--report", metavar="DIR", help="write an HTML report (DIR/index.html and PNGs)")
+
+    def run(args: argparse.Namespace) -> int:
+        if args.jobs < 1:
+            raise WrtError(f"--jobs {args.jobs}: must be >= 1")
+        from .commands import matrix
+
+        return matrix(args.features, args.device, args.jobs, args.report)
+
+    return run
+
+
+def refs_verb(verbs) -> Run:
+    """``wrt refs regenerate|calibrate [FEATURE...]``."""
+    refs = verbs.add_parser("refs", help="regenerate or calibrate reference images", description="Manage the matrix's reference images.")
+    actions = refs.add_subparsers(dest="refs_verb", metavar="ACTION", required=True)
+    regen = actions.add_parser(
+        "regenerate",
+        help="re-render references (all, named, or --failed), then calibrate them",
+        description="Render converged references in independent batches, refuse any that does not reproduce "
+        "across seeds, print SSIM old vs new, write each file atomically, and recalibrate the thresholds.",
+    )
+    regen.add_argument("features", nargs="*", metavar="FEATURE")
+    regen.add_argument("--failed", action="store_true", help="only features that fail (or lack a valid reference)")
+    regen.add_argument("--spp", type=int, help="reference spp (default: the matrix entry's reference_spp)")
+    regen.add_argument("--device", default="cpu")
+    cal = actions.add_parser(
+        "calibrate",
+        help="set SSIM thresholds from renders with several seeds",
+        description="Render each feature at its test spp with several seeds, record the spread of SSIM against the "
+        "reference and set the threshold under it (min - max(0.002, 3 std)); stored beside the reference as NAME.json.",
+    )
+    cal.add_argument("features", nargs="*", metavar="FEATURE")
+    cal.add_argument("--device", default="cpu")
+
+    def run(args: argparse.Namespace) -> int:
+        from .commands import refs_calibrate, refs_regenerate
+
+        if args.refs_verb == "regenerate":
+            if args.spp is not None and args.spp < 1:
+                raise WrtError(f"--spp {args.spp}: must be >= 1")
+            return refs_regenerate(args.features, args.failed, args.spp, args.device)
+        return refs_calibrate(args.features, args.device)
+
+    return run
+
+
+def compare_verb(verbs) -> Run:
+    """``wrt compare A B [--threshold T]``."""
+    c = verbs.add_parser("compare", help="score two images", description="SSIM (tone-mapped), RMSE and max error (linear) of A against B.")
+    c.add_argument("a", metavar="A", help="image to score (.exr or .png)")
+    c.add_argument("b", metavar="B", help="reference image")
+    c.add_argument("--threshold", type=float, help="exit 1 when SSIM is below this")
+
+    def run(args: argparse.Namespace) -> int:
+        from .commands import compare
+
+        return compare(args.a, args.b, args.threshold)
+
+    return run
