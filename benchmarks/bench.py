@@ -31,6 +31,7 @@ kernel is timed against the all-features kernel (``wrt.render(..., specialize=Fa
 Results: ``DIR/results.json`` (everything), ``DIR/results.csv`` (one row per point) and
 ``DIR/NAME.png`` (log-log error against ``wall_s``, one line per curve), each written atomically.
 """
+
 from __future__ import annotations
 
 import csv
@@ -92,7 +93,9 @@ MIN_REFERENCE_SPP = 256
 ADAPTIVE_K = 1.0
 SPEEDUP_REPEATS = 3  # timed renders per kernel in the specialisation measurement (best taken)
 SPEEDUP_TARGET = 1.3
-MITSUBA_VARIANT = "llvm_ad_rgb"  # fastest CPU variant measured here (docs/mitsuba.md); the peer falls back to scalar_rgb
+MITSUBA_VARIANT = (
+    "llvm_ad_rgb"  # fastest CPU variant measured here (docs/mitsuba.md); the peer falls back to scalar_rgb
+)
 
 
 @dataclass(frozen=True)
@@ -138,7 +141,10 @@ def default_scenes(quick: bool = False) -> list[BenchScene]:
     diffuse-only soft-shadow scene (smooth: where stratified and Sobol samples pay; the
     specialisation speed-up is measured on it). ``quick``: small images for the smoke test."""
     if quick:
-        return [BenchScene(_example("mitsuba", "cornell_box.xml"), params={"res": 32}), BenchScene(_example("path", "soft_shadows.toml"), 40, 30, speedup=True)]
+        return [
+            BenchScene(_example("mitsuba", "cornell_box.xml"), params={"res": 32}),
+            BenchScene(_example("path", "soft_shadows.toml"), 40, 30, speedup=True),
+        ]
     return [
         BenchScene(_example("mitsuba", "cornell_box.xml"), params={"res": 128}),
         BenchScene(_example("path", "cornell_box.toml"), 128, 128),
@@ -154,11 +160,17 @@ def quick_size(bench: BenchScene, width: int = 40) -> BenchScene:
 
 def scene_key(scene: Scene) -> str:
     """A short hash of everything the converged image depends on (not spp, seed or sampler)."""
-    neutral = dataclasses.replace(scene, render=dataclasses.replace(scene.render, spp=1, seed=0, sampler=REFERENCE_SAMPLER))
+    neutral = dataclasses.replace(
+        scene, render=dataclasses.replace(scene.render, spp=1, seed=0, sampler=REFERENCE_SAMPLER)
+    )
     h = hashlib.sha256(repr((neutral.render, neutral.camera, neutral.materials, neutral.lights)).encode())
     for shape in neutral.shapes:
         if isinstance(shape, Mesh):
-            h.update(np.ascontiguousarray(shape.vertices).tobytes() + np.ascontiguousarray(shape.faces).tobytes() + repr((shape.material, shape.velocity)).encode())
+            h.update(
+                np.ascontiguousarray(shape.vertices).tobytes()
+                + np.ascontiguousarray(shape.faces).tobytes()
+                + repr((shape.material, shape.velocity)).encode()
+            )
         else:
             h.update(repr(shape).encode())
     return h.hexdigest()[:16]
@@ -177,7 +189,14 @@ class Shot:
     mean_spp: float
 
 
-def measure_curve(render: Callable[[int], Shot], reference: np.ndarray, budget_s: float, max_points: int | None = None, repeats: int = REPEATS, log=None) -> list[dict]:
+def measure_curve(
+    render: Callable[[int], Shot],
+    reference: np.ndarray,
+    budget_s: float,
+    max_points: int | None = None,
+    repeats: int = REPEATS,
+    log=None,
+) -> list[dict]:
     """Render at ``START_SPP``, twice that, ... while the curve's time (``render_s``, else
     ``wall_s``) plus the next render's expected time (twice the last) fits in ``budget_s``; at
     least ``MIN_POINTS`` points, at most ``max_points``. Each point is rendered ``repeats``
@@ -191,10 +210,20 @@ def measure_curve(render: Callable[[int], Shot], reference: np.ndarray, budget_s
         seconds = wall_s if render_s is None else render_s
         spent += seconds
         points.append(
-            {"spp": spp, "mean_spp": shot.mean_spp, "render_s": render_s, "wall_s": wall_s, "rmse": rmse(shot.rgb, reference), "one_minus_ssim": 1.0 - ssim(shot.rgb, reference)}
+            {
+                "spp": spp,
+                "mean_spp": shot.mean_spp,
+                "render_s": render_s,
+                "wall_s": wall_s,
+                "rmse": rmse(shot.rgb, reference),
+                "one_minus_ssim": 1.0 - ssim(shot.rgb, reference),
+            }
         )
         if log:
-            log(f"    {spp:6d} spp  {seconds:8.3f} s  RMSE {points[-1]['rmse']:.4g}  1-SSIM {points[-1]['one_minus_ssim']:.4g}")
+            log(
+                f"    {spp:6d} spp  {seconds:8.3f} s  RMSE {points[-1]['rmse']:.4g}  1-SSIM "
+                f"{points[-1]['one_minus_ssim']:.4g}"
+            )
         if max_points is not None and len(points) >= max_points:
             break
         if len(points) >= MIN_POINTS and spent + 2.0 * seconds > budget_s:
@@ -216,7 +245,9 @@ def slopes(points: list[dict]) -> dict:
     }
 
 
-def wrt_shot(bench: BenchScene, sampler: str, device: str, adaptive: bool = False, seed: int = SEED, specialize: bool = True) -> Callable[[int], Shot]:
+def wrt_shot(
+    bench: BenchScene, sampler: str, device: str, adaptive: bool = False, seed: int = SEED, specialize: bool = True
+) -> Callable[[int], Shot]:
     """A renderer for `measure_curve`: scene file -> ``wrt.render`` with ``sampler`` (and adaptive
     sampling) at a given spp, with the kernel specialised on the scene (every point alike,
     whatever its size), or the all-features kernel with ``specialize=False``."""
@@ -242,7 +273,12 @@ def warm_up(bench: BenchScene, sampler: str, device: str, **options) -> dict:
     first = wrt.render(scene, spp=START_SPP, seed=SEED, device=device, **options)
     warmup = time.perf_counter() - t0
     rate = wrt.render(scene, spp=4 * START_SPP, seed=SEED, device=device, **options)
-    return {"warmup_s": warmup, "compile_s": first.compile_time_s, "build_s": first.build_time_s, "spp_per_s": 4 * START_SPP / max(rate.render_time_s, 1e-9)}
+    return {
+        "warmup_s": warmup,
+        "compile_s": first.compile_time_s,
+        "build_s": first.build_time_s,
+        "spp_per_s": 4 * START_SPP / max(rate.render_time_s, 1e-9),
+    }
 
 
 # --- the reference ---------------------------------------------------------------------------------
@@ -258,17 +294,37 @@ def reference_image(bench: BenchScene, folder: str, spp: int, device: str, log=N
     if os.path.exists(path):
         cached = read_image(path)
         if int(cached.metadata.get("spp", 0)) >= spp:
-            return {"rgb": cached.rgb, "spp": int(cached.metadata["spp"]), "rmse_floor": float(cached.metadata["rmse_floor"]), "source": "cached", "path": path, "render_s": float(cached.metadata["render_time_s"])}
+            return {
+                "rgb": cached.rgb,
+                "spp": int(cached.metadata["spp"]),
+                "rmse_floor": float(cached.metadata["rmse_floor"]),
+                "source": "cached",
+                "path": path,
+                "render_s": float(cached.metadata["render_time_s"]),
+            }
     if log:
         log(f"  reference: {REFERENCE_SAMPLER}, {spp} spp in two halves ...")
     half = max(1, spp // 2)
     t0 = time.perf_counter()
-    a, b = (wrt.render(scene, spp=half, seed=REFERENCE_SEED + i, device=device).rgb.astype(np.float64) for i in range(2))
+    a, b = (
+        wrt.render(scene, spp=half, seed=REFERENCE_SEED + i, device=device).rgb.astype(np.float64) for i in range(2)
+    )
     seconds = time.perf_counter() - t0
     rgb = (0.5 * (a + b)).astype(np.float32)
     floor = 0.5 * rmse(a, b)
     os.makedirs(folder, exist_ok=True)
-    write_image(path, rgb, metadata={"spp": 2 * half, "seed": REFERENCE_SEED, "rmse_floor": floor, "render_time_s": seconds, "sampler": REFERENCE_SAMPLER, "scene": shown_path(bench.path)})
+    write_image(
+        path,
+        rgb,
+        metadata={
+            "spp": 2 * half,
+            "seed": REFERENCE_SEED,
+            "rmse_floor": floor,
+            "render_time_s": seconds,
+            "sampler": REFERENCE_SAMPLER,
+            "scene": shown_path(bench.path),
+        },
+    )
     return {"rgb": rgb, "spp": 2 * half, "rmse_floor": floor, "source": "rendered", "path": path, "render_s": seconds}
 
 
@@ -324,7 +380,10 @@ def compare_mitsuba(curves: list[dict], mitsuba: dict, sampler: str) -> dict:
         per = {m: equal_time(c["points"], mitsuba["points"], m) for m in ("rmse", "one_minus_ssim")}
         out[c["label"]] = {
             **{f"{m}_at": rows for m, rows in per.items()},
-            **{f"{m}_ratio": float(np.exp(np.mean(np.log([r["ratio"] for r in rows])))) if rows else None for m, rows in per.items()},
+            **{
+                f"{m}_ratio": float(np.exp(np.mean(np.log([r["ratio"] for r in rows])))) if rows else None
+                for m, rows in per.items()
+            },
         }
     ranked = [(v["rmse_ratio"], k) for k, v in out.items() if v["rmse_ratio"] is not None]
     best = min(ranked)[1] if ranked else None
@@ -359,7 +418,16 @@ def specialisation_speedup(bench: BenchScene, device: str, seconds: float, log=N
     speedup = best[False] / best[True]
     if log:
         log(f"  specialised {best[True]:.3f} s, all-features {best[False]:.3f} s at {spp} spp: {speedup:.2f}x")
-    return {"scene": bench.name, "materials": materials, "spp": spp, "specialised_s": best[True], "all_features_s": best[False], "speedup": speedup, "target": SPEEDUP_TARGET, "target_met": speedup >= SPEEDUP_TARGET}
+    return {
+        "scene": bench.name,
+        "materials": materials,
+        "spp": spp,
+        "specialised_s": best[True],
+        "all_features_s": best[False],
+        "speedup": speedup,
+        "target": SPEEDUP_TARGET,
+        "target_met": speedup >= SPEEDUP_TARGET,
+    }
 
 
 # --- the whole benchmark -----------------------------------------------------------------------------
@@ -369,7 +437,17 @@ def curve_label(sampler: str, adaptive: bool) -> str:
     return f"{sampler}{' adaptive' if adaptive else ''}"
 
 
-def run(scenes: list[BenchScene], out_dir: str, budget_s: float, device: str = "cpu", max_points: int | None = None, repeats: int = REPEATS, samplers=SAMPLERS, mitsuba: bool = True, log=None) -> dict:
+def run(
+    scenes: list[BenchScene],
+    out_dir: str,
+    budget_s: float,
+    device: str = "cpu",
+    max_points: int | None = None,
+    repeats: int = REPEATS,
+    samplers=SAMPLERS,
+    mitsuba: bool = True,
+    log=None,
+) -> dict:
     """Run the benchmark over ``scenes`` and write ``out_dir/results.json``, ``results.csv`` and one
     plot per scene; returns the results (the JSON's content)."""
     log = log or (lambda text: None)
@@ -378,12 +456,27 @@ def run(scenes: list[BenchScene], out_dir: str, budget_s: float, device: str = "
         peer, mitsuba_why = None, f"wrt runs on {device}: the comparison is CPU against CPU, run it with --device cpu"
     started = time.time()
     results = {
-        "machine": {"cpu": cpu_model(), "cores": os.cpu_count(), "system": f"{platform.system()} {platform.release()}", "python": platform.python_version(), "load_average_start": list(os.getloadavg())},
+        "machine": {
+            "cpu": cpu_model(),
+            "cores": os.cpu_count(),
+            "system": f"{platform.system()} {platform.release()}",
+            "python": platform.python_version(),
+            "load_average_start": list(os.getloadavg()),
+        },
         "device": device,
         "wrt_version": wrt.__version__,
         "date": time.strftime("%Y-%m-%d %H:%M:%S %Z", time.localtime(started)),
         "budget_s": budget_s,
-        "settings": {"start_spp": START_SPP, "min_points": MIN_POINTS, "max_points": max_points, "repeats": repeats, "seed": SEED, "adaptive_k": ADAPTIVE_K, "reference_sampler": REFERENCE_SAMPLER, "reference_time_factor": REFERENCE_TIME_FACTOR},
+        "settings": {
+            "start_spp": START_SPP,
+            "min_points": MIN_POINTS,
+            "max_points": max_points,
+            "repeats": repeats,
+            "seed": SEED,
+            "adaptive_k": ADAPTIVE_K,
+            "reference_sampler": REFERENCE_SAMPLER,
+            "reference_time_factor": REFERENCE_TIME_FACTOR,
+        },
         "mitsuba": mitsuba_why,
         "scenes": [],
         "speedup": None,
@@ -392,8 +485,13 @@ def run(scenes: list[BenchScene], out_dir: str, budget_s: float, device: str = "
         log(f"{bench.name}:")
         scene = bench.load()
         warm = warm_up(bench, REFERENCE_SAMPLER, device)
-        ref = reference_image(bench, os.path.join(out_dir, "references"), reference_spp(warm["spp_per_s"], budget_s), device, log)
-        log(f"  reference {ref['source']}: {ref['spp']} spp, RMSE floor {ref['rmse_floor']:.3g} ({os.path.relpath(ref['path'])})")
+        ref = reference_image(
+            bench, os.path.join(out_dir, "references"), reference_spp(warm["spp_per_s"], budget_s), device, log
+        )
+        log(
+            f"  reference {ref['source']}: {ref['spp']} spp, RMSE floor {ref['rmse_floor']:.3g} "
+            f"({os.path.relpath(ref['path'])})"
+        )
         entry = {
             "name": bench.name,
             "path": shown_path(bench.path),
@@ -412,14 +510,21 @@ def run(scenes: list[BenchScene], out_dir: str, budget_s: float, device: str = "
                 log(f"  {label}:")
                 options = {"target_error": ADAPTIVE_K / math.sqrt(START_SPP)} if adaptive else {}
                 curve.update(warm_up(bench, sampler, device, **options))
-                curve["points"] = measure_curve(wrt_shot(bench, sampler, device, adaptive), ref["rgb"], budget_s, max_points, repeats, log)
+                curve["points"] = measure_curve(
+                    wrt_shot(bench, sampler, device, adaptive), ref["rgb"], budget_s, max_points, repeats, log
+                )
                 curve.update(slopes(curve["points"]))
         if bench.is_mitsuba and peer is not None:
             log(f"  Mitsuba 3 ({mitsuba_why}):")
             shoot = mitsuba_shot(peer, bench)
             t0 = time.perf_counter()
             shoot(1)
-            mi = {"renderer": "mitsuba", "label": f"Mitsuba 3 {peer.variant()}", "variant": peer.variant(), "warmup_s": time.perf_counter() - t0}
+            mi = {
+                "renderer": "mitsuba",
+                "label": f"Mitsuba 3 {peer.variant()}",
+                "variant": peer.variant(),
+                "warmup_s": time.perf_counter() - t0,
+            }
             mi["points"] = measure_curve(shoot, ref["rgb"], budget_s, max_points, repeats, log)
             mi.update(slopes(mi["points"]))
             entry["mitsuba"] = mi
@@ -439,7 +544,19 @@ def run(scenes: list[BenchScene], out_dir: str, budget_s: float, device: str = "
 # --- files -------------------------------------------------------------------------------------------
 
 
-CSV_COLUMNS = ("scene", "renderer", "curve", "sampler", "adaptive", "spp", "mean_spp", "render_s", "wall_s", "rmse", "one_minus_ssim")
+CSV_COLUMNS = (
+    "scene",
+    "renderer",
+    "curve",
+    "sampler",
+    "adaptive",
+    "spp",
+    "mean_spp",
+    "render_s",
+    "wall_s",
+    "rmse",
+    "one_minus_ssim",
+)
 
 
 def csv_text(results: dict) -> str:
@@ -449,7 +566,21 @@ def csv_text(results: dict) -> str:
     for entry in results["scenes"]:
         for c in entry["curves"] + ([entry["mitsuba"]] if "mitsuba" in entry else []):
             for p in c.get("points", []):
-                w.writerow([entry["name"], c["renderer"], c["label"], c.get("sampler", c.get("variant")), int(c.get("adaptive", False)), p["spp"], f"{p['mean_spp']:.6g}", "" if p["render_s"] is None else f"{p['render_s']:.6g}", f"{p['wall_s']:.6g}", f"{p['rmse']:.6g}", f"{p['one_minus_ssim']:.6g}"])
+                w.writerow(
+                    [
+                        entry["name"],
+                        c["renderer"],
+                        c["label"],
+                        c.get("sampler", c.get("variant")),
+                        int(c.get("adaptive", False)),
+                        p["spp"],
+                        f"{p['mean_spp']:.6g}",
+                        "" if p["render_s"] is None else f"{p['render_s']:.6g}",
+                        f"{p['wall_s']:.6g}",
+                        f"{p['rmse']:.6g}",
+                        f"{p['one_minus_ssim']:.6g}",
+                    ]
+                )
     return out.getvalue()
 
 
@@ -468,8 +599,18 @@ def plot_png(entry: dict) -> bytes:
             if not c.get("points"):
                 continue
             t = [p["wall_s"] for p in c["points"]]
-            style = {"color": "black", "linestyle": "--", "marker": "s"} if c["renderer"] == "mitsuba" else {"color": colours.get(c["sampler"]), "linestyle": ":" if c["adaptive"] else "-", "marker": "o"}
-            ax.loglog(t, [p[metric] for p in c["points"]], label=f"{c['label']} ({c['slope_rmse' if metric == 'rmse' else 'slope_one_minus_ssim']:+.2f})", markersize=4, **style)
+            style = (
+                {"color": "black", "linestyle": "--", "marker": "s"}
+                if c["renderer"] == "mitsuba"
+                else {"color": colours.get(c["sampler"]), "linestyle": ":" if c["adaptive"] else "-", "marker": "o"}
+            )
+            ax.loglog(
+                t,
+                [p[metric] for p in c["points"]],
+                label=f"{c['label']} ({c['slope_rmse' if metric == 'rmse' else 'slope_one_minus_ssim']:+.2f})",
+                markersize=4,
+                **style,
+            )
         if metric == "rmse":
             ax.axhline(entry["reference"]["rmse_floor"], color="grey", linewidth=0.8, label="reference's own RMSE")
         ax.set_xlabel("wall seconds (scene file to image, after warm-up)")
@@ -496,26 +637,57 @@ def write_results(results: dict, out_dir: str) -> list[str]:
 
 def table(results: dict) -> str:
     """The readable summary: per curve its points, slopes and top spp; the Mitsuba ratios; the speed-up."""
-    rows = [["scene", "curve", "points", "spp", "render s", "RMSE", "1-SSIM", "slope RMSE/t", "slope 1-SSIM/t", "compile s"]]
+    rows = [
+        ["scene", "curve", "points", "spp", "render s", "RMSE", "1-SSIM", "slope RMSE/t", "slope 1-SSIM/t", "compile s"]
+    ]
     lines = []
     for e in results["scenes"]:
         for c in e["curves"] + ([e["mitsuba"]] if "mitsuba" in e else []):
             last = c["points"][-1]
             seconds = last["wall_s"] if last["render_s"] is None else last["render_s"]
-            rows.append([e["name"], c["label"], str(len(c["points"])), f"{c['points'][0]['spp']}-{last['spp']}", f"{seconds:.2f}", f"{last['rmse']:.4g}", f"{last['one_minus_ssim']:.4g}", f"{c['slope_rmse']:+.2f}", f"{c['slope_one_minus_ssim']:+.2f}", f"{c.get('compile_s', 0.0):.2f}"])
+            rows.append(
+                [
+                    e["name"],
+                    c["label"],
+                    str(len(c["points"])),
+                    f"{c['points'][0]['spp']}-{last['spp']}",
+                    f"{seconds:.2f}",
+                    f"{last['rmse']:.4g}",
+                    f"{last['one_minus_ssim']:.4g}",
+                    f"{c['slope_rmse']:+.2f}",
+                    f"{c['slope_one_minus_ssim']:+.2f}",
+                    f"{c.get('compile_s', 0.0):.2f}",
+                ]
+            )
         if "equal_time" in e:
             eq = e["equal_time"]
             for label, v in eq["per_curve"].items():
                 if v["rmse_ratio"] is not None:
-                    lines.append(f"{e['name']}: wrt {label} / {e['mitsuba']['label']} at equal wall time: RMSE x{v['rmse_ratio']:.2f}, 1-SSIM x{v['one_minus_ssim_ratio']:.2f} (geometric mean over {len(v['rmse_at'])} times)")
+                    lines.append(
+                        f"{e['name']}: wrt {label} / {e['mitsuba']['label']} at equal wall time: RMSE "
+                        f"x{v['rmse_ratio']:.2f}, 1-SSIM x{v['one_minus_ssim_ratio']:.2f} "
+                        f"(geometric mean over {len(v['rmse_at'])} times)"
+                    )
             if eq["best"]:
-                verdict = "target met" if eq["target_met"] else f"target NOT met: {100 * (eq['best_rmse_ratio'] - 1):.0f}% more RMSE than Mitsuba"
-                lines.append(f"{e['name']}: best wrt curve {eq['best']}: RMSE ratio {eq['best_rmse_ratio']:.2f} ({verdict})")
+                verdict = (
+                    "target met"
+                    if eq["target_met"]
+                    else f"target NOT met: {100 * (eq['best_rmse_ratio'] - 1):.0f}% more RMSE than Mitsuba"
+                )
+                lines.append(
+                    f"{e['name']}: best wrt curve {eq['best']}: RMSE ratio {eq['best_rmse_ratio']:.2f} ({verdict})"
+                )
             if eq["same_sampler_rmse_ratio"] is not None:
-                lines.append(f"{e['name']}: with the scene's own sampler ({eq['same_sampler']}, as Mitsuba renders it): RMSE ratio {eq['same_sampler_rmse_ratio']:.2f}")
+                lines.append(
+                    f"{e['name']}: with the scene's own sampler ({eq['same_sampler']}, as Mitsuba renders it): RMSE "
+                    f"ratio {eq['same_sampler_rmse_ratio']:.2f}"
+                )
     s = results.get("speedup")
     if s:
-        lines.append(f"speed-up on {s['scene']}: specialised {s['specialised_s']:.3f} s vs all-features {s['all_features_s']:.3f} s at {s['spp']} spp: {s['speedup']:.2f}x (target >= {s['target']})")
+        lines.append(
+            f"speed-up on {s['scene']}: specialised {s['specialised_s']:.3f} s vs all-features "
+            f"{s['all_features_s']:.3f} s at {s['spp']} spp: {s['speedup']:.2f}x (target >= {s['target']})"
+        )
     lines.append(f"Mitsuba 3: {results['mitsuba']}")
     widths = [max(len(r[k]) for r in rows) for k in range(len(rows[0]))]
     return "\n".join(["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows] + [""] + lines)
@@ -535,24 +707,45 @@ def peers(out_dir: str, speed: dict, triangles: int, device: str, quick: bool) -
     cornell = BenchScene(wholeprocess.CORNELL_XML, params={"res": res})
     reference = reference_image(cornell, os.path.join(out_dir, "references"), MIN_REFERENCE_SPP, device, log)
     log(f"whole process, path tracing {os.path.basename(cornell.path)} at {spp} spp, against Mitsuba 3:")
-    path = wholeprocess.run_path(spp, repeats, reference["rgb"].astype(np.float64), res, ("independent",) if quick else SAMPLERS, device, log)
+    path = wholeprocess.run_path(
+        spp, repeats, reference["rgb"].astype(np.float64), res, ("independent",) if quick else SAMPLERS, device, log
+    )
     table = targets.rows(speed, builds, mesh, path)
-    summary = {"machine": speed["machine"], "device": device, "build_scaling": builds, "whole_process_mesh": mesh, "whole_process_path": path, "table": table}
+    summary = {
+        "machine": speed["machine"],
+        "device": device,
+        "build_scaling": builds,
+        "whole_process_mesh": mesh,
+        "whole_process_path": path,
+        "table": table,
+    }
     write_json(os.path.join(out_dir, "targets.json"), summary)
-    lines = [f"{b['triangles']:>10,} triangles: wrt {b['wrt_s']:.3f} s (scene to device {b['wrt_scene_s']:.3f} s), wp.Mesh {b['wp_mesh_s']:.3f} s" for b in builds]
+    lines = [
+        f"{b['triangles']:>10,} triangles: wrt {b['wrt_s']:.3f} s (scene to device {b['wrt_scene_s']:.3f} s), wp.Mesh "
+        f"{b['wp_mesh_s']:.3f} s"
+        for b in builds
+    ]
     print("\nBVH build against size (CPU):\n" + "\n".join(lines))
-    print("\nwrt against its peers (ratios above 1: wrt ahead):\n" + targets.format_rows(table, path) + f"\nwrote {out_dir}/targets.json")
+    print(
+        "\nwrt against its peers (ratios above 1: wrt ahead):\n"
+        + targets.format_rows(table, path)
+        + f"\nwrote {out_dir}/targets.json"
+    )
     return summary
 
 
-def command(paths: list[str], budget_s: float | None, out_dir: str, device: str, quick: bool, triangles: int | None = None) -> int:
+def command(
+    paths: list[str], budget_s: float | None, out_dir: str, device: str, quick: bool, triangles: int | None = None
+) -> int:
     """``wrt bench``: run, print the tables, write the files; 0 on success. ``triangles``: size of
     the ray-throughput mesh (``harness.throughput``; default 1M, 20k with ``quick``; 0 skips it)."""
     if budget_s is not None and not (budget_s > 0 and math.isfinite(budget_s)):
         raise WrtError(f"--budget {budget_s}: must be a positive number of seconds")
     triangles = (QUICK_TRIANGLES if quick else FULL_TRIANGLES) if triangles is None else triangles
     if triangles < 0 or 0 < triangles < MIN_TRIANGLES:
-        raise WrtError(f"--triangles {triangles}: must be 0 (skip the throughput benchmark) or at least {MIN_TRIANGLES}")
+        raise WrtError(
+            f"--triangles {triangles}: must be 0 (skip the throughput benchmark) or at least {MIN_TRIANGLES}"
+        )
     for p in paths:
         if not os.path.isfile(p):
             raise WrtError(f"{p}: no such scene file")
@@ -566,12 +759,25 @@ def command(paths: list[str], budget_s: float | None, out_dir: str, device: str,
         s.load()  # bad scenes stop here, before anything is rendered
     budget = budget_s or (QUICK_BUDGET_S if quick else DEFAULT_BUDGET_S)
     os.environ.setdefault("WRT_MITSUBA_VARIANT", MITSUBA_VARIANT)
-    results = run(scenes, out_dir, budget, device, max_points=3 if quick else None, repeats=1 if quick else REPEATS, log=lambda text: print(text, file=sys.stderr, flush=True))
+    results = run(
+        scenes,
+        out_dir,
+        budget,
+        device,
+        max_points=3 if quick else None,
+        repeats=1 if quick else REPEATS,
+        log=lambda text: print(text, file=sys.stderr, flush=True),
+    )
     print(table(results))
-    print(f"\n{results['machine']['cpu']}, {results['machine']['cores']} cores, device {device}; {results['total_s']:.0f} s; wrote {out_dir}/results.json, results.csv and plots")
+    print(
+        f"\n{results['machine']['cpu']}, {results['machine']['cores']} cores, device {device}; "
+        f"{results['total_s']:.0f} s; wrote {out_dir}/results.json, results.csv and plots"
+    )
     if triangles:
         rays = QUICK_RAYS if quick else FULL_RAYS
-        speed = run_throughput(triangles, rays, device=device, repeats=1 if quick else THROUGHPUT_REPEATS, reference_sah=not quick)
+        speed = run_throughput(
+            triangles, rays, device=device, repeats=1 if quick else THROUGHPUT_REPEATS, reference_sah=not quick
+        )
         speed["command"] = f"wrt bench (--triangles {triangles})"
         write_json(os.path.join(out_dir, "throughput.json"), speed)
         print("\n" + format_table(speed) + f"\nwrote {out_dir}/throughput.json")

@@ -12,6 +12,7 @@ References
 I. Wald, "On fast Construction of SAH-based Bounding Volume Hierarchies", IEEE RT 2007 (binning).
 M. Pharr, W. Jakob, G. Humphreys, pbrt-v4, sec. 7.3 (SAH costs).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -106,7 +107,9 @@ def _split_level(lo, hi, centroid, seg, seg_count, c_lo, c_hi):
         local = np.full(n_seg, -1)
         local[nodes] = np.arange(len(nodes))
         prims = np.flatnonzero(local[seg] >= 0)
-        c, a, s, b = _binned_sah(lo[prims], hi[prims], centroid[prims], local[seg[prims]], len(nodes), c_lo[nodes], c_hi[nodes], nb)
+        c, a, s, b = _binned_sah(
+            lo[prims], hi[prims], centroid[prims], local[seg[prims]], len(nodes), c_lo[nodes], c_hi[nodes], nb
+        )
         cost[nodes], axis[nodes], split[nodes], bins[prims] = c, a, s, b
     return cost, axis, split, bins
 
@@ -191,4 +194,6 @@ def sah_cost(bvh: Bvh, traversal_cost: float, intersection_cost: float) -> float
     the root's area (the expected cost of a ray through the root box, in units of one test)."""
     area = _area(bvh.lo, bvh.hi)
     inner = bvh.count == 0
-    return float((traversal_cost * area[inner].sum() + intersection_cost * (bvh.count[~inner] * area[~inner]).sum()) / area[0])
+    return float(
+        (traversal_cost * area[inner].sum() + intersection_cost * (bvh.count[~inner] * area[~inner]).sum()) / area[0]
+    )

@@ -1,5 +1,6 @@
 """``wrt bench``, a ``wrt.commands`` entry point (see ``wrt_harness.cli``): its arguments here, the
 work in ``wrt_benchmarks.bench``, imported when the verb runs."""
+
 from __future__ import annotations
 
 import argparse
@@ -20,18 +21,35 @@ def bench_verb(verbs) -> Callable[[argparse.Namespace], int]:
         "(DIR/throughput.json, see --triangles), BVH build times and whole processes against Mitsuba 3, and writes "
         "every ratio beside its target (DIR/targets.json). See docs/performance.md.",
     )
-    b.add_argument("scenes", nargs="*", metavar="SCENE", help="scene files, .toml or Mitsuba 3 .xml (default: the Cornell boxes and soft_shadows)")
-    b.add_argument("--budget", type=float, metavar="SECONDS", help="render seconds per curve (default 6; 0.5 with --quick)")
-    b.add_argument("-o", "--output", default="bench-results", metavar="DIR", help="output folder (default bench-results); references are cached in DIR/references")
+    b.add_argument(
+        "scenes",
+        nargs="*",
+        metavar="SCENE",
+        help="scene files, .toml or Mitsuba 3 .xml (default: the Cornell boxes and soft_shadows)",
+    )
+    b.add_argument(
+        "--budget", type=float, metavar="SECONDS", help="render seconds per curve (default 6; 0.5 with --quick)"
+    )
+    b.add_argument(
+        "-o",
+        "--output",
+        default="bench-results",
+        metavar="DIR",
+        help="output folder (default bench-results); references are cached in DIR/references",
+    )
     b.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
-    b.add_argument("--quick", action="store_true", help="small images, 3 points per curve: a smoke test of the benchmark, not a measurement")
+    b.add_argument(
+        "--quick",
+        action="store_true",
+        help="small images, 3 points per curve: a smoke test of the benchmark, not a measurement",
+    )
     b.add_argument(
         "--triangles",
         type=int,
         metavar="N",
-        help="also measure ray throughput (rays/s of wrt's BVH, wp.Mesh and Embree when installed) on an N-triangle mesh, "
-        "build times and whole processes: DIR/throughput.json and DIR/targets.json (default 1000000; 20000 with --quick; "
-        "0 skips them)",
+        help="also measure ray throughput (rays/s of wrt's BVH, wp.Mesh and Embree when installed) on an N-triangle "
+        "mesh, build times and whole processes: DIR/throughput.json and DIR/targets.json (default 1000000; 20000 "
+        "with --quick; 0 skips them)",
     )
 
     def run(args: argparse.Namespace) -> int:

@@ -8,6 +8,7 @@ with the specialised kernel and with the all-features one, on one thread, the tw
 run by run so that drift in a shared machine's speed hits both alike; the two images must be
 identical (specialisation only removes code the scene cannot reach).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -65,8 +66,11 @@ def main() -> None:
             "identical": bool(np.array_equal(rgb_all, rgb_spec)),
         }
         rows.append(row)
-        print(f"{path:40s} {scene.render.integrator:8s} features {features.key}  all {t_all:.3f} s  specialised {t_spec:.3f} s  "
-              f"x{row['speedup']:.2f}  identical={row['identical']}")
+        print(
+            f"{path:40s} {scene.render.integrator:8s} features {features.key}  all {t_all:.3f} s  specialised "
+            f"{t_spec:.3f} s  "
+            f"x{row['speedup']:.2f}  identical={row['identical']}"
+        )
     if args.output:
         machine = {"cpu": cpu_model(), "cores": os.cpu_count(), "platform": platform.platform()}
         out = {"machine": machine, "threads": 1, "repeats": args.repeats, "scenes": rows}

@@ -18,6 +18,7 @@ size of the throughput mesh where it was measured, else the largest), the whole 
 ``harness.wholeprocess``. Ratios above 1 mean wrt is ahead. A row whose
 inputs were not measured (no Embree, no Mitsuba, throughput skipped) reads "-".
 """
+
 from __future__ import annotations
 
 TARGETS = {
@@ -47,15 +48,38 @@ def rows(throughput: dict | None, builds: list[dict] | None, mesh: dict | None, 
 
     def add(row: str, wrt_value, peer_value, unit: str, ratio, note: str = "") -> None:
         target = TARGETS[row]
-        out.append({"row": row, "wrt": wrt_value, "peer": peer_value, "unit": unit, "ratio": ratio, "target": target, "met": None if ratio is None else ratio >= target, "note": note})
+        out.append(
+            {
+                "row": row,
+                "wrt": wrt_value,
+                "peer": peer_value,
+                "unit": unit,
+                "ratio": ratio,
+                "target": target,
+                "met": None if ratio is None else ratio >= target,
+                "note": note,
+            }
+        )
 
     for query in ("closest", "any"):
         for ray_set in ("coherent", "incoherent"):
             ours, theirs = _rate(throughput, ray_set, query, "wrt"), _rate(throughput, ray_set, query, "Embree")
-            add(f"{query} {ray_set} vs Embree", ours, theirs, "Mrays/s, 1 thread", None if None in (ours, theirs) else ours / theirs)
+            add(
+                f"{query} {ray_set} vs Embree",
+                ours,
+                theirs,
+                "Mrays/s, 1 thread",
+                None if None in (ours, theirs) else ours / theirs,
+            )
     for ray_set in ("coherent", "incoherent"):
         ours, theirs = _rate(throughput, ray_set, "closest", "wrt"), _rate(throughput, ray_set, "closest", "wp.Mesh")
-        add(f"closest {ray_set} vs wp.Mesh", ours, theirs, "Mrays/s, 1 thread", None if None in (ours, theirs) else ours / theirs)
+        add(
+            f"closest {ray_set} vs wp.Mesh",
+            ours,
+            theirs,
+            "Mrays/s, 1 thread",
+            None if None in (ours, theirs) else ours / theirs,
+        )
     same = [b for b in builds or [] if throughput and b["triangles"] == throughput["mesh"]["triangles"]]
     if same or builds:
         b = (same or builds)[-1]
@@ -64,12 +88,29 @@ def rows(throughput: dict | None, builds: list[dict] | None, mesh: dict | None, 
     else:
         add("BVH build vs wp.Mesh", None, None, "s", None)
     if mesh and "Mitsuba" in mesh:
-        add("whole process, mesh, vs Mitsuba", mesh["wrt"]["median_s"], mesh["Mitsuba"]["median_s"], "s", mesh["ratio"], f"{mesh['triangles']:,} triangles, Mitsuba {mesh['mitsuba_variant']}")
+        add(
+            "whole process, mesh, vs Mitsuba",
+            mesh["wrt"]["median_s"],
+            mesh["Mitsuba"]["median_s"],
+            "s",
+            mesh["ratio"],
+            f"{mesh['triangles']:,} triangles, Mitsuba {mesh['mitsuba_variant']}",
+        )
     else:
         add("whole process, mesh, vs Mitsuba", mesh["wrt"]["median_s"] if mesh else None, None, "s", None)
     if path and "Mitsuba" in path:
-        note = f"{path['spp']} spp; MSE wrt {path['wrt']['mse']:.3g}, Mitsuba {path['Mitsuba']['mse']:.3g}; wall {path['wrt']['median_s']:.2f} s / {path['Mitsuba']['median_s']:.2f} s"
-        add("path tracing efficiency vs Mitsuba", path["wrt"]["efficiency"], path["Mitsuba"]["efficiency"], "1/(MSE s)", path["wrt"]["efficiency_ratio"], note)
+        note = (
+            f"{path['spp']} spp; MSE wrt {path['wrt']['mse']:.3g}, Mitsuba {path['Mitsuba']['mse']:.3g}; wall "
+            f"{path['wrt']['median_s']:.2f} s / {path['Mitsuba']['median_s']:.2f} s"
+        )
+        add(
+            "path tracing efficiency vs Mitsuba",
+            path["wrt"]["efficiency"],
+            path["Mitsuba"]["efficiency"],
+            "1/(MSE s)",
+            path["wrt"]["efficiency_ratio"],
+            note,
+        )
     else:
         add("path tracing efficiency vs Mitsuba", path["wrt"]["efficiency"] if path else None, None, "1/(MSE s)", None)
     return out
@@ -84,11 +125,16 @@ def format_rows(table: list[dict], path: dict | None = None) -> str:
     lines = [["row", "wrt", "peer", "unit", "ratio", "target", "met", "note"]]
     for r in table:
         met = "-" if r["met"] is None else ("yes" if r["met"] else "NO")
-        lines.append([r["row"], num(r["wrt"]), num(r["peer"]), r["unit"], num(r["ratio"]), f">= {r['target']}", met, r["note"]])
+        lines.append(
+            [r["row"], num(r["wrt"]), num(r["peer"]), r["unit"], num(r["ratio"]), f">= {r['target']}", met, r["note"]]
+        )
     widths = [max(len(row[k]) for row in lines) for k in range(len(lines[0]))]
     text = ["  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in lines]
     if path:
         for name, entry in path.items():
             if isinstance(entry, dict) and name.startswith("wrt ") and "efficiency_ratio" in entry:
-                text.append(f"path tracing, {name}: wall {entry['median_s']:.2f} s, MSE {entry['mse']:.3g}, efficiency x{entry['efficiency_ratio']:.2f} Mitsuba's")
+                text.append(
+                    f"path tracing, {name}: wall {entry['median_s']:.2f} s, MSE {entry['mse']:.3g}, efficiency "
+                    f"x{entry['efficiency_ratio']:.2f} Mitsuba's"
+                )
     return "\n".join(text)

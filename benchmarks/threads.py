@@ -5,6 +5,7 @@
 Reports the median wall time of the kernel launches (BVH build and kernel compilation excluded,
 done once before timing) and checks that the images are bit-identical.
 """
+
 from __future__ import annotations
 
 import argparse

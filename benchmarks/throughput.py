@@ -36,6 +36,7 @@ separately. The engines' answers are compared ray by ray: hit or miss, and the h
 Rays have unit directions, so ``t`` is a distance in scene units; every engine gets
 ``t_min = 0`` (``wp.mesh_query_ray`` and embreex have no other) and ``t_max = T_MAX``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -137,7 +138,9 @@ def coherent_rays(lo: np.ndarray, hi: np.ndarray, rays: int) -> tuple[np.ndarray
     (``width = round(sqrt(rays))``, the last row partial). Unit directions, float32."""
     center = 0.5 * (lo + hi)
     radius = 0.5 * float(np.linalg.norm(hi - lo))
-    camera = Camera(origin=tuple(center + radius * np.array([0.3, -2.2, 1.4])), look_at=tuple(center), up=(0.0, 0.0, 1.0), fov=28.0)
+    camera = Camera(
+        origin=tuple(center + radius * np.array([0.3, -2.2, 1.4])), look_at=tuple(center), up=(0.0, 0.0, 1.0), fov=28.0
+    )
     forward, right, up = camera.basis()
     width = max(1, int(round(np.sqrt(rays))))
     height = -(-rays // width)
@@ -148,7 +151,16 @@ def coherent_rays(lo: np.ndarray, hi: np.ndarray, rays: int) -> tuple[np.ndarray
     d = forward + x[:, None] * right + y[:, None] * up
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     o = np.broadcast_to(np.asarray(camera.origin), d.shape)
-    info = {"camera": {"origin": list(camera.origin), "look_at": list(camera.look_at), "up": list(camera.up), "fov_deg": camera.fov}, "width": width, "height": height}
+    info = {
+        "camera": {
+            "origin": list(camera.origin),
+            "look_at": list(camera.look_at),
+            "up": list(camera.up),
+            "fov_deg": camera.fov,
+        },
+        "width": width,
+        "height": height,
+    }
     return o.astype(np.float32), d.astype(np.float32), info
 
 
@@ -159,7 +171,11 @@ def incoherent_rays(lo: np.ndarray, hi: np.ndarray, rays: int, seed: int = SEED)
     o = lo + rng.random((rays, 3)) * (hi - lo)
     d = rng.standard_normal((rays, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
-    return o.astype(np.float32), d.astype(np.float32), {"seed": seed, "origins": "uniform in the mesh's bounding box", "directions": "uniform on the sphere"}
+    return (
+        o.astype(np.float32),
+        d.astype(np.float32),
+        {"seed": seed, "origins": "uniform in the mesh's bounding box", "directions": "uniform on the sphere"},
+    )
 
 
 def _nbytes(a: wp.array) -> int:
@@ -189,15 +205,25 @@ class WrtEngine:
         self.tracer = Tracer(_mesh_scene(vertices, faces), dev, specialize=True)
         wp.synchronize_device(dev)
         seconds = time.perf_counter() - t0
-        self.data, self.closest_kernel, self.any_kernel, self.visits_kernel = self.tracer.data, self.tracer.closest_kernel, self.tracer.any_kernel, self.tracer.visits_kernel
+        self.data, self.closest_kernel, self.any_kernel, self.visits_kernel = (
+            self.tracer.data,
+            self.tracer.closest_kernel,
+            self.tracer.any_kernel,
+            self.tracer.visits_kernel,
+        )
         stats = self.tracer.prims.bvh.stats
-        self.face = self.tracer.prims.bvh.order.numpy()  # input face of each triangle in leaf order (the mesh is the only shape)
+        self.face = (
+            self.tracer.prims.bvh.order.numpy()
+        )  # input face of each triangle in leaf order (the mesh is the only shape)
         self.build = {
             "build_s": seconds,
             "bvh_build_s": stats.build_s,
             "bvh_phases_s": stats.phases_s,
             "build_threads": default_threads() if dev.is_cpu else None,
-            "builder": f"wrt.bvh: Morton order, PLOC (radius {PLOC_RADIUS}), SAH leaves, 4-wide collapse; Warp kernels on {dev}"
+            "builder": (
+                f"wrt.bvh: Morton order, PLOC (radius {PLOC_RADIUS}), SAH leaves, 4-wide collapse; Warp "
+                f"kernels on {dev}"
+            )
             + ("" if stats.builder == "ploc" else " (balanced fallback)"),
             "wide_nodes": stats.wide_nodes,
             "leaves": stats.leaves,
@@ -206,8 +232,8 @@ class WrtEngine:
             "stack_need": stats.stack_need,
             "bvh_device_bytes": _nbytes(self.data.nodes) + _nbytes(self.data.prims),
             "triangles_device_bytes": _nbytes(self.data.tri_verts),
-            "memory_note": "exact array sizes: device = 112-byte 4-wide node + packed id per triangle; triangles: 3 float32 "
-            "vertices each (a triangle soup, in leaf order)",
+            "memory_note": "exact array sizes: device = 112-byte 4-wide node + packed id per triangle; triangles: "
+            "3 float32 vertices each (a triangle soup, in leaf order)",
         }
 
     def kernel_modules(self):
@@ -215,7 +241,12 @@ class WrtEngine:
 
     def trace(self, query: str, o: wp.array, d: wp.array, out: tuple) -> None:
         if query == "closest":
-            wp.launch(self.closest_kernel, dim=len(o), inputs=[self.data, o, d, 0.0, T_MAX, 0, out[0], out[1]], device=self.dev)
+            wp.launch(
+                self.closest_kernel,
+                dim=len(o),
+                inputs=[self.data, o, d, 0.0, T_MAX, 0, out[0], out[1]],
+                device=self.dev,
+            )
         else:
             wp.launch(self.any_kernel, dim=len(o), inputs=[self.data, o, d, 0.0, T_MAX, out[0]], device=self.dev)
 
@@ -224,7 +255,12 @@ class WrtEngine:
         log = VisitLog()
         log.nodes = wp.zeros((len(o), 1), dtype=wp.int32, device=self.dev)
         log.count = wp.zeros(len(o), dtype=wp.int32, device=self.dev)
-        wp.launch(self.visits_kernel, dim=len(o), inputs=[self.data, o, d, wp.zeros(len(o), dtype=float, device=self.dev), log], device=self.dev)
+        wp.launch(
+            self.visits_kernel,
+            dim=len(o),
+            inputs=[self.data, o, d, wp.zeros(len(o), dtype=float, device=self.dev), log],
+            device=self.dev,
+        )
         return float(log.count.numpy().mean())
 
     def faces_of(self, prim: np.ndarray) -> np.ndarray:
@@ -254,8 +290,8 @@ class WarpMeshEngine:
             # parent index per node (2n - 1 allocated), a primitive index and a bounding box per triangle
             "bvh_device_bytes": max_nodes * (2 * 16 + 4) + n * (4 + 2 * 12),
             "triangles_device_bytes": _nbytes(self.points) + _nbytes(self.indices),
-            "memory_note": "from the allocation sizes in Warp 1.19's native bvh.cpp and mesh.cpp (2n - 1 nodes allocated); "
-            "triangles: shared float32 vertices + 3 int32 indices per triangle",
+            "memory_note": "from the allocation sizes in Warp 1.19's native bvh.cpp and mesh.cpp (2n - 1 nodes "
+            "allocated); triangles: shared float32 vertices + 3 int32 indices per triangle",
         }
 
     def kernel_modules(self):
@@ -304,7 +340,9 @@ class EmbreeEngine:
         self.scene = EmbreeScene()
         self.mesh = TriangleMesh(self.scene, v, f)
         # embreex commits (builds) the scene on the first query
-        self.scene.run(np.zeros((1, 3), np.float32), np.array([[0.0, 0.0, 1.0]], np.float32), dists=T_MAX, query="DISTANCE")
+        self.scene.run(
+            np.zeros((1, 3), np.float32), np.array([[0.0, 0.0, 1.0]], np.float32), dists=T_MAX, query="DISTANCE"
+        )
         t1 = time.perf_counter()
         rss1 = _rss_bytes()
         self.build = {
@@ -364,7 +402,11 @@ def _measure(engine, query: str, o, d, threads: list[int], repeats: int, dev) ->
     n = len(o)
     is_warp = engine.name != "Embree"
     if is_warp:
-        outs = (wp.zeros(n, dtype=float, device=dev), wp.zeros(n, dtype=wp.int32, device=dev)) if query == "closest" else (wp.zeros(n, dtype=wp.int32, device=dev),)
+        outs = (
+            (wp.zeros(n, dtype=float, device=dev), wp.zeros(n, dtype=wp.int32, device=dev))
+            if query == "closest"
+            else (wp.zeros(n, dtype=wp.int32, device=dev),)
+        )
     else:
         outs = (np.empty(n, np.float32),) if query == "closest" else (np.empty(n, np.int32),)
     timings = {}
@@ -462,12 +504,27 @@ def build_scaling(sizes: list[int], device: str = "cpu", repeats: int = 3) -> li
             build(scene, dev)
             scene_s.append(time.perf_counter() - t0)
             mesh_s.append(WarpMeshEngine(vertices, faces, dev).build["build_s"])
-        rows.append({"triangles": len(faces), "wrt_s": min(wrt_s), "wp_mesh_s": min(mesh_s), "wrt_scene_s": min(scene_s), "wrt_phases_s": bvh.stats.phases_s, "sah_cost": bvh.stats.sah_cost})
+        rows.append(
+            {
+                "triangles": len(faces),
+                "wrt_s": min(wrt_s),
+                "wp_mesh_s": min(mesh_s),
+                "wrt_scene_s": min(scene_s),
+                "wrt_phases_s": bvh.stats.phases_s,
+                "sah_cost": bvh.stats.sah_cost,
+            }
+        )
     return rows
 
 
 def run_throughput(
-    triangles: int = 1_000_000, rays: int = 1 << 20, device: str = "cpu", repeats: int = 3, threads: int | None = None, embree: bool = True, reference_sah: bool = False
+    triangles: int = 1_000_000,
+    rays: int = 1 << 20,
+    device: str = "cpu",
+    repeats: int = 3,
+    threads: int | None = None,
+    embree: bool = True,
+    reference_sah: bool = False,
 ) -> dict:
     """Measure closest-hit and any-hit ray throughput of every engine; JSON-serialisable results.
 
@@ -531,7 +588,13 @@ def run_throughput(
         "threads": thread_counts,
         "t_max": T_MAX,
         "t_rtol": T_RTOL,
-        "mesh": {"kind": "displaced torus (harness.throughput.torus_mesh), closed", "triangles": len(faces), "vertices": len(vertices), "lo": lo.tolist(), "hi": hi.tolist()},
+        "mesh": {
+            "kind": "displaced torus (harness.throughput.torus_mesh), closed",
+            "triangles": len(faces),
+            "vertices": len(vertices),
+            "lo": lo.tolist(),
+            "hi": hi.tolist(),
+        },
         "engines": [e.name for e in engines],
         "build": {e.name: e.build for e in engines},
         "compile_s": compile_s,
@@ -551,7 +614,13 @@ def run_throughput(
             for engine in engines:
                 warp_engine = engine.name != "Embree"
                 per_engine[engine.name], answers[engine.name] = _measure(
-                    engine, query, o_wp if warp_engine else o_np, d_wp if warp_engine else d_np, thread_counts, repeats, dev
+                    engine,
+                    query,
+                    o_wp if warp_engine else o_np,
+                    d_wp if warp_engine else d_np,
+                    thread_counts,
+                    repeats,
+                    dev,
                 )
             per_query[query] = per_engine
             ref = answers["wrt"][0]
@@ -561,7 +630,9 @@ def run_throughput(
                 if len(answers["wp.Mesh"]) > 1:
                     same_t = (ref < T_MAX) & (np.abs(ref - answers["wp.Mesh"][0]) <= T_RTOL * np.maximum(1.0, ref))
                     wrt_face = engines[0].faces_of(answers["wrt"][1])
-                    agree[query]["wp.Mesh"]["face_differs_same_t"] = int(np.count_nonzero(same_t & (wrt_face != answers["wp.Mesh"][1])))
+                    agree[query]["wp.Mesh"]["face_differs_same_t"] = int(
+                        np.count_nonzero(same_t & (wrt_face != answers["wp.Mesh"][1]))
+                    )
         info["wide_nodes_per_ray"] = engines[0].visits_per_ray(o_wp, d_wp)
         results["rays"][ray_set] = {"count": rays, **info}
         results["throughput"][ray_set] = per_query
@@ -596,11 +667,18 @@ def format_table(results: dict) -> str:
     engines = results["engines"]
     lines = [
         f"Ray throughput: {results['mesh']['triangles']:,} triangles ({results['mesh']['kind']}), "
-        f"{results['rays']['coherent']['count']:,} rays per set, Warp device {results['device']}, median of {results['repeats']}",
-        f"machine: {m['cpu']}, {m['cores']} cores, {m['system']}; Python {m['python']}, Warp {m['warp']}, Embree {m['embree'] or 'not installed'}",
+        f"{results['rays']['coherent']['count']:,} rays per set, Warp device {results['device']}, median of "
+        f"{results['repeats']}",
+        f"machine: {m['cpu']}, {m['cores']} cores, {m['system']}; Python {m['python']}, Warp {m['warp']}, Embree "
+        f"{m['embree'] or 'not installed'}",
         "",
     ]
-    head = ["rays", "query", "threads"] + [f"{e} Mrays/s" for e in engines] + [f"wrt/{e}" for e in engines if e != "wrt"] + ["other busy cores"]
+    head = (
+        ["rays", "query", "threads"]
+        + [f"{e} Mrays/s" for e in engines]
+        + [f"wrt/{e}" for e in engines if e != "wrt"]
+        + ["other busy cores"]
+    )
     rows = [head]
     for ray_set, per_query in results["throughput"].items():
         for query, per_engine in per_query.items():
@@ -608,18 +686,30 @@ def format_table(results: dict) -> str:
                 if label not in per_engine["wrt"]:
                     continue
                 row = [ray_set, query, str(per_engine["wrt"][label]["threads"])]
-                row += [f"{per_engine[e][label]['mrays_per_s']:.3f}" if label in per_engine[e] else "-" for e in engines]
-                row += [f"{results['ratios'][f'wrt/{e}'][ray_set][query].get(label, float('nan')):.2f}x" for e in engines if e != "wrt"]
+                row += [
+                    f"{per_engine[e][label]['mrays_per_s']:.3f}" if label in per_engine[e] else "-" for e in engines
+                ]
+                row += [
+                    f"{results['ratios'][f'wrt/{e}'][ray_set][query].get(label, float('nan')):.2f}x"
+                    for e in engines
+                    if e != "wrt"
+                ]
                 busy = [per_engine[e][label]["other_busy_cores"] for e in engines if label in per_engine[e]]
                 row.append("-" if None in busy else f"{max(busy):.2f}")
                 rows.append(row)
     lines += _columns(rows)
-    lines.append("other busy cores: the most cores other processes kept busy during one of the row's measurements (0 = a quiet machine)")
+    lines.append(
+        "other busy cores: the most cores other processes kept busy during one of the row's measurements (0 = a "
+        "quiet machine)"
+    )
     lines += ["", "thread scaling (all threads / 1 thread):"]
     scale = [["rays", "query"] + engines]
     for ray_set, per_query in results["throughput"].items():
         for query, per_engine in per_query.items():
-            scale.append([ray_set, query] + [f"{per_engine[e]['scaling']:.2f}x" if "scaling" in per_engine[e] else "-" for e in engines])
+            scale.append(
+                [ray_set, query]
+                + [f"{per_engine[e]['scaling']:.2f}x" if "scaling" in per_engine[e] else "-" for e in engines]
+            )
     lines += _columns(scale)
     lines += ["", "build and memory:"]
     mib = 2.0**20
@@ -632,7 +722,13 @@ def format_table(results: dict) -> str:
                 f"{b['build_s']:.2f}",
                 str(b.get("build_threads")),
                 f"{results['compile_s'][e]:.2f}" if e in results["compile_s"] else "-",
-                f"{b['bvh_device_bytes'] / mib:.1f}" if "bvh_device_bytes" in b else (f"~{b['rss_growth_bytes'] / mib:.0f} (RSS growth, incl. triangles)" if b.get("rss_growth_bytes") else "-"),
+                f"{b['bvh_device_bytes'] / mib:.1f}"
+                if "bvh_device_bytes" in b
+                else (
+                    f"~{b['rss_growth_bytes'] / mib:.0f} (RSS growth, incl. triangles)"
+                    if b.get("rss_growth_bytes")
+                    else "-"
+                ),
                 f"{b['triangles_device_bytes'] / mib:.1f}" if "triangles_device_bytes" in b else "-",
             ]
         )
@@ -640,21 +736,37 @@ def format_table(results: dict) -> str:
     w = results["build"]["wrt"]
     lines += [
         "",
-        f"wrt's tree: {w['wide_nodes']:,} 4-wide nodes, {w['leaves']:,} leaves of {w['mean_leaf_triangles']:.2f} triangles on average, "
+        f"wrt's tree: {w['wide_nodes']:,} 4-wide nodes, {w['leaves']:,} leaves of {w['mean_leaf_triangles']:.2f} "
+        "triangles on average, "
         f"SAH cost {w['sah_cost']:.1f}, stack need {w['stack_need']}; "
-        + ", ".join(f"{ray_set} rays visit {results['rays'][ray_set]['wide_nodes_per_ray']:.1f} nodes" for ray_set in results["rays"]),
+        + ", ".join(
+            f"{ray_set} rays visit {results['rays'][ray_set]['wide_nodes_per_ray']:.1f} nodes"
+            for ray_set in results["rays"]
+        ),
     ]
     ref = results.get("binned_sah_reference")
     if ref:
         lines.append(
-            f"binned-SAH reference tree (wrt's builder before the device build) on the same mesh: SAH cost {ref['sah_cost']:.1f}, "
-            f"{ref['leaves']:,} leaves of {ref['mean_leaf_triangles']:.2f} triangles, built in {ref['build_s']:.1f} s (numpy, one thread)"
+            "binned-SAH reference tree (wrt's builder before the device build) on the same mesh: SAH cost "
+            f"{ref['sah_cost']:.1f}, "
+            f"{ref['leaves']:,} leaves of {ref['mean_leaf_triangles']:.2f} triangles, built in {ref['build_s']:.1f} s "
+            "(numpy, one thread)"
         )
-    lines += ["", f"agreement with wrt (hit/miss differs, or hit distance differs by more than {results['t_rtol']:g} relative):"]
+    lines += [
+        "",
+        f"agreement with wrt (hit/miss differs, or hit distance differs by more than {results['t_rtol']:g} relative):",
+    ]
     agree = [["rays", "query", "hit fraction"] + [f"{e} mismatches" for e in engines if e != "wrt"]]
     for ray_set, per_query in results["agreement"].items():
         for query, per_engine in per_query.items():
-            agree.append([ray_set, query, f"{results['rays'][ray_set]['hit_fraction']:.3f}"] + [f"{per_engine[e]['mismatches']} / {results['rays'][ray_set]['count']:,}" for e in engines if e != "wrt"])
+            agree.append(
+                [ray_set, query, f"{results['rays'][ray_set]['hit_fraction']:.3f}"]
+                + [
+                    f"{per_engine[e]['mismatches']} / {results['rays'][ray_set]['count']:,}"
+                    for e in engines
+                    if e != "wrt"
+                ]
+            )
     lines += _columns(agree)
     return "\n".join(lines)
 
@@ -665,19 +777,35 @@ def _columns(rows: list[list[str]]) -> list[str]:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m harness.throughput", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--triangles", type=int, default=1_000_000, help="triangles in the mesh (about; default 1,000,000)")
+    parser = argparse.ArgumentParser(
+        prog="python -m harness.throughput", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "--triangles", type=int, default=1_000_000, help="triangles in the mesh (about; default 1,000,000)"
+    )
     parser.add_argument("--rays", type=int, default=1 << 20, help="rays in each ray set (default 1,048,576)")
-    parser.add_argument("--repeats", type=int, default=3, help="timed runs per measurement, median reported (default 3)")
+    parser.add_argument(
+        "--repeats", type=int, default=3, help="timed runs per measurement, median reported (default 3)"
+    )
     parser.add_argument("--device", default="cpu", help="Warp device of the Warp engines (default cpu)")
-    parser.add_argument("--threads", type=int, default=None, help="workers of the all-threads runs (default: all cores)")
+    parser.add_argument(
+        "--threads", type=int, default=None, help="workers of the all-threads runs (default: all cores)"
+    )
     parser.add_argument("--no-embree", action="store_true", help="leave Embree out even when embreex is installed")
-    parser.add_argument("--reference-sah", action="store_true", help="also build the binned-SAH reference tree and report its SAH cost")
+    parser.add_argument(
+        "--reference-sah", action="store_true", help="also build the binned-SAH reference tree and report its SAH cost"
+    )
     parser.add_argument("-o", "--output", help="write the results as JSON here")
     args = parser.parse_args(argv)
     try:
         results = run_throughput(
-            args.triangles, args.rays, device=args.device, repeats=args.repeats, threads=args.threads, embree=not args.no_embree, reference_sah=args.reference_sah
+            args.triangles,
+            args.rays,
+            device=args.device,
+            repeats=args.repeats,
+            threads=args.threads,
+            embree=not args.no_embree,
+            reference_sah=args.reference_sah,
         )
     except (ValueError, WrtError) as e:
         parser.error(str(e))

@@ -23,6 +23,7 @@ reading, BVH build, rendering and writing the EXR, everything.
 Mitsuba's variant is ``llvm_ad_rgb`` (vectorised, all cores) where it runs, with Debian's libLLVM
 19 (``harness.mitsuba_peer``), else ``scalar_rgb``; the result names the one used.
 """
+
 from __future__ import annotations
 
 import os
@@ -49,7 +50,8 @@ MESH_CAMERA = {"origin": (0.5, -4.0, 2.5), "look_at": (0.0, 0.0, 0.0), "up": (0.
 def write_ply(path: str, vertices: np.ndarray, faces: np.ndarray) -> None:
     """A binary little-endian PLY of float32 vertices and triangle faces."""
     header = (
-        f"ply\nformat binary_little_endian 1.0\nelement vertex {len(vertices)}\nproperty float x\nproperty float y\nproperty float z\n"
+        f"ply\nformat binary_little_endian 1.0\nelement vertex {len(vertices)}\nproperty float x\nproperty float "
+        "y\nproperty float z\n"
         f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n"
     )
     rows = np.zeros(len(faces), dtype=[("n", "u1"), ("i", "<i4", (3,))])
@@ -68,19 +70,23 @@ def mesh_scenes(folder: str, triangles: int) -> tuple[str, str]:
     toml = os.path.join(folder, "mesh.toml")
     with open(toml, "w") as f:
         f.write(
-            f"[render]\nwidth = {MESH_SIZE}\nheight = {MESH_SIZE}\nspp = 1\nintegrator = \"raycast\"\n\n"
-            f"[camera]\norigin = {list(c['origin'])}\nlook_at = {list(c['look_at'])}\nup = {list(c['up'])}\nfov = {c['fov']}\n\n"
-            "[[material]]\nname = \"grey\"\nalbedo = [0.8, 0.8, 0.8]\n\n[[shape]]\ntype = \"mesh\"\nfile = \"mesh.ply\"\nmaterial = \"grey\"\n"
+            f'[render]\nwidth = {MESH_SIZE}\nheight = {MESH_SIZE}\nspp = 1\nintegrator = "raycast"\n\n'
+            f"[camera]\norigin = {list(c['origin'])}\nlook_at = {list(c['look_at'])}\nup = {list(c['up'])}\nfov = "
+            f"{c['fov']}\n\n"
+            '[[material]]\nname = "grey"\nalbedo = [0.8, 0.8, 0.8]\n\n[[shape]]\ntype = "mesh"\nfile = '
+            '"mesh.ply"\nmaterial = "grey"\n'
         )
     xml = os.path.join(folder, "mesh.xml")
     o, t, u = (", ".join(str(x) for x in c[k]) for k in ("origin", "look_at", "up"))
     with open(xml, "w") as f:
         f.write(
             f'<scene version="3.0.0">\n  <integrator type="depth"/>\n'
-            f'  <sensor type="perspective">\n    <float name="fov" value="{c["fov"]}"/>\n    <string name="fov_axis" value="y"/>\n'
+            f'  <sensor type="perspective">\n    <float name="fov" value="{c["fov"]}"/>\n    <string name="fov_axis" '
+            'value="y"/>\n'
             f'    <transform name="to_world"><lookat origin="{o}" target="{t}" up="{u}"/></transform>\n'
             f'    <sampler type="independent"><integer name="sample_count" value="1"/></sampler>\n'
-            f'    <film type="hdrfilm"><integer name="width" value="{MESH_SIZE}"/><integer name="height" value="{MESH_SIZE}"/>'
+            f'    <film type="hdrfilm"><integer name="width" value="{MESH_SIZE}"/><integer name="height" '
+            f'value="{MESH_SIZE}"/>'
             f'<rfilter type="box"/></film>\n  </sensor>\n'
             f'  <shape type="ply"><string name="filename" value="mesh.ply"/></shape>\n</scene>\n'
         )
@@ -119,7 +125,9 @@ def _timed(command: list[str], cwd: str) -> float:
     done = subprocess.run(command, cwd=cwd, capture_output=True, text=True)
     seconds = time.perf_counter() - t0
     if done.returncode != 0:
-        raise RuntimeError(f"{' '.join(command)} exited with {done.returncode}: {(done.stderr or done.stdout).strip()[-500:]}")
+        raise RuntimeError(
+            f"{' '.join(command)} exited with {done.returncode}: {(done.stderr or done.stdout).strip()[-500:]}"
+        )
     return seconds
 
 
@@ -149,18 +157,35 @@ def run_mesh(triangles: int, repeats: int, device: str = "cpu", log=None) -> dic
     mitsuba = mitsuba_command(variant)
     with tempfile.TemporaryDirectory(prefix="wrt-bench-mesh-") as folder:
         toml, xml = mesh_scenes(folder, triangles)
-        commands = {"wrt": [wrt_command() + ["render", toml, "-o", os.path.join(folder, "wrt.exr"), "--device", device]] * (repeats + 1)}
+        commands = {
+            "wrt": [wrt_command() + ["render", toml, "-o", os.path.join(folder, "wrt.exr"), "--device", device]]
+            * (repeats + 1)
+        }
         if mitsuba is not None:
             commands["Mitsuba"] = [mitsuba + ["-o", os.path.join(folder, "mitsuba.exr"), xml]] * (repeats + 1)
         times = alternate(commands, folder, log)
-    result = {"triangles": triangles, "pixels": MESH_SIZE * MESH_SIZE, "repeats": repeats, "device": device, "mitsuba_variant": variant if mitsuba else None}
+    result = {
+        "triangles": triangles,
+        "pixels": MESH_SIZE * MESH_SIZE,
+        "repeats": repeats,
+        "device": device,
+        "mitsuba_variant": variant if mitsuba else None,
+    }
     result.update({name: _summary(t) for name, t in times.items()})
     if "Mitsuba" in result:
         result["ratio"] = result["Mitsuba"]["median_s"] / result["wrt"]["median_s"]  # above 1: wrt is faster
     return result
 
 
-def run_path(spp: int, repeats: int, reference: np.ndarray, res: int = 128, samplers: tuple[str, ...] = ("independent",), device: str = "cpu", log=None) -> dict:
+def run_path(
+    spp: int,
+    repeats: int,
+    reference: np.ndarray,
+    res: int = 128,
+    samplers: tuple[str, ...] = ("independent",),
+    device: str = "cpu",
+    log=None,
+) -> dict:
     """The path-tracing comparison (see the module docstring) at ``res`` x ``res`` pixels: wall
     times, MSEs and Monte Carlo efficiencies of wrt on ``device`` (one entry per sampler, ``wrt``
     for the file's own) and Mitsuba. ``reference``: the converged image at that size."""
@@ -174,13 +199,29 @@ def run_path(spp: int, repeats: int, reference: np.ndarray, res: int = 128, samp
             outputs[name] = [os.path.join(folder, f"{name.replace(' ', '-')}-{k}.exr") for k in range(repeats + 1)]
             extra = [] if sampler == "independent" else ["--sampler", sampler]
             size = ["--width", str(res), "--height", str(res), "--device", device]
-            commands[name] = [wrt_command() + ["render", xml, "-o", out, "--spp", str(spp), "--seed", str(k)] + size + extra for k, out in enumerate(outputs[name])]
+            commands[name] = [
+                wrt_command() + ["render", xml, "-o", out, "--spp", str(spp), "--seed", str(k)] + size + extra
+                for k, out in enumerate(outputs[name])
+            ]
         if mitsuba is not None:
             outputs["Mitsuba"] = [os.path.join(folder, f"mitsuba-{k}.exr") for k in range(repeats + 1)]
-            commands["Mitsuba"] = [mitsuba + ["-o", out, f"-Dspp={spp}", f"-Dseed={k}", f"-Dres={res}", xml] for k, out in enumerate(outputs["Mitsuba"])]
+            commands["Mitsuba"] = [
+                mitsuba + ["-o", out, f"-Dspp={spp}", f"-Dseed={k}", f"-Dres={res}", xml]
+                for k, out in enumerate(outputs["Mitsuba"])
+            ]
         times = alternate(commands, folder, log)
-        errors = {name: [float(np.mean((read_image(out).rgb.astype(np.float64) - reference) ** 2)) for out in outs[1:]] for name, outs in outputs.items()}
-    result = {"scene": "examples/mitsuba/cornell_box.xml", "res": res, "spp": spp, "repeats": repeats, "device": device, "mitsuba_variant": variant if mitsuba else None}
+        errors = {
+            name: [float(np.mean((read_image(out).rgb.astype(np.float64) - reference) ** 2)) for out in outs[1:]]
+            for name, outs in outputs.items()
+        }
+    result = {
+        "scene": "examples/mitsuba/cornell_box.xml",
+        "res": res,
+        "spp": spp,
+        "repeats": repeats,
+        "device": device,
+        "mitsuba_variant": variant if mitsuba else None,
+    }
     for name in times:
         mse = float(np.mean(errors[name]))
         entry = _summary(times[name])

@@ -5,6 +5,7 @@ each entry point (``matrix_verb`` ...) adds its subparser to ``wrt``'s and retur
 that runs it, so ``wrt`` never imports the harness, and this module imports nothing heavy: the
 work is in ``wrt_harness.commands``, imported when a verb runs.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -41,7 +42,9 @@ def matrix_verb(verbs) -> Run:
 
 def refs_verb(verbs) -> Run:
     """``wrt refs regenerate|calibrate [FEATURE...]``."""
-    refs = verbs.add_parser("refs", help="regenerate or calibrate reference images", description="Manage the matrix's reference images.")
+    refs = verbs.add_parser(
+        "refs", help="regenerate or calibrate reference images", description="Manage the matrix's reference images."
+    )
     actions = refs.add_subparsers(dest="refs_verb", metavar="ACTION", required=True)
     regen = actions.add_parser(
         "regenerate",
@@ -76,7 +79,11 @@ def refs_verb(verbs) -> Run:
 
 def compare_verb(verbs) -> Run:
     """``wrt compare A B [--threshold T]``."""
-    c = verbs.add_parser("compare", help="score two images", description="SSIM (tone-mapped), RMSE and max error (linear) of A against B.")
+    c = verbs.add_parser(
+        "compare",
+        help="score two images",
+        description="SSIM (tone-mapped), RMSE and max error (linear) of A against B.",
+    )
     c.add_argument("a", metavar="A", help="image to score (.exr or .png)")
     c.add_argument("b", metavar="B", help="reference image")
     c.add_argument("--threshold", type=float, help="exit 1 when SSIM is below this")

@@ -1,6 +1,7 @@
 """What the harness's verbs do (``wrt matrix``, ``wrt refs``, ``wrt compare``; their arguments are
 parsed by ``wrt_harness.cli``). Each returns the process exit code: 0 all good, 1 a regression,
 2 bad input (``WrtError``, raised to the CLI)."""
+
 from __future__ import annotations
 
 import sys
@@ -36,6 +37,7 @@ def _table(results) -> str:
 def matrix(names: list[str], device: str, jobs: int, report: str | None) -> int:
     features = select(load_features(), names)
     with tqdm(total=len(features), desc="wrt matrix", unit="feature", file=sys.stderr, disable=None) as bar:
+
         def progress(result):
             bar.set_postfix_str(f"{result.feature.name}: {'pass' if result.passed else 'FAIL'}")
             bar.update(1)
@@ -68,7 +70,11 @@ def refs_regenerate(names: list[str], failed_only: bool, spp: int | None, device
         except ReferenceError:
             old = None
         new = render_reference(feature, spp=spp, device=device)
-        change = "new reference" if old is None or old.rgb.shape != new.rgb.shape else f"SSIM old vs new {ssim(new.rgb, old.rgb):.4f}, RMSE {rmse(new.rgb, old.rgb):.2e}"
+        change = (
+            "new reference"
+            if old is None or old.rgb.shape != new.rgb.shape
+            else f"SSIM old vs new {ssim(new.rgb, old.rgb):.4f}, RMSE {rmse(new.rgb, old.rgb):.2e}"
+        )
         store(feature, new)
         stored = load_reference(feature, calibration=False)
         cal = calibrate(feature, stored, device=device)
@@ -83,20 +89,35 @@ def refs_calibrate(names: list[str], device: str) -> int:
     for feature in select(load_features(), names):
         cal = calibrate(feature, load_reference(feature, calibration=False), device=device)
         store_calibration(feature, cal)
-        print(f"{feature.name}: SSIM {min(cal['ssim']):.4f}..{max(cal['ssim']):.4f} over seeds {cal['seeds']}, threshold {cal['ssim_threshold']:.4f}")
+        print(
+            f"{feature.name}: SSIM {min(cal['ssim']):.4f}..{max(cal['ssim']):.4f} over seeds {cal['seeds']}, "
+            f"threshold {cal['ssim_threshold']:.4f}"
+        )
     return 0
 
 
 def compare(a: str, b: str, threshold: float | None) -> int:
     image, reference = read_image(a), read_image(b)
     if image.rgb.shape != reference.rgb.shape:
-        raise WrtError(f"{a} is {image.rgb.shape[1]}x{image.rgb.shape[0]} but {b} is {reference.rgb.shape[1]}x{reference.rgb.shape[0]}")
+        raise WrtError(
+            f"{a} is {image.rgb.shape[1]}x{image.rgb.shape[0]} but {b} is "
+            f"{reference.rgb.shape[1]}x{reference.rgb.shape[0]}"
+        )
     score = ssim(image.rgb, reference.rgb)
     print(f"SSIM {score:.6f} (tone-mapped sRGB, data_range 1)")
     print(f"RMSE {rmse(image.rgb, reference.rgb):.6e}  max error {max_error(image.rgb, reference.rgb):.6e} (linear)")
     if "variance" in reference.aovs and "spp" in image.metadata and "spp" in reference.metadata:
-        z = z_test(image.rgb, int(image.metadata["spp"]), reference.rgb, reference.aovs["variance"], int(reference.metadata["spp"]))
-        print(f"Z-test {'pass' if z.passed else 'FAIL'}: min p {z.min_p:.3e}, level {z.threshold:.3e}, {z.rejected} rejected")
+        z = z_test(
+            image.rgb,
+            int(image.metadata["spp"]),
+            reference.rgb,
+            reference.aovs["variance"],
+            int(reference.metadata["spp"]),
+        )
+        print(
+            f"Z-test {'pass' if z.passed else 'FAIL'}: min p {z.min_p:.3e}, level {z.threshold:.3e}, {z.rejected} "
+            "rejected"
+        )
     if threshold is not None and score < threshold:
         print(f"FAIL: SSIM {score:.6f} < {threshold}")
         return 1

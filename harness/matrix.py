@@ -11,6 +11,7 @@ tables whose keys are paths into the scene document:
 - ``material[glass].ior``: a key of the array entry whose ``name`` is ``glass``;
 - ``light``: a whole table or array (``light = []`` removes every light).
 """
+
 from __future__ import annotations
 
 import copy
@@ -163,7 +164,9 @@ def scene_document(feature: Feature, wrong: bool = False) -> dict:
     wrong variant's patches) applied."""
     doc = _read_toml(feature.scene)
     render = doc.setdefault("render", {})
-    render.update(integrator=feature.integrator, width=feature.width, height=feature.height, spp=feature.spp, seed=feature.seed)
+    render.update(
+        integrator=feature.integrator, width=feature.width, height=feature.height, spp=feature.spp, seed=feature.seed
+    )
     if wrong:
         if not feature.wrong.get("set"):
             raise WrtError(f"feature {feature.name!r} has no wrong variant")

@@ -13,6 +13,7 @@ LLVM kernel aborts the process ("LLVM ERROR: Cannot select"); where it fails, sc
 used. With libLLVM 19 (``apt-get install libllvm19``, found automatically) it works, but was
 no faster on the Cornell box and 2-3x faster on the others.
 """
+
 from __future__ import annotations
 
 import functools
@@ -51,7 +52,9 @@ def variant() -> str:
         llvm19 = sorted(glob.glob("/usr/lib/*/libLLVM.so.19*") + glob.glob("/usr/lib/*/libLLVM-19.so"))
         if llvm19 and "DRJIT_LIBLLVM_PATH" not in os.environ:
             os.environ["DRJIT_LIBLLVM_PATH"] = llvm19[0]
-        probe = subprocess.run([sys.executable, "-c", _LLVM_PROBE.format(variant=wanted)], capture_output=True, timeout=300)
+        probe = subprocess.run(
+            [sys.executable, "-c", _LLVM_PROBE.format(variant=wanted)], capture_output=True, timeout=300
+        )
         if probe.returncode != 0:
             return RELIABLE_VARIANT
     return wanted

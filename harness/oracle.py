@@ -7,6 +7,7 @@ anti-aliasing, so the rasterised image decodes back to an id per pixel; the ray 
 and compared by SSIM. Agreement checks the camera convention, every intersection routine and the
 mesh transforms against an independent implementation.
 """
+
 from __future__ import annotations
 
 import colorsys
@@ -77,7 +78,9 @@ def shape_meshes(scene: Scene, plane_size: float):
         if isinstance(s, Sphere):
             m = pv.Sphere(radius=s.radius, center=s.center, theta_resolution=96, phi_resolution=64)
         elif isinstance(s, Plane):
-            m = pv.Plane(center=s.point, direction=s.normal, i_size=plane_size, j_size=plane_size, i_resolution=1, j_resolution=1)
+            m = pv.Plane(
+                center=s.point, direction=s.normal, i_size=plane_size, j_size=plane_size, i_resolution=1, j_resolution=1
+            )
         elif isinstance(s, Triangle):
             m = pv.PolyData(np.asarray(s.vertices, dtype=float), faces=[3, 0, 1, 2])
         elif isinstance(s, Polygon):
@@ -145,11 +148,18 @@ def _overview(scene, pv, path, size, center, radius, forward, right, up, origin)
     try:
         plotter.set_background("white")
         for i, mesh in enumerate(shape_meshes(scene, plane_size=4 * radius)):
-            plotter.add_mesh(mesh, color=tuple(palette(np.array([i]))[0]), opacity=0.35 if isinstance(scene.shapes[i], Plane) else 0.9)
+            plotter.add_mesh(
+                mesh,
+                color=tuple(palette(np.array([i]))[0]),
+                opacity=0.35 if isinstance(scene.shapes[i], Plane) else 0.9,
+            )
         length = float(np.linalg.norm(np.asarray(scene.camera.look_at) - origin))
         th = math.tan(math.radians(scene.camera.fov) / 2)
         aspect = scene.render.width / scene.render.height
-        corners = [origin + length * (forward + sx * th * aspect * right + sy * th * up) for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+        corners = [
+            origin + length * (forward + sx * th * aspect * right + sy * th * up)
+            for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))
+        ]
         lines = [pv.Line(origin, c) for c in corners] + [pv.Line(corners[k], corners[(k + 1) % 4]) for k in range(4)]
         for line in lines:
             plotter.add_mesh(line, color="black", line_width=2)

@@ -15,6 +15,7 @@ agree by the per-pixel Z-test before anything is stored ("reproduces"). Each fil
 atomically, so an interrupted regeneration leaves every file old or new; a calibration that does
 not belong to its reference (hash mismatch) is reported, never used.
 """
+
 from __future__ import annotations
 
 import datetime
@@ -35,7 +36,9 @@ from wrt.imageio import read_image, write_image
 from .matrix import Feature, load_feature_scene, scene_hash
 from .score import ssim, z_test
 
-REFERENCE_DIR = str(resources.files("wrt_harness.reference_images"))  # the tree's reference_images/, installed with the harness
+REFERENCE_DIR = str(
+    resources.files("wrt_harness.reference_images")
+)  # the tree's reference_images/, installed with the harness
 BATCHES = 32  # independent batches a reference is rendered in (variance estimate with 31 dof)
 REFERENCE_SEED = 1_000_000  # reference batches use seeds from here; test renders use small seeds
 CALIBRATION_SEEDS = (11, 12, 13, 14, 15, 16)
@@ -70,7 +73,14 @@ def file_sha256(path: str) -> str:
         return hashlib.sha256(f.read()).hexdigest()
 
 
-def render_feature(feature: Feature, spp: int | None = None, seed: int | None = None, wrong: bool = False, device: str = "cpu", threads: int | None = None):
+def render_feature(
+    feature: Feature,
+    spp: int | None = None,
+    seed: int | None = None,
+    wrong: bool = False,
+    device: str = "cpu",
+    threads: int | None = None,
+):
     """Render a feature's scene (or its wrong variant) at its test spp and seed unless overridden."""
     return wrt.render(load_feature_scene(feature, wrong), spp=spp, seed=seed, device=device, threads=threads)
 
@@ -87,9 +97,15 @@ def load_reference(feature: Feature, folder: str | None = None, calibration: boo
     except WrtError as e:
         raise ReferenceError(feature.name, f"unreadable ({e})") from None
     if image.rgb.shape != (feature.height, feature.width, 3) or "variance" not in image.aovs:
-        raise ReferenceError(feature.name, f"{p['exr']} is {image.rgb.shape[1]}x{image.rgb.shape[0]} without the expected channels, the matrix wants {feature.width}x{feature.height}")
+        raise ReferenceError(
+            feature.name,
+            f"{p['exr']} is {image.rgb.shape[1]}x{image.rgb.shape[0]} without the expected channels, the matrix wants "
+            f"{feature.width}x{feature.height}",
+        )
     if image.metadata.get("scene_hash") != scene_hash(feature):
-        raise ReferenceError(feature.name, "the scene or the matrix entry changed since the reference was made (scene hash differs)")
+        raise ReferenceError(
+            feature.name, "the scene or the matrix entry changed since the reference was made (scene hash differs)"
+        )
     stored = None
     if calibration and os.path.exists(p["json"]):
         try:
@@ -98,11 +114,22 @@ def load_reference(feature: Feature, folder: str | None = None, calibration: boo
         except (OSError, ValueError) as e:
             raise ReferenceError(feature.name, f"{p['json']} is unreadable ({e})") from None
         if stored.get("reference_sha256") != file_sha256(p["exr"]):
-            raise ReferenceError(feature.name, "its calibration belongs to another reference image (run wrt refs calibrate, or regenerate)")
-    return Reference(rgb=image.rgb, variance=image.aovs["variance"], spp=int(image.metadata.get("spp", 0)), metadata=image.metadata, calibration=stored)
+            raise ReferenceError(
+                feature.name,
+                "its calibration belongs to another reference image (run wrt refs calibrate, or regenerate)",
+            )
+    return Reference(
+        rgb=image.rgb,
+        variance=image.aovs["variance"],
+        spp=int(image.metadata.get("spp", 0)),
+        metadata=image.metadata,
+        calibration=stored,
+    )
 
 
-def render_reference(feature: Feature, spp: int | None = None, device: str = "cpu", threads: int | None = None) -> Reference:
+def render_reference(
+    feature: Feature, spp: int | None = None, device: str = "cpu", threads: int | None = None
+) -> Reference:
     """Render a converged reference in ``BATCHES`` batches and check that it reproduces.
 
     Deterministic features (1 spp at the pixel centre) have one exact batch and zero variance.
@@ -110,7 +137,12 @@ def render_reference(feature: Feature, spp: int | None = None, device: str = "cp
     spp = spp or feature.reference_spp
     batches = min(BATCHES, spp) if feature.stochastic else 1
     per_batch = max(1, spp // batches)
-    means = np.stack([render_feature(feature, spp=per_batch, seed=REFERENCE_SEED + i, device=device, threads=threads).rgb for i in range(batches)]).astype(np.float64)
+    means = np.stack(
+        [
+            render_feature(feature, spp=per_batch, seed=REFERENCE_SEED + i, device=device, threads=threads).rgb
+            for i in range(batches)
+        ]
+    ).astype(np.float64)
     mean = means.mean(axis=0)
     total = per_batch * batches
     variance = np.zeros_like(mean)
@@ -120,14 +152,29 @@ def render_reference(feature: Feature, spp: int | None = None, device: str = "cp
         half = batches // 2
         first, second = means[:half], means[half:]
         variance = 0.5 * (first.var(axis=0, ddof=1) + second.var(axis=0, ddof=1)) * per_batch
-        check = z_test(first.mean(axis=0), per_batch * half, second.mean(axis=0), variance, per_batch * (batches - half))
+        check = z_test(
+            first.mean(axis=0), per_batch * half, second.mean(axis=0), variance, per_batch * (batches - half)
+        )
         if not check.passed:
             raise WrtError(
-                f"feature {feature.name!r}: the reference does not reproduce: two halves rendered with different seeds differ "
+                f"feature {feature.name!r}: the reference does not reproduce: two halves rendered with different "
+                "seeds differ "
                 f"beyond their noise at {check.rejected} pixel blocks (min p = {check.min_p:.2e}); nothing was written"
             )
-    metadata = {"scene_hash": scene_hash(feature), "spp": total, "seed": REFERENCE_SEED, "version": wrt.__version__, "date": datetime.date.today().isoformat()}
-    return Reference(rgb=mean.astype(np.float32), variance=variance.astype(np.float32), spp=total, metadata=metadata, calibration=None)
+    metadata = {
+        "scene_hash": scene_hash(feature),
+        "spp": total,
+        "seed": REFERENCE_SEED,
+        "version": wrt.__version__,
+        "date": datetime.date.today().isoformat(),
+    }
+    return Reference(
+        rgb=mean.astype(np.float32),
+        variance=variance.astype(np.float32),
+        spp=total,
+        metadata=metadata,
+        calibration=None,
+    )
 
 
 def calibrate(feature: Feature, reference: Reference, device: str = "cpu", threads: int | None = None) -> dict:

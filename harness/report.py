@@ -5,6 +5,7 @@ One row per feature: reference, render, absolute-difference heat map, the geomet
 three-quarter view with the camera frustum, the scores against their thresholds, the time, and
 pass/fail colouring; a checkbox shows failures only; the header names machine, device, version.
 """
+
 from __future__ import annotations
 
 import datetime
@@ -54,11 +55,23 @@ def _scores(r: FeatureResult) -> str:
 
     lines = [mark(r.ssim >= r.ssim_threshold, f"SSIM {r.ssim:.4f} &ge; {r.ssim_threshold:.4f}")]
     if r.z is not None:
-        lines.append(mark(r.z.passed, f"Z-test min p {r.z.min_p:.2e} (level {r.z.threshold:.1e}), {r.z.rejected} rejected"))
-    lines.append(mark(r.geometry_ssim >= r.feature.geometry_threshold, f"geometry SSIM {r.geometry_ssim:.4f} &ge; {r.feature.geometry_threshold:.2f}"))
+        lines.append(
+            mark(r.z.passed, f"Z-test min p {r.z.min_p:.2e} (level {r.z.threshold:.1e}), {r.z.rejected} rejected")
+        )
+    lines.append(
+        mark(
+            r.geometry_ssim >= r.feature.geometry_threshold,
+            f"geometry SSIM {r.geometry_ssim:.4f} &ge; {r.feature.geometry_threshold:.2f}",
+        )
+    )
     lines.append(f"RMSE {r.rmse:.2e}, max error {r.max_error:.2e}")
     if r.convergence:
-        lines.append(mark(r.convergence["slope"] <= -0.35, f"convergence slope {r.convergence['slope']:.2f} over spp {r.convergence['spp']}"))
+        lines.append(
+            mark(
+                r.convergence["slope"] <= -0.35,
+                f"convergence slope {r.convergence['slope']:.2f} over spp {r.convergence['spp']}",
+            )
+        )
     if r.rerendered:
         lines.append("re-rendered at 4x spp")
     lines += [f'<span class="bad">{html.escape(f)}</span>' for f in r.failures]
@@ -94,24 +107,30 @@ def write_report(results: list[FeatureResult], folder: str, device: str) -> str:
                 cells = ['<td colspan="6">no images</td>']
             status = "pass" if r.passed else "fail"
             rows.append(
-                f'<tr class="{status}" id="{name}"><td>{html.escape(name)}<br><small>{html.escape(r.feature.integrator)}, '
+                f'<tr class="{status}" id="{name}"><td>{html.escape(name)}<br>'
+                f"<small>{html.escape(r.feature.integrator)}, "
                 f"{r.feature.width}x{r.feature.height}, {r.feature.spp} spp</small></td>"
-                f'<td class="status">{status.upper()}</td>{"".join(cells)}<td>{_scores(r)}</td><td>{r.time_s:.2f} s</td></tr>'
+                f'<td class="status">{status.upper()}</td>{"".join(cells)}<td>{_scores(r)}</td><td>{r.time_s:.2f} '
+                "s</td></tr>"
             )
         failed = sum(not r.passed for r in results)
         header = (
-            f"wrt {html.escape(wrt.__version__)} &middot; device {html.escape(device)} &middot; {html.escape(cpu_model())}, "
-            f"{os.cpu_count()} cores, {html.escape(platform.system())} &middot; {datetime.datetime.now().isoformat(timespec='seconds')}"
+            f"wrt {html.escape(wrt.__version__)} &middot; device {html.escape(device)} &middot; "
+            f"{html.escape(cpu_model())}, "
+            f"{os.cpu_count()} cores, {html.escape(platform.system())} &middot; "
+            f"{datetime.datetime.now().isoformat(timespec='seconds')}"
         )
         page = f"""<!DOCTYPE html>
 <html><head><meta charset="utf-8"><title>wrt feature matrix</title><style>{STYLE}</style></head>
 <body>
 <h1>wrt feature matrix: {len(results) - failed} of {len(results)} pass</h1>
 <p id="machine">{header}</p>
-<p><label><input type="checkbox" id="failures-only" onchange="document.body.classList.toggle('failures-only', this.checked)"> show failures only</label>
+<p><label><input type="checkbox" id="failures-only"
+  onchange="document.body.classList.toggle('failures-only', this.checked)"> show failures only</label>
 &middot; heat map: |render - reference| of the tone-mapped images, white at {HEAT_SCALE}</p>
 <table id="matrix">
-<thead><tr><th>feature</th><th>status</th><th>reference</th><th>render</th><th>difference</th><th>pyvista ids</th><th>ray-traced ids</th><th>scene and camera</th><th>scores</th><th>time</th></tr></thead>
+<thead><tr><th>feature</th><th>status</th><th>reference</th><th>render</th><th>difference</th>
+<th>pyvista ids</th><th>ray-traced ids</th><th>scene and camera</th><th>scores</th><th>time</th></tr></thead>
 <tbody>
 {chr(10).join(rows)}
 </tbody></table>

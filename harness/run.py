@@ -10,6 +10,7 @@ A feature passes when all hold:
   slope of at most ``CONVERGENCE_SLOPE_MAX`` (an unbiased estimator shows about -0.5; one that
   converges to the wrong image flattens toward 0).
 """
+
 from __future__ import annotations
 
 import os
@@ -71,19 +72,34 @@ def evaluate(feature: Feature, device: str = "cpu", threads: int | None = None, 
     out.rmse, out.max_error = rmse(result.rgb, reference.rgb), max_error(result.rgb, reference.rgb)
     rgb = result.rgb
     if not ok and feature.stochastic:
-        again = render_feature(feature, spp=4 * result.spp, seed=feature.seed + RERENDER_SEED_OFFSET, wrong=wrong, device=device, threads=threads)
+        again = render_feature(
+            feature,
+            spp=4 * result.spp,
+            seed=feature.seed + RERENDER_SEED_OFFSET,
+            wrong=wrong,
+            device=device,
+            threads=threads,
+        )
         out.rerendered = True
         out.ssim, out.z, ok = score_render(feature, again.rgb, again.spp, reference, threshold)
         rgb = again.rgb
     if not ok:
-        out.failures.append(f"SSIM {out.ssim:.4f} (threshold {threshold:.4f}), Z-test {'pass' if out.z.passed else f'{out.z.rejected} pixel channels rejected'}")
+        out.failures.append(
+            f"SSIM {out.ssim:.4f} (threshold {threshold:.4f}), Z-test "
+            f"{'pass' if out.z.passed else f'{out.z.rejected} pixel channels rejected'}"
+        )
     ids = rasterize_ids(load_feature_scene(feature, wrong))
     out.geometry_ssim = ssim(palette(result.aovs["object_id"]), palette(ids))
     if out.geometry_ssim < feature.geometry_threshold:
         out.failures.append(f"geometry SSIM {out.geometry_ssim:.4f} < {feature.geometry_threshold}")
     if feature.stochastic and not wrong:
         spps = [feature.spp, 4 * feature.spp, 16 * feature.spp]
-        errors = [out.rmse] + [rmse(render_feature(feature, spp=n, seed=feature.seed + k, device=device, threads=threads).rgb, reference.rgb) for k, n in enumerate(spps[1:], 1)]
+        errors = [out.rmse] + [
+            rmse(
+                render_feature(feature, spp=n, seed=feature.seed + k, device=device, threads=threads).rgb, reference.rgb
+            )
+            for k, n in enumerate(spps[1:], 1)
+        ]
         slope = convergence_slope(spps, errors)
         out.convergence = {"spp": spps, "rmse": errors, "slope": slope}
         if slope > CONVERGENCE_SLOPE_MAX:
@@ -108,7 +124,9 @@ def run_matrix(features: list[Feature], device: str = "cpu", jobs: int = 1, prog
         except WrtError:
             raise
         except Exception as e:  # a crash of the renderer is a failed feature, not a crashed run
-            result = FeatureResult(feature=feature, passed=False, failures=[f"crashed: {e!r}\n{traceback.format_exc(limit=3)}"])
+            result = FeatureResult(
+                feature=feature, passed=False, failures=[f"crashed: {e!r}\n{traceback.format_exc(limit=3)}"]
+            )
         if progress:
             progress(result)
         return result

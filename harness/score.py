@@ -11,6 +11,7 @@ Structural Similarity", IEEE TIP 13(4), 2004.
 W. Jakob et al., Mitsuba 3 render tests (``mitsuba/python/tests/test_renders.py``): per-pixel
 Z-test of a render against a reference with a Bonferroni-corrected significance level.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -40,7 +41,9 @@ def ssim(image: np.ndarray, reference: np.ndarray) -> float:
         raise ValueError(f"image shape {image.shape} differs from reference shape {reference.shape}")
     if min(image.shape[:2]) < 7:
         raise ValueError(f"SSIM needs images of at least 7 x 7 pixels, got {image.shape[1]} x {image.shape[0]}")
-    return float(structural_similarity(srgb_encode(image), srgb_encode(reference), channel_axis=-1, data_range=SSIM_DATA_RANGE))
+    return float(
+        structural_similarity(srgb_encode(image), srgb_encode(reference), channel_axis=-1, data_range=SSIM_DATA_RANGE)
+    )
 
 
 def rmse(image: np.ndarray, reference: np.ndarray) -> float:

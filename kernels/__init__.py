@@ -21,6 +21,7 @@ This package imports only Warp: it knows nothing of scene files, images or the h
 Importing it configures Warp for rendering: no gradients (smaller, faster modules) and
 no informational log lines on the console.
 """
+
 import warp as wp
 
 wp.config.enable_backward = False

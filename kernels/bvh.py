@@ -13,6 +13,7 @@ An unused lane has the empty box ``lo = hi = +inf``, which no ray enters (see ``
 and the reference 0. Bounds are float32, rounded outward from the primitives' float64 extent, so a
 box always contains what its primitives' intersection tests can hit.
 """
+
 import warp as wp
 
 from .intersect import INV_ZERO, SLAB_WIDEN
@@ -57,13 +58,23 @@ def leaf_count(ref: wp.int32) -> wp.int32:
 @wp.func
 def ordered_min(a: wp.vec4, b: wp.vec4) -> wp.vec4:
     """Lane-wise ``a < b ? a : b`` (one instruction per lane, no NaN handling: inputs are not NaN)."""
-    return wp.vec4(wp.where(a[0] < b[0], a[0], b[0]), wp.where(a[1] < b[1], a[1], b[1]), wp.where(a[2] < b[2], a[2], b[2]), wp.where(a[3] < b[3], a[3], b[3]))
+    return wp.vec4(
+        wp.where(a[0] < b[0], a[0], b[0]),
+        wp.where(a[1] < b[1], a[1], b[1]),
+        wp.where(a[2] < b[2], a[2], b[2]),
+        wp.where(a[3] < b[3], a[3], b[3]),
+    )
 
 
 @wp.func
 def ordered_max(a: wp.vec4, b: wp.vec4) -> wp.vec4:
     """Lane-wise ``a > b ? a : b``."""
-    return wp.vec4(wp.where(a[0] > b[0], a[0], b[0]), wp.where(a[1] > b[1], a[1], b[1]), wp.where(a[2] > b[2], a[2], b[2]), wp.where(a[3] > b[3], a[3], b[3]))
+    return wp.vec4(
+        wp.where(a[0] > b[0], a[0], b[0]),
+        wp.where(a[1] > b[1], a[1], b[1]),
+        wp.where(a[2] > b[2], a[2], b[2]),
+        wp.where(a[3] > b[3], a[3], b[3]),
+    )
 
 
 @wp.func
@@ -128,9 +139,13 @@ def child_entry(node: WideNode, o: wp.vec3, inv_d: wp.vec3, moves: bool, t_max: 
             near_z = node.hi_z
             far_z = node.lo_z
         t_near = ordered_max(
-            ordered_max((near_x - wp.vec4(o[0])) * inv_d[0], (near_y - wp.vec4(o[1])) * inv_d[1]), ordered_max((near_z - wp.vec4(o[2])) * inv_d[2], wp.vec4(0.0))
+            ordered_max((near_x - wp.vec4(o[0])) * inv_d[0], (near_y - wp.vec4(o[1])) * inv_d[1]),
+            ordered_max((near_z - wp.vec4(o[2])) * inv_d[2], wp.vec4(0.0)),
         )
-        t_far = ordered_min(ordered_min((far_x - wp.vec4(o[0])) * inv_d[0], (far_y - wp.vec4(o[1])) * inv_d[1]), (far_z - wp.vec4(o[2])) * inv_d[2])
+        t_far = ordered_min(
+            ordered_min((far_x - wp.vec4(o[0])) * inv_d[0], (far_y - wp.vec4(o[1])) * inv_d[1]),
+            (far_z - wp.vec4(o[2])) * inv_d[2],
+        )
         return entry_of(t_near, t_far, t_max)
     near_x, far_x = slab_exact(node.lo_x, node.hi_x, o[0], inv_d[0])
     near_y, far_y = slab_exact(node.lo_y, node.hi_y, o[1], inv_d[1])

@@ -33,12 +33,15 @@ Construction", IEEE TVCG 24(3), 2018.
 I. Wald, C. Benthin, S. Boulos, "Getting Rid of Packets", IEEE RT 2008 (wide BVHs by collapse).
 T. Karras, "Maximizing Parallelism in the Construction of BVHs, Octrees, and k-d Trees", HPG 2012.
 """
+
 import warp as wp
 
 from .bvh import MAX_LEAF, WideNode, leaf_ref
 from .sampling import pcg_hash
 
-TRAVERSAL_COST = wp.constant(2.0)  # SAH cost of visiting a binary node, relative to one primitive test (measured choice: docs/performance.md)
+TRAVERSAL_COST = wp.constant(
+    2.0
+)  # SAH cost of visiting a binary node, relative to one primitive test (measured choice: docs/performance.md)
 INTERSECTION_COST = wp.constant(1.0)
 MORTON_SCALE = wp.constant(1023.0)  # 10 bits per axis
 MORTON_1 = wp.constant(wp.uint32(0x00010001))
@@ -85,7 +88,14 @@ def expand_bits(v: wp.uint32) -> wp.uint32:
 
 
 @wp.kernel
-def morton_codes(lo: wp.array(dtype=wp.vec3), hi: wp.array(dtype=wp.vec3), scene_lo: wp.vec3, scene_scale: wp.vec3, keys: wp.array(dtype=wp.int32), values: wp.array(dtype=wp.int32)):
+def morton_codes(
+    lo: wp.array(dtype=wp.vec3),
+    hi: wp.array(dtype=wp.vec3),
+    scene_lo: wp.vec3,
+    scene_scale: wp.vec3,
+    keys: wp.array(dtype=wp.int32),
+    values: wp.array(dtype=wp.int32),
+):
     """Morton code of each box centre in the centres' bounds (``scene_scale`` = 1 / extent, 0 on a
     flat axis), and the primitive's index as the value to sort along."""
     i = wp.tid()
@@ -125,7 +135,9 @@ def init_leaves(
 
 
 @wp.func
-def pair_before(area: float, gap: wp.int32, low: wp.int32, best_area: float, best_gap: wp.int32, best_low: wp.int32) -> bool:
+def pair_before(
+    area: float, gap: wp.int32, low: wp.int32, best_area: float, best_gap: wp.int32, best_low: wp.int32
+) -> bool:
     """Strict total order of cluster pairs for the nearest-neighbour search: smaller union area,
     then smaller index gap, then a hash of the pair's lower index (so that runs of equal boxes
     pair up in many places at once), then the lower index."""
@@ -141,7 +153,14 @@ def pair_before(area: float, gap: wp.int32, low: wp.int32, best_area: float, bes
 
 
 @wp.kernel
-def ploc_nearest(c_lo: wp.array(dtype=wp.vec3), c_hi: wp.array(dtype=wp.vec3), m: wp.int32, radius: wp.int32, nn: wp.array(dtype=wp.int32), first: wp.int32):
+def ploc_nearest(
+    c_lo: wp.array(dtype=wp.vec3),
+    c_hi: wp.array(dtype=wp.vec3),
+    m: wp.int32,
+    radius: wp.int32,
+    nn: wp.array(dtype=wp.int32),
+    first: wp.int32,
+):
     """Nearest neighbour of cluster ``first + tid`` among the ``radius`` clusters on either side."""
     i = first + wp.tid()
     lo = c_lo[i]
@@ -293,7 +312,12 @@ def ploc_merge(
 
 
 @wp.kernel
-def count_inner(tree: wp.array(dtype=BinaryNode), f_node: wp.array(dtype=wp.int32), counts: wp.array(dtype=wp.int32), first: wp.int32):
+def count_inner(
+    tree: wp.array(dtype=BinaryNode),
+    f_node: wp.array(dtype=wp.int32),
+    counts: wp.array(dtype=wp.int32),
+    first: wp.int32,
+):
     """Inner children (wide nodes of the next level) of node ``first + tid`` of the current level."""
     e = first + wp.tid()
     node = tree[f_node[e]]

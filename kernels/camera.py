@@ -23,6 +23,7 @@ The filters are separable: x and y offsets are drawn independently.
 Shutter: a camera sample is taken at a time drawn uniformly in ``[shutter_open, shutter_close]``
 (moving shapes are where they are at that time); at one sample per pixel, at mid-shutter.
 """
+
 import warp as wp
 
 BOX = wp.constant(0)

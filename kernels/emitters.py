@@ -6,6 +6,7 @@ Units: ``radiance`` in W/(m^2 sr). A parallelogram light (``corner``, ``edge_u``
 emits from the side of ``cross(edge_u, edge_v)`` only; a sphere light outward; the environment
 uniformly from every direction. Densities are per unit solid angle at the receiving point.
 """
+
 import warp as wp
 
 from .intersect import intersect_sphere

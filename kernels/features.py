@@ -4,11 +4,13 @@ Each integrator's kernel is built per distinct ``Features`` value by a factory w
 bodies test the flags with ``wp.static``, so a feature the scene does not use is not in the
 generated code at all: no shadow rays or light sampling without lights, no branch stack,
 Fresnel or media bookkeeping without mirrors and dielectrics, no lens or shutter-time sampling
-with a pinhole camera or nothing moving; and in the traversal (``wrt.kernels.traverse``) no test of a
-primitive kind the scene lacks, and no per-primitive ray motion when no surface moves. ``ALL`` (every flag set) is the all-features kernel that
-renders any scene. Variants compile on first use, each into its own Warp module (see
-``wrt.kernels.variants``), and land in Warp's kernel cache.
+with a pinhole camera or nothing moving; and in the traversal (``wrt.kernels.traverse``) no test
+of a primitive kind the scene lacks, and no per-primitive ray motion when no surface moves.
+``ALL`` (every flag set) is the all-features kernel that renders any scene. Variants compile on
+first use, each into its own Warp module (see ``wrt.kernels.variants``), and land in Warp's
+kernel cache.
 """
+
 from __future__ import annotations
 
 from dataclasses import astuple, dataclass
@@ -42,4 +44,6 @@ ALL = Features()
 def geometry_features(features: Features) -> Features:
     """Only the flags the traversal is compiled on (primitive kinds, moving surfaces); the others
     set: the key of a traversal variant."""
-    return Features(moving=features.moving, spheres=features.spheres, triangles=features.triangles, polygons=features.polygons)
+    return Features(
+        moving=features.moving, spheres=features.spheres, triangles=features.triangles, polygons=features.polygons
+    )

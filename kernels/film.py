@@ -10,10 +10,10 @@ AOVs (arbitrary output variables) describe the primary ray through the pixel CEN
   ``-2 - k`` on the surface of light k (area and sphere lights are not shapes)
 - ``position``  world-space hit point; 0 on a miss
 """
+
 import warp as wp
 
 from .traverse import NO_HIT, SceneData, geometric_normal, prim_shape
-
 
 LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)  # Y of linear Rec. 709 RGB (host code reads them too)
 
@@ -21,7 +21,11 @@ LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)  # Y of linear Rec. 709 RGB (host c
 @wp.func
 def luminance(rgb: wp.vec3) -> float:
     """Luminance Y of linear Rec. 709 RGB (``LUMINANCE_WEIGHTS``)."""
-    return wp.static(LUMINANCE_WEIGHTS[0]) * rgb[0] + wp.static(LUMINANCE_WEIGHTS[1]) * rgb[1] + wp.static(LUMINANCE_WEIGHTS[2]) * rgb[2]
+    return (
+        wp.static(LUMINANCE_WEIGHTS[0]) * rgb[0]
+        + wp.static(LUMINANCE_WEIGHTS[1]) * rgb[1]
+        + wp.static(LUMINANCE_WEIGHTS[2]) * rgb[2]
+    )
 
 
 @wp.struct
@@ -45,7 +49,9 @@ def facing_normal(scene: SceneData, prim: wp.int32, p: wp.vec3, d: wp.vec3, time
 
 
 @wp.func
-def write_aovs(film: Film, scene: SceneData, pixel: wp.int32, o: wp.vec3, d: wp.vec3, t: float, prim: wp.int32, time: float):
+def write_aovs(
+    film: Film, scene: SceneData, pixel: wp.int32, o: wp.vec3, d: wp.vec3, t: float, prim: wp.int32, time: float
+):
     """Record the AOVs of the pixel-centre ray ``o + t d`` (unit ``d``, at ray time ``time``) that hit
     ``prim`` (or missed)."""
     if prim == NO_HIT:

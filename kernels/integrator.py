@@ -24,6 +24,7 @@ out. Recording variants go to their own Warp module, ``RECORD_MODULE``, so that 
 kernel never compiles them; build every variant at import, before the first launch, or Warp
 recompiles the module.
 """
+
 import warp as wp
 
 from .camera import CameraData, camera_ray_direction, film_position, shutter_time, thin_lens_ray
@@ -101,7 +102,9 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
             if sampler.spp == 1:
                 if wp.static(record):
                     parent = record_ray(rec, scene, pixel, 0, CAMERA, cam.origin, d, t, prim, time, wp.vec3(1.0), 1, -1)
-                total = radiance(scene, materials, lights, settings, cam.origin, d, t, prim, time, rec, sampler, pixel, 0, parent)
+                total = radiance(
+                    scene, materials, lights, settings, cam.origin, d, t, prim, time, rec, sampler, pixel, 0, parent
+                )
                 film.rgb_sum[pixel] = total
                 film.luminance_sq_sum[pixel] = luminance(total) * luminance(total)
                 film.rgb[pixel] = total
@@ -123,7 +126,9 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
             ts, prim_s = trace.closest_hit(scene, o_s, ds, time_s, 0.0, wp.inf)
             if wp.static(record):
                 parent = record_ray(rec, scene, pixel, s, CAMERA, o_s, ds, ts, prim_s, time_s, wp.vec3(1.0), 1, -1)
-            value = radiance(scene, materials, lights, settings, o_s, ds, ts, prim_s, time_s, rec, sampler, pixel, s, parent)
+            value = radiance(
+                scene, materials, lights, settings, o_s, ds, ts, prim_s, time_s, rec, sampler, pixel, s, parent
+            )
             total += value
             total_sq += luminance(value) * luminance(value)
         film.rgb_sum[pixel] = total

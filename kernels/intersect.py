@@ -13,6 +13,7 @@ Intersection", Ray Tracing Gems, ch. 7, 2019.
 S. Woop, C. Benthin, I. Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1), 2013.
 M. Pharr, W. Jakob, G. Humphreys, pbrt-v4, sec. 6.1.2 (conservative slab test).
 """
+
 import warp as wp
 
 # 1 + 2 gamma(3) for float32: widens a slab interval so rounding never culls a box a ray touches.
@@ -128,7 +129,9 @@ def ray_shear(d: wp.vec3) -> RayShear:
 
 
 @wp.func
-def intersect_triangle_sheared(o: wp.vec3, d: wp.vec3, ray: RayShear, v0: wp.vec3, v1: wp.vec3, v2: wp.vec3, t_min: float, t_max: float) -> float:
+def intersect_triangle_sheared(
+    o: wp.vec3, d: wp.vec3, ray: RayShear, v0: wp.vec3, v1: wp.vec3, v2: wp.vec3, t_min: float, t_max: float
+) -> float:
     """``intersect_triangle`` with the ray's shear (``ray_shear(d)``) computed by the caller."""
     if d[ray.kz] == 0.0:
         return t_max
@@ -163,7 +166,9 @@ def intersect_triangle_sheared(o: wp.vec3, d: wp.vec3, ray: RayShear, v0: wp.vec
 
 
 @wp.func
-def intersect_triangle(o: wp.vec3, d: wp.vec3, v0: wp.vec3, v1: wp.vec3, v2: wp.vec3, t_min: float, t_max: float) -> float:
+def intersect_triangle(
+    o: wp.vec3, d: wp.vec3, v0: wp.vec3, v1: wp.vec3, v2: wp.vec3, t_min: float, t_max: float
+) -> float:
     """Triangle (v0, v1, v2), both sides, watertight (Woop, Benthin and Wald 2013).
 
     The vertices are moved into a frame where the ray starts at the origin and runs along z

@@ -6,6 +6,7 @@ sampled by ``wrt.kernels.emitters``. Units: point and spot ``intensity`` in W/sr
 A point light at distance d delivers irradiance ``I / d^2`` on a surface facing it; the
 integrator multiplies by the BRDF and the cosine at the receiver.
 """
+
 import warp as wp
 
 POINT = wp.constant(0)

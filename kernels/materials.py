@@ -13,6 +13,7 @@ References
 E. Lafortune, Y. Willems, "Using the Modified Phong Reflectance Model for Physically Based
 Rendering", KU Leuven CW 197, 1994 (the (n + 2) / (2 pi) normalisation).
 """
+
 import warp as wp
 
 from .microfacet import ggx_eval

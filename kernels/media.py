@@ -12,6 +12,7 @@ References
 ----------
 C. Schmidt, B. Budge, "Simple Nested Dielectrics in Ray Traced Images", JGT 7(2), 2002.
 """
+
 import warp as wp
 
 from .integrator import IntegratorSettings
@@ -70,7 +71,14 @@ def remove_medium(media: Media, count: wp.int32, slot: wp.int32) -> Media:
 
 
 @wp.func
-def dielectric_interface(materials: MaterialData, settings: IntegratorSettings, media: Media, n_media: wp.int32, shape: wp.int32, entering: bool):
+def dielectric_interface(
+    materials: MaterialData,
+    settings: IntegratorSettings,
+    media: Media,
+    n_media: wp.int32,
+    shape: wp.int32,
+    entering: bool,
+):
     """What the surface of dielectric ``shape`` separates for a ray with media stack ``media``:
     ``(real, n1, n2, media_t, n_media_t)``: whether it is a real interface, the ior on the
     incident and on the far side, and the stack of a ray that crosses it. A ray leaving a shape

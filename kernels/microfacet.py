@@ -11,6 +11,7 @@ B. Walter, S. Marschner, H. Li, K. Torrance, "Microfacet Models for Refraction t
 Surfaces", EGSR 2007 (GGX D and Smith G1).
 E. Heitz, "Sampling the GGX Distribution of Visible Normals", JCGT 7(4), 2018.
 """
+
 import warp as wp
 
 

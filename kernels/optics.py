@@ -9,6 +9,7 @@ References
 M. Pharr, W. Jakob, G. Humphreys, pbrt-v4, sec. 9.3 (Snell's law in vector form, Fresnel).
 E. Hecht, Optics, 5th ed., sec. 4.6 (Fresnel equations).
 """
+
 import warp as wp
 
 

@@ -23,6 +23,7 @@ dimensions 0-4 are the camera's (pixel position, lens, time), ``bounce_dim(depth
 BSDF sample (j = 0, 1: a 2D pair), the Fresnel choice (2) and roulette (3) at each bounce, and
 ``light_dim(depth, i)`` the 2D sample of light i. A path's shapes stay at its camera ray's time.
 """
+
 import warp as wp
 
 from .emitters import emitter_pdf, sample_emitter
@@ -33,7 +34,17 @@ from .materials import DIELECTRIC, EMITTER, GLOSSY, MIRROR, MaterialData, beer_l
 from .media import Media, current_medium, dielectric_interface, max_component
 from .microfacet import ggx_g1, ggx_pdf, ggx_sample_visible_normal
 from .optics import fresnel_dielectric, reflect, refract
-from .record import REFLECTED, REFRACTED, SCATTERED, SHADOW_BLOCKED, SHADOW_LIT, STRAIGHT, TOTAL_INTERNAL, RayRecord, record_ray
+from .record import (
+    REFLECTED,
+    REFRACTED,
+    SCATTERED,
+    SHADOW_BLOCKED,
+    SHADOW_LIT,
+    STRAIGHT,
+    TOTAL_INTERNAL,
+    RayRecord,
+    record_ray,
+)
 from .sampling import Sampler, sample_1d, sample_2d
 from .spawn import hit_error, spawn_origin
 from .traverse import NO_HIT, SceneData, Traversal, geometric_normal, prim_shape, traversal
@@ -139,10 +150,38 @@ def make_next_event(record: bool, trace: Traversal):
                 if not trace.any_hit(scene, o_shadow, wi, time, 0.0, t_max):
                     total += contribution
                     if wp.static(record):
-                        record_ray(rec, scene, pixel, sample, SHADOW_LIT, o_shadow, wi, t_max, NO_HIT, time, beta, depth + 1, parent)
+                        record_ray(
+                            rec,
+                            scene,
+                            pixel,
+                            sample,
+                            SHADOW_LIT,
+                            o_shadow,
+                            wi,
+                            t_max,
+                            NO_HIT,
+                            time,
+                            beta,
+                            depth + 1,
+                            parent,
+                        )
                 elif wp.static(record):
                     t_block, prim_block = trace.closest_hit(scene, o_shadow, wi, time, 0.0, t_max)
-                    record_ray(rec, scene, pixel, sample, SHADOW_BLOCKED, o_shadow, wi, t_block, prim_block, time, wp.vec3(0.0), depth + 1, parent)
+                    record_ray(
+                        rec,
+                        scene,
+                        pixel,
+                        sample,
+                        SHADOW_BLOCKED,
+                        o_shadow,
+                        wi,
+                        t_block,
+                        prim_block,
+                        time,
+                        wp.vec3(0.0),
+                        depth + 1,
+                        parent,
+                    )
         return total
 
     return next_event
@@ -205,12 +244,28 @@ def make_path_radiance(record: bool, features: Features = ALL):
             if not traced:
                 t, prim = trace.closest_hit(scene, o, d, time, t_from, wp.inf)
                 if wp.static(record):
-                    current = record_ray(rec, scene, pixel, sample, segment_kind, o + t_last * d, d, t - t_last, prim, time, beta, depth, current)
+                    current = record_ray(
+                        rec,
+                        scene,
+                        pixel,
+                        sample,
+                        segment_kind,
+                        o + t_last * d,
+                        d,
+                        t - t_last,
+                        prim,
+                        time,
+                        beta,
+                        depth,
+                        current,
+                    )
             traced = False
             if wp.static(features.dielectric):
                 slot = current_medium(materials, media, n_media)
                 if slot >= 0:
-                    beta = wp.cw_mul(beta, beer_lambert(materials.sigma[materials.shape_material[media[slot]]], t - t_last))
+                    beta = wp.cw_mul(
+                        beta, beer_lambert(materials.sigma[materials.shape_material[media[slot]]], t - t_last)
+                    )
             if prim == NO_HIT:
                 if wp.static(features.lights):
                     radiance += wp.cw_mul(beta, environment_radiance(lights, prev_pdf, specular))
@@ -226,7 +281,9 @@ def make_path_radiance(record: bool, features: Features = ALL):
             if entering and max_component(materials.emission[m]) > 0.0:
                 mis = float(1.0)
                 if not specular and surface >= scene.num_shapes:
-                    mis = power_heuristic(prev_pdf, emitter_pdf(lights, surface - scene.num_shapes, prev_p, d, wp.length(p - prev_p)))
+                    mis = power_heuristic(
+                        prev_pdf, emitter_pdf(lights, surface - scene.num_shapes, prev_p, d, wp.length(p - prev_p))
+                    )
                 radiance += wp.cw_mul(beta, materials.emission[m]) * mis
             kind = materials.type[m]
             if kind == EMITTER or depth >= settings.max_depth:
@@ -238,7 +295,9 @@ def make_path_radiance(record: bool, features: Features = ALL):
             if wp.static(features.dielectric):
                 if kind == DIELECTRIC:
                     scattered = False
-                    real, n1, n2, media_t, n_media_t = dielectric_interface(materials, settings, media, n_media, surface, entering)
+                    real, n1, n2, media_t, n_media_t = dielectric_interface(
+                        materials, settings, media, n_media, surface, entering
+                    )
                     if not real:
                         straight = True
                         media = media_t
@@ -277,7 +336,25 @@ def make_path_radiance(record: bool, features: Features = ALL):
             if scattered:
                 if wp.static(features.lights):
                     radiance += wp.cw_mul(
-                        beta, next_event(scene, materials, lights, m, p, n_facing, err, wo, time, sampler, pixel, sample, depth, rec, current, beta)
+                        beta,
+                        next_event(
+                            scene,
+                            materials,
+                            lights,
+                            m,
+                            p,
+                            n_facing,
+                            err,
+                            wo,
+                            time,
+                            sampler,
+                            pixel,
+                            sample,
+                            depth,
+                            rec,
+                            current,
+                            beta,
+                        ),
                     )
                 u = sample_2d(sampler, pixel, sample, bounce_dim(depth, 0))
                 wi, bsdf_weight, pdf = sample_bsdf(materials, m, n_facing, wo, u[0], u[1])

@@ -6,6 +6,7 @@ miss. ``base_color`` is the albedo of diffuse and Phong materials, the reflectan
 the transmittance of dielectrics. Recording (``raycast_record``) sees only the camera rays,
 which the shared pixel loop records.
 """
+
 import warp as wp
 
 from .film import facing_normal

@@ -41,6 +41,7 @@ diffuse, Phong or glossy BSDF (the path integrator). Later integrators add kinds
 Capacity: ``count[0]`` counts every append, stored or not; segments beyond ``segments.shape[0]``
 are dropped (a truncated recording), and their children still name them as parents.
 """
+
 import warp as wp
 
 from .traverse import NO_HIT, SceneData, geometric_normal, prim_shape
@@ -53,7 +54,16 @@ REFRACTED = wp.constant(4)
 TOTAL_INTERNAL = wp.constant(5)
 STRAIGHT = wp.constant(6)
 SCATTERED = wp.constant(7)
-KIND_NAMES = ("camera", "shadow to light", "shadow blocked", "reflected", "refracted", "total internal reflection", "straight through", "scattered")
+KIND_NAMES = (
+    "camera",
+    "shadow to light",
+    "shadow blocked",
+    "reflected",
+    "refracted",
+    "total internal reflection",
+    "straight through",
+    "scattered",
+)
 
 HIT = wp.constant(1)
 ENTERING = wp.constant(2)

@@ -24,6 +24,7 @@ M. Jarzynski and M. Olano, "Hash Functions for GPU Rendering", JCGT 9(3), 2020.
 A. Kensler, "Correlated Multi-Jittered Sampling", Pixar technical memo 13-01, 2013.
 B. Burley, "Practical Hash-based Owen Scrambling", JCGT 9(4), 2020.
 """
+
 import warp as wp
 
 INDEPENDENT = wp.constant(0)
@@ -157,7 +158,9 @@ def sobol_second(i: wp.uint32) -> wp.uint32:
 def sample_2d(sampler: Sampler, pixel: wp.int32, sample: wp.int32, dim: wp.int32) -> wp.vec2:
     """A uniform point of [0, 1)^2 for the pixel, the sample and the dimensions ``dim, dim + 1``."""
     if sampler.kind == INDEPENDENT:
-        return wp.vec2(independent_1d(sampler.seed, pixel, sample, dim), independent_1d(sampler.seed, pixel, sample, dim + 1))
+        return wp.vec2(
+            independent_1d(sampler.seed, pixel, sample, dim), independent_1d(sampler.seed, pixel, sample, dim + 1)
+        )
     key = hash_counters(sampler.seed, pixel, -1, dim)
     if sampler.kind == STRATIFIED:
         stratum = wp.int32(permutation_element(wp.uint32(sample), wp.uint32(sampler.spp), key))
@@ -182,5 +185,7 @@ def sample_1d(sampler: Sampler, pixel: wp.int32, sample: wp.int32, dim: wp.int32
     if sampler.kind == STRATIFIED:
         key = hash_counters(sampler.seed, pixel, -1, dim)
         stratum = permutation_element(wp.uint32(sample), wp.uint32(sampler.spp), key)
-        return wp.min((float(stratum) + independent_1d(sampler.seed, pixel, sample, dim)) / float(sampler.spp), ONE_MINUS_EPSILON)
+        return wp.min(
+            (float(stratum) + independent_1d(sampler.seed, pixel, sample, dim)) / float(sampler.spp), ONE_MINUS_EPSILON
+        )
     return sample_2d(sampler, pixel, sample, dim)[0]

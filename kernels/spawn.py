@@ -6,6 +6,7 @@ a ray leaving the surface is pushed along the geometric normal, to the side the 
 by a bound on that error: ``SPAWN_ULPS * 2^-24 * (max|o| + max|p| + t)``, not a fixed epsilon, so
 it holds at any scale and distance from the world origin.
 """
+
 import warp as wp
 
 # error bound in float32 ulps (2^-24 relative) of the magnitudes that make up a hit point

@@ -5,6 +5,7 @@ secondary rays an integrator would spawn there (shadow, mirror reflection, refra
 one origin offset of ``wrt.kernels.spawn`` and the optics of ``wrt.kernels.optics``, then traces them.
 The suite checks on the host that none of them falls back onto the surface it leaves.
 """
+
 import warp as wp
 
 from .optics import reflect, refract

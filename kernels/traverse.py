@@ -15,13 +15,23 @@ scene with triangles only has no sphere or polygon branch, and rays are moved in
 moving primitives only when something moves. ``closest_hit`` and ``any_hit`` below handle every
 scene.
 """
+
 import functools
 
 import warp as wp
 
 from .bvh import STACK_SIZE, WideNode, child_entry, leaf_count, leaf_start
 from .features import ALL, Features, geometry_features
-from .intersect import INV_ZERO, RayShear, intersect_plane, intersect_polygon, intersect_sphere, intersect_triangle_sheared, ray_shear, safe_inverse
+from .intersect import (
+    INV_ZERO,
+    RayShear,
+    intersect_plane,
+    intersect_polygon,
+    intersect_sphere,
+    intersect_triangle_sheared,
+    ray_shear,
+    safe_inverse,
+)
 
 SPHERE = wp.constant(0)
 TRIANGLE = wp.constant(1)
@@ -89,7 +99,14 @@ def closest_plane(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: 
     """Nearest of the unbounded planes (tested outside the BVH): ``(t, prim)`` as ``closest_hit``."""
     hit = int(NO_HIT)
     for i in range(scene.plane_point.shape[0]):
-        t = intersect_plane(ray_origin_at(scene, (i << 2) | PLANE, o, time), d, scene.plane_point[i], scene.plane_normal[i], t_min, t_max)
+        t = intersect_plane(
+            ray_origin_at(scene, (i << 2) | PLANE, o, time),
+            d,
+            scene.plane_point[i],
+            scene.plane_normal[i],
+            t_min,
+            t_max,
+        )
         if t < t_max:
             t_max = t
             hit = (i << 2) | PLANE
@@ -135,7 +152,16 @@ def _intersect_prim(features: Features):
     single = sum(kinds) == 1
 
     @wp.func
-    def intersect_prim(scene: SceneData, prim: wp.int32, o: wp.vec3, d: wp.vec3, shear: RayShear, time: float, t_min: float, t_max: float) -> float:
+    def intersect_prim(
+        scene: SceneData,
+        prim: wp.int32,
+        o: wp.vec3,
+        d: wp.vec3,
+        shear: RayShear,
+        time: float,
+        t_min: float,
+        t_max: float,
+    ) -> float:
         """Dispatch one bounded primitive (packed id) to its intersection test, at ray time ``time``;
         ``shear`` is ``ray_shear(d)``."""
         kind = prim & 3
@@ -145,13 +171,31 @@ def _intersect_prim(features: Features):
             o_rel = ray_origin_at(scene, prim, o, time)
         if wp.static(features.triangles):
             if wp.static(single) or kind == TRIANGLE:
-                return intersect_triangle_sheared(o_rel, d, shear, scene.tri_verts[3 * i], scene.tri_verts[3 * i + 1], scene.tri_verts[3 * i + 2], t_min, t_max)
+                return intersect_triangle_sheared(
+                    o_rel,
+                    d,
+                    shear,
+                    scene.tri_verts[3 * i],
+                    scene.tri_verts[3 * i + 1],
+                    scene.tri_verts[3 * i + 2],
+                    t_min,
+                    t_max,
+                )
         if wp.static(features.spheres):
             if wp.static(single) or kind == SPHERE:
                 return intersect_sphere(o_rel, d, scene.sphere_center[i], scene.sphere_radius[i], t_min, t_max)
         if wp.static(features.polygons):
             return intersect_polygon(
-                o_rel, d, scene.poly_normal[i], scene.poly_offset[i], scene.poly_axis[i], scene.poly_uv, scene.poly_start[i], scene.poly_count[i], t_min, t_max
+                o_rel,
+                d,
+                scene.poly_normal[i],
+                scene.poly_offset[i],
+                scene.poly_axis[i],
+                scene.poly_uv,
+                scene.poly_start[i],
+                scene.poly_count[i],
+                t_min,
+                t_max,
             )
         return t_max
 
@@ -165,7 +209,9 @@ def _closest_hit(features: Features, log_visits: bool):
     leaf_entry = _leaf_entry(features)
 
     @wp.func
-    def closest_hit_logged(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float, log: VisitLog, row: wp.int32):
+    def closest_hit_logged(
+        scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float, log: VisitLog, row: wp.int32
+    ):
         t_max, hit = closest_plane(scene, o, d, time, t_min, t_max)
         if scene.nodes.shape[0] == 0:
             return t_max, hit
@@ -246,7 +292,17 @@ def _any_hit(features: Features):
         """Whether anything lies in ``(t_min, t_max)`` along the ray at ray time ``time`` (for shadow
         rays); stops at the first hit."""
         for i in range(scene.plane_point.shape[0]):
-            if intersect_plane(ray_origin_at(scene, (i << 2) | PLANE, o, time), d, scene.plane_point[i], scene.plane_normal[i], t_min, t_max) < t_max:
+            if (
+                intersect_plane(
+                    ray_origin_at(scene, (i << 2) | PLANE, o, time),
+                    d,
+                    scene.plane_point[i],
+                    scene.plane_normal[i],
+                    t_min,
+                    t_max,
+                )
+                < t_max
+            ):
                 return True
         if scene.nodes.shape[0] == 0:
             return False
@@ -378,7 +434,13 @@ def _trace_kernels(trace: Traversal, module: str | None):
         out_hit[i] = wp.where(trace.any_hit(scene, origins[i], directions[i], 0.0, t_min, t_max), 1, 0)
 
     @wp.kernel(module=module)
-    def trace_visits(scene: SceneData, origins: wp.array(dtype=wp.vec3), directions: wp.array(dtype=wp.vec3), times: wp.array(dtype=float), log: VisitLog):
+    def trace_visits(
+        scene: SceneData,
+        origins: wp.array(dtype=wp.vec3),
+        directions: wp.array(dtype=wp.vec3),
+        times: wp.array(dtype=float),
+        log: VisitLog,
+    ):
         """Replay the closest-hit query of recorded rays (``t`` in ``(0, inf)``), logging the BVH nodes
         each visits: the same traversal code as the render kernels'."""
         i = wp.tid()

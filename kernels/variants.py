@@ -8,6 +8,7 @@ already been loaded, and Warp's kernel cache keeps each compiled variant across 
 integrator's module is imported when its kernel is first asked for: a process pays the start-up
 cost (Warp parses every function's source at import) of the integrator it renders with only.
 """
+
 from __future__ import annotations
 
 import functools
@@ -34,12 +35,26 @@ def relevant(integrator: str, features: Features) -> Features:
     moving surfaces) and the lens and shutter sampling of the pixel loop for every integrator;
     lights and the branch stack for whitted; lights and dielectrics for path (its mirror test is
     a load and a compare: path ignores ``specular``)."""
-    geometry = {"moving": features.moving, "spheres": features.spheres, "triangles": features.triangles, "polygons": features.polygons}
+    geometry = {
+        "moving": features.moving,
+        "spheres": features.spheres,
+        "triangles": features.triangles,
+        "polygons": features.polygons,
+    }
     if integrator == "raycast":
         return Features(lens=features.lens, motion=features.motion, **geometry)
     if integrator == "whitted":
-        return Features(lights=features.lights, specular=features.specular, dielectric=features.dielectric, lens=features.lens, motion=features.motion, **geometry)
-    return Features(lights=features.lights, dielectric=features.dielectric, lens=features.lens, motion=features.motion, **geometry)
+        return Features(
+            lights=features.lights,
+            specular=features.specular,
+            dielectric=features.dielectric,
+            lens=features.lens,
+            motion=features.motion,
+            **geometry,
+        )
+    return Features(
+        lights=features.lights, dielectric=features.dielectric, lens=features.lens, motion=features.motion, **geometry
+    )
 
 
 def render_kernel(integrator: str, features: Features):
@@ -51,4 +66,6 @@ def render_kernel(integrator: str, features: Features):
 def _kernel(integrator: str, features: Features):
     if features == ALL:
         return getattr(importlib.import_module(f"{__package__}.{integrator}"), integrator)
-    return make_render_kernel(_radiance(integrator, features), features=features, module=f"wrt_{integrator}_{features.key}")
+    return make_render_kernel(
+        _radiance(integrator, features), features=features, module=f"wrt_{integrator}_{features.key}"
+    )

@@ -8,6 +8,7 @@ References
 M. Pharr, W. Jakob, G. Humphreys, pbrt-v4, sec. A.5 (warps); T. Duff et al., "Building an
 Orthonormal Basis, Revisited", JCGT 6(1), 2017.
 """
+
 import warp as wp
 
 

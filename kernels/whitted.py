@@ -42,6 +42,7 @@ References
 T. Whitted, "An Improved Illumination Model for Shaded Display", CACM 23(6), 1980.
 C. Schmidt, B. Budge, "Simple Nested Dielectrics in Ray Traced Images", JGT 7(2), 2002.
 """
+
 import warp as wp
 
 from .features import ALL, Features
@@ -50,8 +51,8 @@ from .lights import LightData, light_incident
 from .materials import DIELECTRIC, DIFFUSE, GLOSSY, MIRROR, PHONG, MaterialData, beer_lambert, eval_brdf
 from .media import MEDIA, Media, current_medium, dielectric_interface, max_component
 from .optics import fresnel_dielectric, reflect, refract
-from .sampling import Sampler
 from .record import REFLECTED, REFRACTED, SHADOW_BLOCKED, SHADOW_LIT, STRAIGHT, TOTAL_INTERNAL, RayRecord, record_ray
+from .sampling import Sampler
 from .spawn import hit_error, spawn_origin
 from .traverse import NO_HIT, SceneData, Traversal, geometric_normal, prim_shape, traversal
 
@@ -88,7 +89,13 @@ def make_shadows(trace: Traversal):
 
     @wp.func
     def shadow_transmittance(
-        scene: SceneData, materials: MaterialData, settings: IntegratorSettings, o: wp.vec3, w: wp.vec3, t_max: float, time: float
+        scene: SceneData,
+        materials: MaterialData,
+        settings: IntegratorSettings,
+        o: wp.vec3,
+        w: wp.vec3,
+        t_max: float,
+        time: float,
     ) -> wp.vec3:
         """Fraction of a light's radiance reaching ``o`` from direction ``w`` over distance ``t_max``.
 
@@ -118,7 +125,15 @@ def make_shadows(trace: Traversal):
         return wp.vec3(0.0)
 
     @wp.func
-    def shadow_blocker(scene: SceneData, materials: MaterialData, settings: IntegratorSettings, o: wp.vec3, w: wp.vec3, t_max: float, time: float):
+    def shadow_blocker(
+        scene: SceneData,
+        materials: MaterialData,
+        settings: IntegratorSettings,
+        o: wp.vec3,
+        w: wp.vec3,
+        t_max: float,
+        time: float,
+    ):
         """Recording only: ``(t, prim)`` of the surface that stopped a blocked shadow ray from ``o``
         along unit ``w``: the first surface hit, or with filtered shadows the first one that is not a
         dielectric (``NO_HIT`` and ``t_max`` if there is none)."""
@@ -176,10 +191,38 @@ def make_direct_light(record: bool, trace: Traversal):
                 total += wp.cw_mul(wp.cw_mul(eval_brdf(materials, m, n, wo, wi), irradiance), visible) * cos_theta
                 if wp.static(record):
                     if max_component(visible) > 0.0:
-                        record_ray(rec, scene, pixel, sample, SHADOW_LIT, o_shadow, wi, dist, NO_HIT, time, wp.cw_mul(throughput, visible), depth, parent)
+                        record_ray(
+                            rec,
+                            scene,
+                            pixel,
+                            sample,
+                            SHADOW_LIT,
+                            o_shadow,
+                            wi,
+                            dist,
+                            NO_HIT,
+                            time,
+                            wp.cw_mul(throughput, visible),
+                            depth,
+                            parent,
+                        )
                     else:
                         t_block, prim_block = shadow_blocker(scene, materials, settings, o_shadow, wi, dist, time)
-                        record_ray(rec, scene, pixel, sample, SHADOW_BLOCKED, o_shadow, wi, t_block, prim_block, time, wp.vec3(0.0), depth, parent)
+                        record_ray(
+                            rec,
+                            scene,
+                            pixel,
+                            sample,
+                            SHADOW_BLOCKED,
+                            o_shadow,
+                            wi,
+                            t_block,
+                            prim_block,
+                            time,
+                            wp.vec3(0.0),
+                            depth,
+                            parent,
+                        )
         return total
 
     return direct_light
@@ -242,12 +285,28 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
             if not traced:
                 t, prim = trace.closest_hit(scene, o, d, time, t_from, wp.inf)
                 if wp.static(record):
-                    current = record_ray(rec, scene, pixel, sample, segment_kind, o + t_last * d, d, t - t_last, prim, time, throughput, depth, segment_parent)
+                    current = record_ray(
+                        rec,
+                        scene,
+                        pixel,
+                        sample,
+                        segment_kind,
+                        o + t_last * d,
+                        d,
+                        t - t_last,
+                        prim,
+                        time,
+                        throughput,
+                        depth,
+                        segment_parent,
+                    )
             traced = False
             if wp.static(features.dielectric):
                 slot = current_medium(materials, media, n_media)
                 if slot >= 0:  # absorption along the segment just travelled (infinite if it escapes)
-                    throughput = wp.cw_mul(throughput, beer_lambert(materials.sigma[materials.shape_material[media[slot]]], t - t_last))
+                    throughput = wp.cw_mul(
+                        throughput, beer_lambert(materials.sigma[materials.shape_material[media[slot]]], t - t_last)
+                    )
             go_on = bool(False)
             if prim == NO_HIT:
                 radiance += wp.cw_mul(throughput, settings.background)
@@ -269,7 +328,22 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                     if wp.static(features.lights):
                         if depth < settings.max_depth:
                             local += direct_light(
-                                scene, materials, lights, settings, m, p, n_facing, err, -d, time, rec, pixel, sample, current, depth + 1, throughput
+                                scene,
+                                materials,
+                                lights,
+                                settings,
+                                m,
+                                p,
+                                n_facing,
+                                err,
+                                -d,
+                                time,
+                                rec,
+                                pixel,
+                                sample,
+                                current,
+                                depth + 1,
+                                throughput,
                             )
                     radiance += wp.cw_mul(throughput, local)
                 if wp.static(features.specular):
@@ -287,7 +361,9 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                                 segment_parent = current
                 if wp.static(features.dielectric):
                     if kind == DIELECTRIC:
-                        real, n1, n2, media_t, n_media_t = dielectric_interface(materials, settings, media, n_media, shape, entering)
+                        real, n1, n2, media_t, n_media_t = dielectric_interface(
+                            materials, settings, media, n_media, shape, entering
+                        )
                         if not real:
                             t_from = t + err
                             t_last = t
@@ -306,8 +382,14 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                             wr = reflect(d, n_facing)
                             reflected = throughput * fresnel
                             transmitted = throughput * (1.0 - fresnel)
-                            keep_r = max_component(reflected) > 0.0 and max_component(reflected) >= settings.min_throughput
-                            keep_t = ok and max_component(transmitted) > 0.0 and max_component(transmitted) >= settings.min_throughput
+                            keep_r = (
+                                max_component(reflected) > 0.0 and max_component(reflected) >= settings.min_throughput
+                            )
+                            keep_t = (
+                                ok
+                                and max_component(transmitted) > 0.0
+                                and max_component(transmitted) >= settings.min_throughput
+                            )
                             # Follow the heavier branch now and defer the lighter one. A full stack
                             # evicts its lightest entry if the new one is heavier, else drops the new one.
                             if keep_r and keep_t:

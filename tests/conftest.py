@@ -1,4 +1,5 @@
 """Shared test helpers: build scenes inline from dicts and trace rays through the real kernels."""
+
 from __future__ import annotations
 
 import numpy as np

@@ -1,5 +1,6 @@
 """Adaptive sampling (`wrt.render(..., target_error=...)`, `wrt render --target-error`): noisy
 pixels get more samples, converged ones stop, the result stays deterministic and unbiased."""
+
 import numpy as np
 import pytest
 from conftest import make_scene
@@ -10,13 +11,21 @@ from wrt.imageio import read_image
 from wrt.renderer import ADAPTIVE_FIRST_PASS, adaptive_passes, relative_error
 
 AREA = {"type": "area", "corner": [-0.5, 2, -0.5], "edge_u": [1, 0, 0], "edge_v": [0, 0, 1], "radiance": [5, 5, 5]}
-SHAPES = [{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "g"}, {"type": "sphere", "center": [0, 0.5, 0], "radius": 0.5, "material": "g"}]
+SHAPES = [
+    {"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "g"},
+    {"type": "sphere", "center": [0, 0.5, 0], "radius": 0.5, "material": "g"},
+]
 CAM = {"origin": [0, 1.5, 3], "look_at": [0, 0.4, 0], "fov": 60}  # the top rows see the black sky
 
 
 def scene(**render):
-    return make_scene(SHAPES, materials=[{"name": "g", "albedo": [0.6, 0.6, 0.6]}], lights=[AREA], camera=CAM,
-                      render={"width": 32, "height": 24, "integrator": "path", **render})
+    return make_scene(
+        SHAPES,
+        materials=[{"name": "g", "albedo": [0.6, 0.6, 0.6]}],
+        lights=[AREA],
+        camera=CAM,
+        render={"width": 32, "height": 24, "integrator": "path", **render},
+    )
 
 
 def test_pass_schedule_doubles_from_the_first_pass():
@@ -67,9 +76,11 @@ def test_target_error_must_be_positive():
 def test_cli_writes_the_sample_count_aov(tmp_path, capsys):
     path = tmp_path / "s.toml"
     path.write_text(
-        '[render]\nwidth = 16\nheight = 12\nintegrator = "path"\nspp = 64\n[camera]\norigin = [0, 1.5, 3]\nlook_at = [0, 0.4, 0]\n'
+        '[render]\nwidth = 16\nheight = 12\nintegrator = "path"\nspp = 64\n[camera]\norigin = [0, 1.5, 3]\nlook_at = '
+        "[0, 0.4, 0]\n"
         '[[shape]]\ntype = "sphere"\ncenter = [0, 0.5, 0]\nradius = 0.5\n'
-        '[[light]]\ntype = "area"\ncorner = [-0.5, 2, -0.5]\nedge_u = [1, 0, 0]\nedge_v = [0, 0, 1]\nradiance = [5, 5, 5]\n'
+        '[[light]]\ntype = "area"\ncorner = [-0.5, 2, -0.5]\nedge_u = [1, 0, 0]\nedge_v = [0, 0, 1]\nradiance = [5, '
+        "5, 5]\n"
     )
     out = tmp_path / "o.exr"
     assert main(["render", str(path), "-o", str(out), "--target-error", "0.05"]) == 0
@@ -77,6 +88,10 @@ def test_cli_writes_the_sample_count_aov(tmp_path, capsys):
     assert "64 spp (adaptive: " in summary  # the rate counts the samples taken, not 64 per pixel
     image = read_image(out)
     counts = image.aovs["spp"]
-    assert counts.shape == (12, 16) and counts.min() >= ADAPTIVE_FIRST_PASS and set(np.unique(counts)) <= set(adaptive_passes(64))
+    assert (
+        counts.shape == (12, 16)
+        and counts.min() >= ADAPTIVE_FIRST_PASS
+        and set(np.unique(counts)) <= set(adaptive_passes(64))
+    )
     assert image.metadata["target_error"] == pytest.approx(0.05)
     assert main(["render", str(path), "-o", str(out), "--target-error", "-1"]) == 2

@@ -4,6 +4,7 @@ bad meshes through the command line, absurd sizes, memory limits, and a fuzz tes
 Every case: one line ``wrt: error: ...`` naming the file, the key and the value, exit code 2, and
 no output file (not even a temporary one).
 """
+
 import copy
 import math
 import os
@@ -84,32 +85,86 @@ def test_malformed_toml(tmp_path, capsys, text, problem):
     run_bad(tmp_path, capsys, text, problem)
 
 
-@pytest.mark.parametrize("data", [b"\xff\xfe\x00binary\x00", bytes(range(256)), b"\x00" * 64], ids=["utf16-ish", "all bytes", "zeros"])
+@pytest.mark.parametrize(
+    "data", [b"\xff\xfe\x00binary\x00", bytes(range(256)), b"\x00" * 64], ids=["utf16-ish", "all bytes", "zeros"]
+)
 def test_binary_file_is_not_toml(tmp_path, capsys, data):
     run_bad(tmp_path, capsys, None, "not valid TOML", scene_bytes=data)
 
 
 WRONG = [
-    ("camera as a value", 'camera = "front"\n' + GOOD.replace("[camera]\norigin = [0, 0, 5]\nlook_at = [0, 0, 0]", ""), "camera", "must be a table"),
+    (
+        "camera as a value",
+        'camera = "front"\n' + GOOD.replace("[camera]\norigin = [0, 0, 5]\nlook_at = [0, 0, 0]", ""),
+        "camera",
+        "must be a table",
+    ),
     ("shape as a table", GOOD.replace("[[shape]]", "[shape]"), "shape", "array of tables"),
-    ("vector of strings", GOOD.replace("origin = [0, 0, 5]", 'origin = ["0", "0", "5"]'), "camera.origin = ['0', '0', '5']", "3 numbers"),
+    (
+        "vector of strings",
+        GOOD.replace("origin = [0, 0, 5]", 'origin = ["0", "0", "5"]'),
+        "camera.origin = ['0', '0', '5']",
+        "3 numbers",
+    ),
     ("boolean as number", GOOD.replace("radius = 1.0", "radius = true"), "shape[0].radius = True", "must be a number"),
-    ("float where an integer is needed", GOOD.replace("width = 24", "width = 24.5"), "render.width = 24.5", "must be an integer"),
+    (
+        "float where an integer is needed",
+        GOOD.replace("width = 24", "width = 24.5"),
+        "render.width = 24.5",
+        "must be an integer",
+    ),
     ("date as number", GOOD.replace("radius = 1.0", "radius = 1979-05-27"), "shape[0].radius", "must be a number"),
     ("nested vector", GOOD.replace("center = [0, 0, 0]", "center = [[0, 0, 0]]"), "shape[0].center", "3 numbers"),
-    ("material name as number", GOOD.replace('material = "red"', "material = 3"), "shape[0].material = 3", "no [[material]]"),
+    (
+        "material name as number",
+        GOOD.replace('material = "red"', "material = 3"),
+        "shape[0].material = 3",
+        "no [[material]]",
+    ),
     ("negative radius", GOOD.replace("radius = 1.0", "radius = -0.5"), "shape[0].radius = -0.5", "must be in (0, inf]"),
     ("zero radius", GOOD.replace("radius = 1.0", "radius = 0"), "shape[0].radius = 0", "must be in (0, inf]"),
     ("infinite radius", GOOD.replace("radius = 1.0", "radius = inf"), "shape[0].radius = inf", "must be finite"),
     ("nan in a vector", GOOD.replace("look_at = [0, 0, 0]", "look_at = [0, nan, 0]"), "camera.look_at", "finite"),
     ("inf in a vector", GOOD.replace("center = [0, 0, 0]", "center = [0, 0, -inf]"), "shape[0].center", "finite"),
-    ("huge integer", GOOD.replace("width = 24", "width = 99999999999999999999999"), "render.width = 99999999999999999999999", "must be in [1, 16384]"),
-    ("huge integer as a number", GOOD.replace("radius = 1.0", "radius = 1" + "0" * 40), "shape[0].radius = 1" + "0" * 40, "float32"),
+    (
+        "huge integer",
+        GOOD.replace("width = 24", "width = 99999999999999999999999"),
+        "render.width = 99999999999999999999999",
+        "must be in [1, 16384]",
+    ),
+    (
+        "huge integer as a number",
+        GOOD.replace("radius = 1.0", "radius = 1" + "0" * 40),
+        "shape[0].radius = 1" + "0" * 40,
+        "float32",
+    ),
     ("float beyond float64", GOOD.replace("radius = 1.0", "radius = 1e400"), "shape[0].radius = inf", "must be finite"),
-    ("zero up vector", GOOD.replace("look_at = [0, 0, 0]", "look_at = [0, 0, 0]\nup = [0, 0, 0]"), "camera.up = [0, 0, 0]", "zero vector"),
-    ("zero spot direction", GOOD + '[[light]]\ntype = "spot"\nposition = [0, 1, 0]\ndirection = [0, 0, 0]\nintensity = [1, 1, 1]\n', "light[0].direction = [0, 0, 0]", "zero vector"),
-    ("camera beyond float range", GOOD.replace("origin = [0, 0, 5]", "origin = [1e308, 1e308, 1e308]").replace("look_at = [0, 0, 0]", "look_at = [-1e308, -1e308, -1e308]"), "camera", "float32"),
-    ("sphere beyond float32", GOOD.replace("center = [0, 0, 0]", "center = [1e39, 0, 0]"), "shape[0].center", "float32"),
+    (
+        "zero up vector",
+        GOOD.replace("look_at = [0, 0, 0]", "look_at = [0, 0, 0]\nup = [0, 0, 0]"),
+        "camera.up = [0, 0, 0]",
+        "zero vector",
+    ),
+    (
+        "zero spot direction",
+        GOOD + '[[light]]\ntype = "spot"\nposition = [0, 1, 0]\ndirection = [0, 0, 0]\nintensity = [1, 1, 1]\n',
+        "light[0].direction = [0, 0, 0]",
+        "zero vector",
+    ),
+    (
+        "camera beyond float range",
+        GOOD.replace("origin = [0, 0, 5]", "origin = [1e308, 1e308, 1e308]").replace(
+            "look_at = [0, 0, 0]", "look_at = [-1e308, -1e308, -1e308]"
+        ),
+        "camera",
+        "float32",
+    ),
+    (
+        "sphere beyond float32",
+        GOOD.replace("center = [0, 0, 0]", "center = [1e39, 0, 0]"),
+        "shape[0].center",
+        "float32",
+    ),
     ("radius beyond float32", GOOD.replace("radius = 1.0", "radius = 1e39"), "shape[0].radius = 1e+39", "float32"),
 ]
 
@@ -121,7 +176,12 @@ def test_wrong_types_and_values(tmp_path, capsys, text, where, problem):
 
 @pytest.mark.parametrize(
     "args, where",
-    [(["--width", "0"], "width = 0"), (["--height", "-3"], "height = -3"), (["--width", "1000000"], "width = 1000000"), (["--spp", "0"], "spp = 0")],
+    [
+        (["--width", "0"], "width = 0"),
+        (["--height", "-3"], "height = -3"),
+        (["--width", "1000000"], "width = 1000000"),
+        (["--spp", "0"], "spp = 0"),
+    ],
     ids=["width 0", "negative height", "width 10^6", "spp 0"],
 )
 def test_absurd_sizes_on_the_command_line(tmp_path, capsys, args, where):
@@ -148,7 +208,13 @@ BAD_MESHES = [
     ("text as ply", "notes.ply", "these are my notes\n", "does not start with 'ply'"),
     ("unsupported format", "mesh.blend", b"BLENDER", "unsupported mesh format '.blend'"),
     ("out-of-range index", "bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", "out of range for 3 vertices"),
-    ("negative index in ply", "neg.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 -5\n", "out of range"),
+    (
+        "negative index in ply",
+        "neg.ply",
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face "
+        "1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 -5\n",
+        "out of range",
+    ),
     ("nan vertex", "nan.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n", "NaN or infinite"),
     ("vertex beyond float32", "big.obj", "v 0 0 0\nv 1e39 0 0\nv 0 1 0\nf 1 2 3\n", "float32"),
 ]
@@ -183,14 +249,24 @@ def test_missing_and_directory_mesh(tmp_path, capsys):
 
 def test_image_too_big_for_memory_is_refused_up_front(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(wrt.renderer, "available_memory", lambda: 100 * 2**20)
-    err = run_bad(tmp_path, capsys, GOOD, "render.width x height = 4000 x 3000", "needs about 1.8 GiB of host memory", "only 0.1 GiB available", extra_args=["--width", "4000", "--height", "3000"])
+    err = run_bad(
+        tmp_path,
+        capsys,
+        GOOD,
+        "render.width x height = 4000 x 3000",
+        "needs about 1.8 GiB of host memory",
+        "only 0.1 GiB available",
+        extra_args=["--width", "4000", "--height", "3000"],
+    )
     assert "60 B/pixel" in err
 
 
 def test_memory_estimate_matches_the_film():
     """The estimate's film share is what the renderer allocates: 15 float32/int32 values per pixel
     (RGB, its running sum, the sum of squared luminances, and the AOVs)."""
-    scene = wrt.parse_scene({"camera": {"origin": [0, 0, 5], "look_at": [0, 0, 0]}, "render": {"width": 8, "height": 4}})
+    scene = wrt.parse_scene(
+        {"camera": {"origin": [0, 0, 5], "look_at": [0, 0, 0]}, "render": {"width": 8, "height": 4}}
+    )
     frame = wrt.renderer.prepare(scene, wp.get_device("cpu"))
     film = sum(getattr(frame.film, name).capacity for name in Film.vars)
     assert film == 8 * 4 * wrt.renderer.FILM_BYTES_PER_PIXEL
@@ -198,7 +274,10 @@ def test_memory_estimate_matches_the_film():
 
 def test_render_api_refuses_too(monkeypatch):
     monkeypatch.setattr(wrt.renderer, "available_memory", lambda: 2**20)
-    scene = wrt.parse_scene({"camera": {"origin": [0, 0, 5], "look_at": [0, 0, 0]}, "render": {"width": 1000, "height": 1000}}, file="api.toml")
+    scene = wrt.parse_scene(
+        {"camera": {"origin": [0, 0, 5], "look_at": [0, 0, 0]}, "render": {"width": 1000, "height": 1000}},
+        file="api.toml",
+    )
     with pytest.raises(WrtError, match=r"api.toml: render.width x height = 1000 x 1000: needs about 0.1 GiB"):
         wrt.render(scene)
 
@@ -206,7 +285,14 @@ def test_render_api_refuses_too(monkeypatch):
 # --- fuzzing the loader -----------------------------------------------------------------------------
 
 FUZZ_DOC = {
-    "render": {"width": 8, "height": 6, "spp": 2, "integrator": "whitted", "max_depth": 3, "background": [0.1, 0.1, 0.1]},
+    "render": {
+        "width": 8,
+        "height": 6,
+        "spp": 2,
+        "integrator": "whitted",
+        "max_depth": 3,
+        "background": [0.1, 0.1, 0.1],
+    },
     "camera": {"origin": [0.0, 1.0, 4.0], "look_at": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0], "fov": 40.0},
     "material": [
         {"name": "red", "albedo": [0.8, 0.1, 0.1]},
@@ -218,11 +304,22 @@ FUZZ_DOC = {
         {"type": "plane", "point": [0.0, -1.0, 0.0], "normal": [0.0, 1.0, 0.0]},
         {"type": "triangle", "vertices": [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], "material": "glass"},
         {"type": "polygon", "vertices": [[0.0, 0.0, -1.0], [1.0, 0.0, -1.0], [1.0, 1.0, -1.0], [0.0, 1.0, -1.0]]},
-        {"type": "mesh", "file": "tetra.obj", "transform": {"translate": [1.0, 0.0, 0.0], "scale": 0.5, "rotate": [0.0, 30.0, 0.0]}, "material": "shiny"},
+        {
+            "type": "mesh",
+            "file": "tetra.obj",
+            "transform": {"translate": [1.0, 0.0, 0.0], "scale": 0.5, "rotate": [0.0, 30.0, 0.0]},
+            "material": "shiny",
+        },
     ],
     "light": [
         {"type": "point", "position": [0.0, 3.0, 0.0], "intensity": [5.0, 5.0, 5.0]},
-        {"type": "spot", "position": [0.0, 3.0, 1.0], "direction": [0.0, -1.0, 0.0], "intensity": [1.0, 1.0, 1.0], "cutoff_angle": 30.0},
+        {
+            "type": "spot",
+            "position": [0.0, 3.0, 1.0],
+            "direction": [0.0, -1.0, 0.0],
+            "intensity": [1.0, 1.0, 1.0],
+            "cutoff_angle": 30.0,
+        },
     ],
 }
 
@@ -230,11 +327,36 @@ scalars = st.one_of(
     st.booleans(),
     st.integers(min_value=-(2**70), max_value=2**70),
     st.floats(allow_nan=True, allow_infinity=True),
-    st.sampled_from([0, -1, 1, 0.0, -0.0, 1e-45, 1e39, 1e308, 16384, 16385, 2**31, "", "default", "mesh", "sphere", "dielectric", "a\x00b", "../../etc/passwd"]),
+    st.sampled_from(
+        [
+            0,
+            -1,
+            1,
+            0.0,
+            -0.0,
+            1e-45,
+            1e39,
+            1e308,
+            16384,
+            16385,
+            2**31,
+            "",
+            "default",
+            "mesh",
+            "sphere",
+            "dielectric",
+            "a\x00b",
+            "../../etc/passwd",
+        ]
+    ),
     st.text(max_size=12),
     st.dates(),
 )
-toml_values = st.recursive(scalars, lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner, max_size=3), max_leaves=8)
+toml_values = st.recursive(
+    scalars,
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner, max_size=3),
+    max_leaves=8,
+)
 
 
 def paths(doc, prefix=()):
@@ -288,7 +410,11 @@ def test_fuzz_mutated_scene_documents(doc):
         assert all(math.isfinite(c) for c in (*scene.camera.origin, *scene.camera.look_at, scene.camera.fov))
 
 
-GOOD_TEXT = (Path(__file__).resolve().parents[1] / "examples" / "showcase.toml").read_text().replace("torus_knot.ply", "tetra.obj")
+GOOD_TEXT = (
+    (Path(__file__).resolve().parents[1] / "examples" / "showcase.toml")
+    .read_text()
+    .replace("torus_knot.ply", "tetra.obj")
+)
 
 
 @st.composite
@@ -297,7 +423,16 @@ def mutated_texts(draw):
     for _ in range(draw(st.integers(1, 3))):
         i = draw(st.integers(0, len(text)))
         j = draw(st.integers(i, min(len(text), i + 40)))
-        text = text[:i] + draw(st.sampled_from(["", "[", "]", "=", '"', "\n", "nan", "-", "[[shape]]\n", "type = ", "0", "1e400", "\x00"]) | st.text(max_size=6)) + text[j:]
+        text = (
+            text[:i]
+            + draw(
+                st.sampled_from(
+                    ["", "[", "]", "=", '"', "\n", "nan", "-", "[[shape]]\n", "type = ", "0", "1e400", "\x00"]
+                )
+                | st.text(max_size=6)
+            )
+            + text[j:]
+        )
     return text
 
 

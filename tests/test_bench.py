@@ -3,6 +3,7 @@
 It checks that the benchmark runs and that its numbers are sane (finite, error falling with spp,
 slopes computed, files written); never a timing threshold.
 """
+
 from __future__ import annotations
 
 import csv
@@ -21,7 +22,9 @@ from wrt.cli import main
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("bench")
-    return out, bench.run(bench.default_scenes(quick=True), str(out), budget_s=bench.QUICK_BUDGET_S, max_points=3, repeats=1)
+    return out, bench.run(
+        bench.default_scenes(quick=True), str(out), budget_s=bench.QUICK_BUDGET_S, max_points=3, repeats=1
+    )
 
 
 def test_files_are_written(quick_run):
@@ -68,7 +71,9 @@ def test_mitsuba_and_speedup_parts(quick_run):
             rows = curve["rmse_at"]
             assert (curve["rmse_ratio"] is None) == (not rows), label
             if rows:
-                assert math.isfinite(curve["rmse_ratio"]) and all(r["ratio"] == pytest.approx(r["wrt"] / r["mitsuba"]) for r in rows)
+                assert math.isfinite(curve["rmse_ratio"]) and all(
+                    r["ratio"] == pytest.approx(r["wrt"] / r["mitsuba"]) for r in rows
+                )
         ranked = [c["rmse_ratio"] for c in equal["per_curve"].values() if c["rmse_ratio"] is not None]
         assert equal["best_rmse_ratio"] == (min(ranked) if ranked else None)
     s = results["speedup"]
@@ -126,7 +131,9 @@ def test_command_line_runs_both_parts(tmp_path, capsys):
     for r in targets["table"]:
         assert r["ratio"] is None or (math.isfinite(r["ratio"]) and r["ratio"] > 0), r
         assert r["met"] == (None if r["ratio"] is None else r["ratio"] >= r["target"])
-    assert [b["triangles"] for b in targets["build_scaling"]] == sorted(b["triangles"] for b in targets["build_scaling"])
+    assert [b["triangles"] for b in targets["build_scaling"]] == sorted(
+        b["triangles"] for b in targets["build_scaling"]
+    )
     path = targets["whole_process_path"]
     for name in ("wrt", "Mitsuba") if "Mitsuba" in path else ("wrt",):
         # 16 spp against a 256-spp reference of the same scene: the error is the image's noise

@@ -1,5 +1,6 @@
 """BVH build on the device (wrt/bvh.py, kernels/bvh_build.py) and traversal (kernels/traverse.py)
 against brute force, the tree's invariants, and its quality against the binned-SAH reference."""
+
 import numpy as np
 import pytest
 from conftest import Tracer, make_scene
@@ -21,8 +22,9 @@ def random_boxes(rng, n):
 
 def check_tree(bvh, lo, hi):
     """The invariants of a 4-wide BVH over float32 boxes ``lo``, ``hi``: every primitive listed
-    once; depth-first numbering; each lane's box holds its subtree; leaves of 1..MAX_LEAF primitives; the stack need the build reports is the exact
-    worst case, and within the traversal's stack. Returns the leaf sizes."""
+    once; depth-first numbering; each lane's box holds its subtree; leaves of 1..MAX_LEAF
+    primitives; the stack need the build reports is the exact worst case, and within the
+    traversal's stack. Returns the leaf sizes."""
     n = len(lo)
     nodes = bvh.nodes.numpy()
     order = bvh.order.numpy()
@@ -92,7 +94,10 @@ def test_deep_tree_falls_back_to_the_balanced_tree():
     cluster of everything before it): a tree too deep for the traversal stack. The build detects it
     and builds the balanced tree, whose stack need is bounded by construction."""
     x = 2.0 ** np.arange(120)
-    lo, hi = round_outward(np.stack([x, np.zeros_like(x), np.zeros_like(x)], axis=1), np.stack([x + 0.5, np.ones_like(x), np.ones_like(x)], axis=1))
+    lo, hi = round_outward(
+        np.stack([x, np.zeros_like(x), np.zeros_like(x)], axis=1),
+        np.stack([x + 0.5, np.ones_like(x), np.ones_like(x)], axis=1),
+    )
     bvh = build_bvh(lo, hi, "cpu")
     assert bvh.stats.builder == "balanced"
     check_tree(bvh, lo, hi)
@@ -109,7 +114,9 @@ def test_sah_cost_is_close_to_the_binned_sah_reference():
     lo, hi = tri.min(axis=1), tri.max(axis=1)
     bvh = build_bvh(lo, hi, "cpu")
     sizes = check_tree(bvh, lo, hi)
-    reference = sah_cost(build_binned_sah(lo.astype(np.float64), hi.astype(np.float64)), float(TRAVERSAL_COST), float(INTERSECTION_COST))
+    reference = sah_cost(
+        build_binned_sah(lo.astype(np.float64), hi.astype(np.float64)), float(TRAVERSAL_COST), float(INTERSECTION_COST)
+    )
     assert bvh.stats.sah_cost <= 1.1 * reference
     assert 1.5 <= sizes.mean() <= MAX_LEAF
 
@@ -119,7 +126,10 @@ def mixed_scene(rng, n_tris=6000, n_spheres=300):
     tris = centers[:, None, :] + rng.normal(scale=0.3, size=(n_tris, 3, 3))
     shapes = [{"type": "plane", "point": [0, -6, 0], "normal": [0, 1, 0.1]}]
     shapes += [{"type": "triangle", "vertices": t.tolist()} for t in tris]
-    shapes += [{"type": "sphere", "center": c.tolist(), "radius": float(r)} for c, r in zip(rng.uniform(-5, 5, (n_spheres, 3)), rng.uniform(0.05, 0.6, n_spheres))]
+    shapes += [
+        {"type": "sphere", "center": c.tolist(), "radius": float(r)}
+        for c, r in zip(rng.uniform(-5, 5, (n_spheres, 3)), rng.uniform(0.05, 0.6, n_spheres))
+    ]
     square = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [0, 0.2, 0], [-1, 1, 0]], dtype=float)  # non-convex
     shapes += [{"type": "polygon", "vertices": (square * 0.8 + c).tolist()} for c in rng.uniform(-5, 5, (50, 3))]
     return make_scene(shapes)

@@ -1,4 +1,5 @@
 """The camera convention (kernels/camera.py) checked through rendered AOVs."""
+
 import math
 
 import numpy as np
@@ -25,10 +26,14 @@ def expected_directions(origin, look_at, up, fov, w, h):
 def test_primary_ray_directions_follow_the_formula():
     """(position - origin) / depth recovers each pixel's ray; it must equal the documented formula."""
     cam = {"origin": [1.0, 2.0, 3.0], "look_at": [-2.0, 0.5, -4.0], "up": [0.2, 1.0, 0.1], "fov": 50.0}
-    scene = make_scene([{"type": "sphere", "center": cam["origin"], "radius": 100.0}], camera=cam, render={"width": 64, "height": 40})
+    scene = make_scene(
+        [{"type": "sphere", "center": cam["origin"], "radius": 100.0}], camera=cam, render={"width": 64, "height": 40}
+    )
     r = wrt.render(scene)
     d = (r.aovs["position"] - np.array(cam["origin"])) / r.aovs["depth"][..., None]
-    np.testing.assert_allclose(d, expected_directions(cam["origin"], cam["look_at"], cam["up"], 50.0, 64, 40), atol=2e-5)
+    np.testing.assert_allclose(
+        d, expected_directions(cam["origin"], cam["look_at"], cam["up"], 50.0, 64, 40), atol=2e-5
+    )
     np.testing.assert_allclose(r.aovs["depth"], 100.0, rtol=1e-5)  # from the centre of the sphere
 
 

@@ -1,4 +1,5 @@
 """Motion blur and pixel filters, end to end through the render kernels, against closed forms."""
+
 import math
 
 import numpy as np
@@ -37,10 +38,18 @@ def test_motion_blur_of_a_moving_edge_is_the_fraction_of_the_shutter_it_covers()
     1 - (x + 6) / 12 of the time: the time-averaged image is a linear ramp. The patch's static
     bounds end at x = -6, so the ramp is only there if the BVH bounds the whole sweep."""
     w, h = 48, 4
-    r = emitted([half_plane(-6.0, velocity=(12.0, 0.0, 0.0))], (w, h), 512, camera={**CAMERA, "shutter": [0.0, 1.0]}, sampler="sobol")
+    r = emitted(
+        [half_plane(-6.0, velocity=(12.0, 0.0, 0.0))],
+        (w, h),
+        512,
+        camera={**CAMERA, "shutter": [0.0, 1.0]},
+        sampler="sobol",
+    )
     x, pixel = column_x(w, h)
     expected = np.clip(1 - (x + 6) / 12, 0, 1)
-    inside = (np.abs(x + 6) > pixel) & (np.abs(x - 6) > pixel)  # pixels clear of the ramp's two kinks (box filter: exact there)
+    inside = (np.abs(x + 6) > pixel) & (
+        np.abs(x - 6) > pixel
+    )  # pixels clear of the ramp's two kinks (box filter: exact there)
     measured = r.rgb[..., 0].mean(axis=0)
     assert inside.sum() > 20
     np.testing.assert_allclose(measured[inside], expected[inside], atol=0.01)
@@ -48,7 +57,9 @@ def test_motion_blur_of_a_moving_edge_is_the_fraction_of_the_shutter_it_covers()
 
 
 def test_a_closed_shutter_shows_the_shape_where_its_velocity_has_carried_it():
-    moving = [{"type": "sphere", "center": [-1.0, 0.2, 0.0], "radius": 0.8, "material": "grey", "velocity": [0.5, -0.1, 0.0]}]
+    moving = [
+        {"type": "sphere", "center": [-1.0, 0.2, 0.0], "radius": 0.8, "material": "grey", "velocity": [0.5, -0.1, 0.0]}
+    ]
     still = [{"type": "sphere", "center": [-0.25, 0.05, 0.0], "radius": 0.8, "material": "grey"}]
     grey = [{"name": "grey", "albedo": [0.6, 0.6, 0.6]}]
     render = {"width": 40, "height": 30, "integrator": "raycast", "spp": 4}

@@ -1,4 +1,5 @@
 """Emitter sampling (kernels/emitters.py, kernels/warps.py) against closed-form irradiance."""
+
 import numpy as np
 import pytest
 import warp as wp
@@ -21,7 +22,9 @@ def one_light(kind, position=(0, 0, 0), edge_u=(0, 0, 0), edge_v=(0, 0, 0), radi
 
 
 @wp.kernel
-def irradiance_samples(lights: LightData, p: wp.vec3, n: wp.vec3, out: wp.array(dtype=float), pdf_error: wp.array(dtype=float)):
+def irradiance_samples(
+    lights: LightData, p: wp.vec3, n: wp.vec3, out: wp.array(dtype=float), pdf_error: wp.array(dtype=float)
+):
     k = wp.tid()
     wi, dist, radiance, pdf = sample_emitter(lights, 0, p, sample_1d(5, k, 0, 0), sample_1d(5, k, 0, 1))
     if pdf > 0.0:
@@ -42,7 +45,10 @@ def estimate(lights, p, n, count=200_000):
 def corner_form_factor(a, b, h):
     """Differential area at height h below a corner of a parallel a x b rectangle (Howell's catalogue)."""
     x, y = a / h, b / h
-    return (x / np.sqrt(1 + x * x) * np.arctan(y / np.sqrt(1 + x * x)) + y / np.sqrt(1 + y * y) * np.arctan(x / np.sqrt(1 + y * y))) / (2 * np.pi)
+    return (
+        x / np.sqrt(1 + x * x) * np.arctan(y / np.sqrt(1 + x * x))
+        + y / np.sqrt(1 + y * y) * np.arctan(x / np.sqrt(1 + y * y))
+    ) / (2 * np.pi)
 
 
 def test_parallelogram_light_irradiance_matches_the_form_factor():
@@ -71,7 +77,9 @@ def test_environment_irradiance_is_pi_l():
 
 
 @wp.kernel
-def warp_samples(out: wp.array(dtype=wp.vec3), disk: wp.array(dtype=wp.vec2), n: wp.vec3, rotated: wp.array(dtype=wp.vec3)):
+def warp_samples(
+    out: wp.array(dtype=wp.vec3), disk: wp.array(dtype=wp.vec2), n: wp.vec3, rotated: wp.array(dtype=wp.vec3)
+):
     k = wp.tid()
     u1, u2 = sample_1d(9, k, 0, 0), sample_1d(9, k, 0, 1)
     out[k] = cosine_hemisphere(u1, u2)

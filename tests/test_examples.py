@@ -1,4 +1,5 @@
 """Every bundled example scene (examples/**/*.toml) loads and renders a sane tiny image."""
+
 from pathlib import Path
 
 import numpy as np

@@ -50,8 +50,14 @@ def _srgb_closed_form(x):
 def test_exr_round_trip_rgb_aovs_metadata_exact(tmp_path):
     path = tmp_path / "out.exr"
     rgb, aovs = _rgb(), _aovs()
-    metadata = {"version": "0.1.0", "scene": "cornell.toml", "spp": 64, "seed": 7,
-                "integrator": "path", "render_time_s": 1.5}
+    metadata = {
+        "version": "0.1.0",
+        "scene": "cornell.toml",
+        "spp": 64,
+        "seed": 7,
+        "integrator": "path",
+        "render_time_s": 1.5,
+    }
     write_image(path, rgb, aovs=aovs, metadata=metadata)
     image = read_image(path)
     np.testing.assert_array_equal(image.rgb, rgb)
@@ -231,8 +237,7 @@ def test_truncated_file(tmp_path):
 
 @pytest.mark.parametrize(
     "rgb",
-    [np.zeros((H, W), np.float32), np.zeros((H, W, 4), np.float32), np.zeros((0, W, 3)),
-     np.zeros((H, W, 3), np.uint8)],
+    [np.zeros((H, W), np.float32), np.zeros((H, W, 4), np.float32), np.zeros((0, W, 3)), np.zeros((H, W, 3), np.uint8)],
 )
 def test_bad_rgb(tmp_path, rgb):
     with pytest.raises(ValueError, match="rgb"):

@@ -1,4 +1,5 @@
 """Ray-primitive intersections (kernels/intersect.py) through the real closest-hit kernel."""
+
 import numpy as np
 import pytest
 from conftest import Tracer, make_scene
@@ -57,7 +58,16 @@ def test_plane_hits_both_sides_and_rejects_parallel_and_behind():
 
 def test_triangle_inside_edges_back_face_and_misses():
     tr = one({"type": "triangle", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]]})
-    o = [[0.25, 0.25, 2], [0.25, 0.25, -2], [0.5, 0.5, 2], [0.0, 0.0, 2], [0.6, 0.6, 2], [-0.01, 0.5, 2], [0.25, 0.25, 2], [0, 0, 0]]
+    o = [
+        [0.25, 0.25, 2],
+        [0.25, 0.25, -2],
+        [0.5, 0.5, 2],
+        [0.0, 0.0, 2],
+        [0.6, 0.6, 2],
+        [-0.01, 0.5, 2],
+        [0.25, 0.25, 2],
+        [0, 0, 0],
+    ]
     d = [[0, 0, -1], [0, 0, 1], [0, 0, -1], [0, 0, -1], [0, 0, -1], [0, 0, -1], [0, 0, 1], [1, 1, 0]]
     t, s = tr.closest(o, d)
     assert t[:4] == pytest.approx([2.0, 2.0, 2.0, 2.0]) and (s[:4] == 0).all()  # inside, back face, hypotenuse, vertex
@@ -83,8 +93,16 @@ def test_triangle_matches_float64_barycentric(rng):
 
 
 STAR = [
-    [0.0, 2.6, -2.0], [0.235, 1.924, -2.0], [0.951, 1.909, -2.0], [0.380, 1.476, -2.0], [0.588, 0.791, -2.0],
-    [0.0, 1.2, -2.0], [-0.588, 0.791, -2.0], [-0.380, 1.476, -2.0], [-0.951, 1.909, -2.0], [-0.235, 1.924, -2.0],
+    [0.0, 2.6, -2.0],
+    [0.235, 1.924, -2.0],
+    [0.951, 1.909, -2.0],
+    [0.380, 1.476, -2.0],
+    [0.588, 0.791, -2.0],
+    [0.0, 1.2, -2.0],
+    [-0.588, 0.791, -2.0],
+    [-0.380, 1.476, -2.0],
+    [-0.951, 1.909, -2.0],
+    [-0.235, 1.924, -2.0],
 ]
 
 

@@ -1,4 +1,5 @@
 """Scene loading and validation (wrt/loader.py): good files load, bad ones give exit 2 naming the key."""
+
 import os
 import subprocess
 import sys
@@ -51,14 +52,18 @@ def test_mesh_path_is_relative_to_scene_and_transform_applies(tmp_path):
     scene = wrt.load_scene(
         write(
             tmp_path,
-            GOOD + '\n[[shape]]\ntype = "mesh"\nfile = "m/tri.obj"\ntransform = { translate = [0, 0, -2], scale = 2.0, rotate = [0, 0, 90] }\n',
+            GOOD
+            + '\n[[shape]]\ntype = "mesh"\nfile = "m/tri.obj"\n'
+            + "transform = { translate = [0, 0, -2], scale = 2.0, rotate = [0, 0, 90] }\n",
         )
     )
     np.testing.assert_allclose(scene.shapes[1].vertices, [[0, 0, -2], [0, 2, -2], [-2, 0, -2]], atol=1e-12)
 
 
 def test_lights_are_accepted_and_ignored_by_raycast(tmp_path):
-    scene = wrt.load_scene(write(tmp_path, GOOD + '\n[[light]]\ntype = "point"\nposition = [0, 3, 0]\nintensity = [10, 10, 10]\n'))
+    scene = wrt.load_scene(
+        write(tmp_path, GOOD + '\n[[light]]\ntype = "point"\nposition = [0, 3, 0]\nintensity = [10, 10, 10]\n')
+    )
     assert scene.lights[0].type == "point"
 
 
@@ -68,21 +73,66 @@ BAD = [
     ("zero width", GOOD.replace("width = 32", "width = 0"), "render.width = 0", "must be in [1, 16384]"),
     ("huge width", GOOD.replace("width = 32", "width = 1000000"), "render.width = 1000000", "must be in"),
     ("zero spp", GOOD.replace("spp = 1", "spp = 0"), "render.spp = 0", "must be in"),
-    ("unknown integrator", GOOD.replace("spp = 1", 'integrator = "magic"'), "render.integrator = 'magic'", "must be one of"),
-    ("fov 0", GOOD.replace("look_at = [0, 0, 0]", "look_at = [0, 0, 0]\nfov = 0"), "camera.fov = 0", "must be in (0, 180)"),
-    ("fov 180", GOOD.replace("look_at = [0, 0, 0]", "look_at = [0, 0, 0]\nfov = 180"), "camera.fov = 180", "must be in (0, 180)"),
-    ("up parallel", GOOD.replace("look_at = [0, 0, 0]", "look_at = [0, 0, 0]\nup = [0, 0, -3]"), "camera.up = [0.0, 0.0, -3.0]", "parallel"),
-    ("eye at target", GOOD.replace("origin = [0, 0, 5]", "origin = [0, 0, 0]"), "camera.look_at", "must differ from origin"),
+    (
+        "unknown integrator",
+        GOOD.replace("spp = 1", 'integrator = "magic"'),
+        "render.integrator = 'magic'",
+        "must be one of",
+    ),
+    (
+        "fov 0",
+        GOOD.replace("look_at = [0, 0, 0]", "look_at = [0, 0, 0]\nfov = 0"),
+        "camera.fov = 0",
+        "must be in (0, 180)",
+    ),
+    (
+        "fov 180",
+        GOOD.replace("look_at = [0, 0, 0]", "look_at = [0, 0, 0]\nfov = 180"),
+        "camera.fov = 180",
+        "must be in (0, 180)",
+    ),
+    (
+        "up parallel",
+        GOOD.replace("look_at = [0, 0, 0]", "look_at = [0, 0, 0]\nup = [0, 0, -3]"),
+        "camera.up = [0.0, 0.0, -3.0]",
+        "parallel",
+    ),
+    (
+        "eye at target",
+        GOOD.replace("origin = [0, 0, 5]", "origin = [0, 0, 0]"),
+        "camera.look_at",
+        "must differ from origin",
+    ),
     ("missing camera", GOOD.replace("[camera]", "[cam]"), "cam", "unknown table"),
     ("nan vector", GOOD.replace("center = [0, 0, 0]", "center = [0, nan, 0]"), "shape[0].center", "finite"),
     ("short vector", GOOD.replace("center = [0, 0, 0]", "center = [0, 0]"), "shape[0].center = [0, 0]", "3 numbers"),
     ("negative radius", GOOD.replace("radius = 1.0", "radius = -1.0"), "shape[0].radius = -1.0", "must be in (0, inf]"),
-    ("no such material", GOOD.replace('material = "red"', 'material = "blue"'), "shape[0].material = 'blue'", "known: red"),
-    ("unknown shape type", GOOD.replace('type = "sphere"', 'type = "cone"'), "shape[0].type = 'cone'", "must be one of"),
-    ("unknown shape key", GOOD.replace("radius = 1.0", "radius = 1.0\nradus = 2"), "shape[0].radus", "did you mean 'radius'"),
+    (
+        "no such material",
+        GOOD.replace('material = "red"', 'material = "blue"'),
+        "shape[0].material = 'blue'",
+        "known: red",
+    ),
+    (
+        "unknown shape type",
+        GOOD.replace('type = "sphere"', 'type = "cone"'),
+        "shape[0].type = 'cone'",
+        "must be one of",
+    ),
+    (
+        "unknown shape key",
+        GOOD.replace("radius = 1.0", "radius = 1.0\nradus = 2"),
+        "shape[0].radus",
+        "did you mean 'radius'",
+    ),
     ("albedo above 1", GOOD.replace("[0.8, 0.1, 0.1]", "[1.8, 0.1, 0.1]"), "material[0].albedo", "[0, 1]"),
     ("bad toml", GOOD.replace("width = 32", "width = = 32"), "scene.toml", "not valid TOML"),
-    ("zero plane normal", GOOD + '[[shape]]\ntype = "plane"\npoint = [0,0,0]\nnormal = [0,0,0]\n', "shape[1].normal", "zero vector"),
+    (
+        "zero plane normal",
+        GOOD + '[[shape]]\ntype = "plane"\npoint = [0,0,0]\nnormal = [0,0,0]\n',
+        "shape[1].normal",
+        "zero vector",
+    ),
     ("missing mesh", GOOD + '[[shape]]\ntype = "mesh"\nfile = "nope.ply"\n', "shape[1].file = 'nope.ply'", "nope.ply"),
     ("light type", GOOD + '[[light]]\ntype = "laser"\n', "light[0].type = 'laser'", "must be one of"),
     (
@@ -91,23 +141,109 @@ BAD = [
         "shape[1].vertices",
         "not planar",
     ),
-    ("two-point polygon", GOOD + '[[shape]]\ntype = "polygon"\nvertices = [[0,0,0],[1,0,0]]\n', "shape[1].vertices", "at least 3"),
-    ("phong over 1", GOOD.replace('name = "red"', 'name = "red"\ntype = "phong"\nspecular = [0.5, 0.0, 0.0]'), "material[0].specular", "must not exceed 1"),
-    ("key of another material type", GOOD.replace('name = "red"', 'name = "red"\nior = 1.5'), "material[0].ior", "unknown key"),
-    ("ior below 1", GOOD.replace('name = "red"\nalbedo = [0.8, 0.1, 0.1]', 'name = "red"\ntype = "dielectric"\nior = 0.5'), "material[0].ior = 0.5", "must be in [1, 10]"),
-    ("point light without intensity", GOOD + '[[light]]\ntype = "point"\nposition = [0, 1, 0]\n', "light[0].intensity", "is required"),
-    ("zero light direction", GOOD + '[[light]]\ntype = "directional"\ndirection = [0, 0, 0]\nirradiance = [1, 1, 1]\n', "light[0].direction", "zero vector"),
-    ("spot beam wider than cutoff", GOOD + '[[light]]\ntype = "spot"\nposition = [0, 1, 0]\ndirection = [0, -1, 0]\nintensity = [1, 1, 1]\ncutoff_angle = 10\nbeam_width = 20\n', "light[0].beam_width = 20", "must be in [0, 10]"),
-    ("unknown light key", GOOD + '[[light]]\ntype = "point"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\ncolor = [1, 1, 1]\n', "light[0].color", "unknown key"),
-    ("area light in whitted", GOOD.replace("spp = 1", 'integrator = "whitted"') + '[[light]]\ntype = "area"\ncorner = [0, 2, 0]\nedge_u = [1, 0, 0]\nedge_v = [0, 0, 1]\nradiance = [1, 1, 1]\n', "light[0].type = 'area'", "point, directional and spot"),
-    ("flat area light", GOOD + '[[light]]\ntype = "area"\ncorner = [0, 2, 0]\nedge_u = [1, 0, 0]\nedge_v = [2, 0, 0]\nradiance = [1, 1, 1]\n', "light[0].edge_v = [2.0, 0.0, 0.0]", "parallel to edge_u"),
-    ("unknown sampler", GOOD.replace("spp = 1", 'sampler = "halton"'), "render.sampler = 'halton'", "must be one of independent, stratified, sobol"),
-    ("unknown filter", GOOD.replace("spp = 1", 'filter = "mitchell"'), "render.filter = 'mitchell'", "must be one of box, tent, gaussian"),
-    ("shutter closing first", GOOD.replace("[camera]", "[camera]\nshutter = [1, 0]"), "camera.shutter = [1, 0]", "close must not come before open"),
+    (
+        "two-point polygon",
+        GOOD + '[[shape]]\ntype = "polygon"\nvertices = [[0,0,0],[1,0,0]]\n',
+        "shape[1].vertices",
+        "at least 3",
+    ),
+    (
+        "phong over 1",
+        GOOD.replace('name = "red"', 'name = "red"\ntype = "phong"\nspecular = [0.5, 0.0, 0.0]'),
+        "material[0].specular",
+        "must not exceed 1",
+    ),
+    (
+        "key of another material type",
+        GOOD.replace('name = "red"', 'name = "red"\nior = 1.5'),
+        "material[0].ior",
+        "unknown key",
+    ),
+    (
+        "ior below 1",
+        GOOD.replace('name = "red"\nalbedo = [0.8, 0.1, 0.1]', 'name = "red"\ntype = "dielectric"\nior = 0.5'),
+        "material[0].ior = 0.5",
+        "must be in [1, 10]",
+    ),
+    (
+        "point light without intensity",
+        GOOD + '[[light]]\ntype = "point"\nposition = [0, 1, 0]\n',
+        "light[0].intensity",
+        "is required",
+    ),
+    (
+        "zero light direction",
+        GOOD + '[[light]]\ntype = "directional"\ndirection = [0, 0, 0]\nirradiance = [1, 1, 1]\n',
+        "light[0].direction",
+        "zero vector",
+    ),
+    (
+        "spot beam wider than cutoff",
+        GOOD
+        + '[[light]]\ntype = "spot"\nposition = [0, 1, 0]\ndirection = [0, -1, 0]\nintensity = [1, 1, 1]\n'
+        + "cutoff_angle = 10\nbeam_width = 20\n",
+        "light[0].beam_width = 20",
+        "must be in [0, 10]",
+    ),
+    (
+        "unknown light key",
+        GOOD + '[[light]]\ntype = "point"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\ncolor = [1, 1, 1]\n',
+        "light[0].color",
+        "unknown key",
+    ),
+    (
+        "area light in whitted",
+        GOOD.replace("spp = 1", 'integrator = "whitted"')
+        + '[[light]]\ntype = "area"\ncorner = [0, 2, 0]\nedge_u = [1, 0, 0]\nedge_v = [0, 0, 1]\n'
+        + "radiance = [1, 1, 1]\n",
+        "light[0].type = 'area'",
+        "point, directional and spot",
+    ),
+    (
+        "flat area light",
+        GOOD
+        + '[[light]]\ntype = "area"\ncorner = [0, 2, 0]\nedge_u = [1, 0, 0]\nedge_v = [2, 0, 0]\n'
+        + "radiance = [1, 1, 1]\n",
+        "light[0].edge_v = [2.0, 0.0, 0.0]",
+        "parallel to edge_u",
+    ),
+    (
+        "unknown sampler",
+        GOOD.replace("spp = 1", 'sampler = "halton"'),
+        "render.sampler = 'halton'",
+        "must be one of independent, stratified, sobol",
+    ),
+    (
+        "unknown filter",
+        GOOD.replace("spp = 1", 'filter = "mitchell"'),
+        "render.filter = 'mitchell'",
+        "must be one of box, tent, gaussian",
+    ),
+    (
+        "shutter closing first",
+        GOOD.replace("[camera]", "[camera]\nshutter = [1, 0]"),
+        "camera.shutter = [1, 0]",
+        "close must not come before open",
+    ),
     ("shutter of one number", GOOD.replace("[camera]", "[camera]\nshutter = [1]"), "camera.shutter = [1]", "2 numbers"),
-    ("velocity with NaN", GOOD + '[[shape]]\ntype = "sphere"\ncenter = [0, 0, 0]\nradius = 1\nvelocity = [nan, 0, 0]\n', "shape[1].velocity", "finite"),
-    ("bad dielectric shadows", GOOD.replace("spp = 1", 'dielectric_shadows = "glass"'), "render.dielectric_shadows = 'glass'", "opaque, filtered"),
-    ("triangle with 4 points", GOOD + '[[shape]]\ntype = "triangle"\nvertices = [[0,0,0],[1,0,0],[0,1,0],[1,1,0]]\n', "shape[1].vertices", "list of 3"),
+    (
+        "velocity with NaN",
+        GOOD + '[[shape]]\ntype = "sphere"\ncenter = [0, 0, 0]\nradius = 1\nvelocity = [nan, 0, 0]\n',
+        "shape[1].velocity",
+        "finite",
+    ),
+    (
+        "bad dielectric shadows",
+        GOOD.replace("spp = 1", 'dielectric_shadows = "glass"'),
+        "render.dielectric_shadows = 'glass'",
+        "opaque, filtered",
+    ),
+    (
+        "triangle with 4 points",
+        GOOD + '[[shape]]\ntype = "triangle"\nvertices = [[0,0,0],[1,0,0],[0,1,0],[1,1,0]]\n',
+        "shape[1].vertices",
+        "list of 3",
+    ),
 ]
 
 
@@ -143,7 +279,11 @@ def test_bad_options_exit_2(tmp_path, capsys):
 def test_console_script_prints_no_traceback(tmp_path):
     """The installed entry point, as a user runs it."""
     scene = write(tmp_path, GOOD.replace("radius = 1.0", "radius = -1.0"))
-    proc = subprocess.run([sys.executable, "-m", "wrt.cli", "render", str(scene), "-o", str(tmp_path / "o.png")], capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "wrt.cli", "render", str(scene), "-o", str(tmp_path / "o.png")],
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr and "shape[0].radius = -1.0" in proc.stderr
 

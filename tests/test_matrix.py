@@ -1,6 +1,7 @@
 """The visual regression harness (harness/): the feature matrix collected by pytest, its
 sensitivity (every deliberately wrong variant fails), reference handling, `wrt compare`, and the
 HTML report in a real headless browser."""
+
 import json
 import os
 import re
@@ -22,7 +23,9 @@ FEATURES = load_features()
 
 
 def describe(r) -> str:
-    lines = [f"{r.feature.name}: SSIM {r.ssim:.4f} (threshold {r.ssim_threshold:.4f}), geometry SSIM {r.geometry_ssim:.4f}"]
+    lines = [
+        f"{r.feature.name}: SSIM {r.ssim:.4f} (threshold {r.ssim_threshold:.4f}), geometry SSIM {r.geometry_ssim:.4f}"
+    ]
     if r.z is not None:
         lines.append(f"Z-test: min p {r.z.min_p:.2e}, {r.z.rejected} rejected at level {r.z.threshold:.1e}")
     return "\n".join(lines + r.failures)
@@ -148,12 +151,18 @@ def test_report_renders_in_headless_chromium(tmp_path):
     page = write_report([good, bad], str(tmp_path / "report"), "cpu")
     chromium = find_chromium()
     flags = ["--headless", "--no-sandbox", "--disable-gpu", "--allow-file-access-from-files"]
-    dom = subprocess.run([chromium, *flags, "--dump-dom", f"file://{page}"], capture_output=True, text=True, timeout=120).stdout
+    dom = subprocess.run(
+        [chromium, *flags, "--dump-dom", f"file://{page}"], capture_output=True, text=True, timeout=120
+    ).stdout
     assert "wrt feature matrix: 1 of 2 pass" in dom
     rows = re.findall(r'<tr class="(pass|fail)" id="([a-z_]+)"', dom)
     assert rows == [("pass", "raycast_triangle"), ("fail", "refraction")]
     shot = tmp_path / "shot.png"
-    subprocess.run([chromium, *flags, f"--screenshot={shot}", "--window-size=1400,900", f"file://{page}"], capture_output=True, timeout=120)
+    subprocess.run(
+        [chromium, *flags, f"--screenshot={shot}", "--window-size=1400,900", f"file://{page}"],
+        capture_output=True,
+        timeout=120,
+    )
     from wrt.imageio import read_image
 
     pixels = read_image(str(shot)).rgb

@@ -258,13 +258,18 @@ def test_truncated_ascii_ply(tmp_path):
 @pytest.mark.parametrize(
     ("name", "text", "problem"),
     [
-        ("bad_index.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n", "1 of 3 face vertex indices are out of range for 3 vertices"),
+        (
+            "bad_index.obj",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n",
+            "1 of 3 face vertex indices are out of range for 3 vertices",
+        ),
         ("nan_vertex.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n", "1 of 3 vertices are NaN or infinite"),
         ("no_faces.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", "contains no faces"),
         (
             "bad_index.ply",
             "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-            "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 100000000\n",
+            "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 "
+            "100000000\n",
             "1 of 3 face vertex indices are out of range for 3 vertices",
         ),
         (

@@ -1,4 +1,5 @@
 """GGX (kernels/microfacet.py): normalisation, sampling density against evaluation, reciprocity."""
+
 import numpy as np
 import pytest
 import warp as wp
@@ -88,5 +89,13 @@ def test_eval_is_reciprocal(rng):
     v[..., 2] = np.abs(v[..., 2])
     v /= np.linalg.norm(v, axis=-1, keepdims=True)
     out = wp.zeros(1000, dtype=float)
-    wp.launch(pairs, dim=1000, inputs=[wp.array(v[:, 0].astype(np.float32), dtype=wp.vec3), wp.array(v[:, 1].astype(np.float32), dtype=wp.vec3), out])
+    wp.launch(
+        pairs,
+        dim=1000,
+        inputs=[
+            wp.array(v[:, 0].astype(np.float32), dtype=wp.vec3),
+            wp.array(v[:, 1].astype(np.float32), dtype=wp.vec3),
+            out,
+        ],
+    )
     assert np.abs(out.numpy()).max() < 1e-4

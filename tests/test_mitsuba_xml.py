@@ -1,5 +1,6 @@
 """Mitsuba 3 XML import (wrt/mitsuba_xml.py): conversions checked against hand computations and
 numpy, and, where Mitsuba 3 is installed, against Mitsuba's own reading of the same files."""
+
 import math
 import textwrap
 from pathlib import Path
@@ -57,7 +58,9 @@ def newell(vertices):
 
 def pixel_direction(camera, width, height, u, v):
     """wrt's camera convention (docs/scene-format.md) at film position (u, v) in [0, 1]^2."""
-    forward, right, up = Camera(tuple(camera["origin"]), tuple(camera["look_at"]), tuple(camera["up"]), camera["fov"]).basis()
+    forward, right, up = Camera(
+        tuple(camera["origin"]), tuple(camera["look_at"]), tuple(camera["up"]), camera["fov"]
+    ).basis()
     t = math.tan(math.radians(camera["fov"]) / 2)
     d = (2 * u - 1) * t * width / height * right + (1 - 2 * v) * t * up + forward
     return d / np.linalg.norm(d)
@@ -100,7 +103,12 @@ def test_focal_length_is_35mm_equivalent_diagonal(tmp_path):
 def test_lookat_becomes_origin_look_at_up(tmp_path):
     transform = '<transform name="to_world"><lookat origin="1, 2, 3" target="4, 2, -1" up="0, 0.5, 0.1"/></transform>'
     doc, _ = convert(tmp_path, sensor('<float name="fov" value="40"/>', transform=transform))
-    assert doc["camera"] == {"origin": [1, 2, 3], "look_at": [4, 2, -1], "up": [0, 0.5, 0.1], "fov": pytest.approx(doc["camera"]["fov"])}
+    assert doc["camera"] == {
+        "origin": [1, 2, 3],
+        "look_at": [4, 2, -1],
+        "up": [0, 0.5, 0.1],
+        "fov": pytest.approx(doc["camera"]["fov"]),
+    }
 
 
 def test_general_camera_transform_gives_the_same_pose_as_its_lookat(tmp_path):
@@ -142,15 +150,31 @@ def test_film_sampler_filter_and_integrator(tmp_path):
         </film>
     </sensor>"""
     doc, warnings = convert(tmp_path, body)
-    assert doc["render"] == {"width": 64, "height": 48, "filter": "tent", "spp": 16, "seed": 7,
-                             "sampler": "stratified", "integrator": "path", "max_depth": 5}
+    assert doc["render"] == {
+        "width": 64,
+        "height": 48,
+        "filter": "tent",
+        "spp": 16,
+        "seed": 7,
+        "sampler": "stratified",
+        "integrator": "path",
+        "max_depth": 5,
+    }
     assert warnings == []  # rr_depth and pixel_format change only noise / the output file
 
 
 def test_mitsuba_defaults_without_sensor_or_integrator(tmp_path):
     doc, _ = convert(tmp_path, "")
-    assert doc["render"] == {"width": 768, "height": 576, "filter": "gaussian", "spp": 4, "seed": 0,
-                             "sampler": "independent", "integrator": "path", "max_depth": MAX_DEPTH}
+    assert doc["render"] == {
+        "width": 768,
+        "height": 576,
+        "filter": "gaussian",
+        "spp": 4,
+        "seed": 0,
+        "sampler": "independent",
+        "integrator": "path",
+        "max_depth": MAX_DEPTH,
+    }
     assert doc["camera"]["origin"] == [0, 0, 0] and doc["camera"]["look_at"] == [0, 0, 1]
 
 
@@ -175,7 +199,9 @@ def test_to_world_composes_in_mitsuba_order(tmp_path):
     angle = math.radians(30)
     rotate = np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * k @ k  # Rodrigues
     p = np.array([0.3, -0.7, 1.1])
-    assert matrix[:3, :3] @ p + matrix[:3, 3] == pytest.approx(rotate @ (np.array([2, 3, 4]) * p) + [1, -2, 0.5], abs=1e-12)
+    assert matrix[:3, :3] @ p + matrix[:3, 3] == pytest.approx(
+        rotate @ (np.array([2, 3, 4]) * p) + [1, -2, 0.5], abs=1e-12
+    )
     assert doc["shape"][0]["file"] == "tri.obj" and warnings == []
 
 
@@ -186,9 +212,11 @@ def test_rotation_is_right_handed_and_lookat_frame():
 
 
 def test_matrix_operation_is_row_major(tmp_path):
-    (tmp_path / "tri.ply").write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-                                      "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
-                                      "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    (tmp_path / "tri.ply").write_text(
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+        "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"
+    )
     body = """
     <shape type="ply">
         <string name="filename" value="tri.ply"/>
@@ -203,11 +231,15 @@ def test_identity_mesh_has_no_transform_and_vertex_normals_warn(tmp_path):
     doc, warnings = convert(tmp_path, '<shape type="obj"><string name="filename" value="n.obj"/></shape>')
     assert doc["shape"] == [{"type": "mesh", "file": "n.obj"}]
     assert any("vertex normals" in w for w in warnings)
-    body = '<shape type="obj"><string name="filename" value="n.obj"/><boolean name="face_normals" value="true"/></shape>'
+    body = (
+        '<shape type="obj"><string name="filename" value="n.obj"/><boolean name="face_normals" value="true"/></shape>'
+    )
     assert not any("vertex normals" in w for w in convert(tmp_path, body)[1])
 
 
-RECTANGLE_TO_WORLD = '<transform name="to_world"><scale x="2" y="0.5"/><rotate x="1" angle="-60"/><translate y="1"/></transform>'
+RECTANGLE_TO_WORLD = (
+    '<transform name="to_world"><scale x="2" y="0.5"/><rotate x="1" angle="-60"/><translate y="1"/></transform>'
+)
 
 
 def test_rectangle_becomes_polygon_wound_around_mitsubas_normal(tmp_path):
@@ -215,7 +247,9 @@ def test_rectangle_becomes_polygon_wound_around_mitsubas_normal(tmp_path):
     doc, warnings = convert(tmp_path, body)
     (shape,) = doc["shape"]
     rotate = rotation_matrix([1, 0, 0], -60)[:3, :3]
-    expected = [rotate @ ([2, 0.5, 1] * np.array(c)) + [0, 1, 0] for c in [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]]
+    expected = [
+        rotate @ ([2, 0.5, 1] * np.array(c)) + [0, 1, 0] for c in [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]
+    ]
     assert shape["type"] == "polygon" and np.array(shape["vertices"]) == pytest.approx(np.array(expected))
     assert newell(shape["vertices"]) == pytest.approx(rotate @ [0, 0, 1])  # normal: R (+z)
     assert warnings == []
@@ -225,13 +259,19 @@ def test_rectangle_becomes_polygon_wound_around_mitsubas_normal(tmp_path):
 def test_rectangle_front_side_under_flip_normals_and_mirroring(tmp_path, variant):
     """flip_normals reverses the front; a mirroring to_world does not (Mitsuba transforms the
     normal as a normal, M^-T n, whatever the handedness)."""
-    extra = {"flip_normals": '<boolean name="flip_normals" value="true"/>',
-             "mirror": '<transform name="to_world"><scale x="-1"/><translate z="2"/></transform>'}[variant]
-    doc, _ = convert(tmp_path, f'<shape type="rectangle">{extra}<bsdf type="twosided"><bsdf type="diffuse"/></bsdf></shape>')
+    extra = {
+        "flip_normals": '<boolean name="flip_normals" value="true"/>',
+        "mirror": '<transform name="to_world"><scale x="-1"/><translate z="2"/></transform>',
+    }[variant]
+    doc, _ = convert(
+        tmp_path, f'<shape type="rectangle">{extra}<bsdf type="twosided"><bsdf type="diffuse"/></bsdf></shape>'
+    )
     assert newell(doc["shape"][0]["vertices"]) == pytest.approx([0, 0, -1 if variant == "flip_normals" else 1])
 
 
-@pytest.mark.parametrize("transform", [RECTANGLE_TO_WORLD, '<transform name="to_world"><scale x="-2" y="1" z="3"/></transform>'])
+@pytest.mark.parametrize(
+    "transform", [RECTANGLE_TO_WORLD, '<transform name="to_world"><scale x="-2" y="1" z="3"/></transform>']
+)
 def test_cube_becomes_six_outward_polygons(tmp_path, transform):
     doc, _ = convert(tmp_path, f'<shape type="cube">{transform}</shape>')
     faces = [np.array(s["vertices"]) for s in doc["shape"]]
@@ -251,14 +291,17 @@ def test_sphere_center_radius_and_to_world(tmp_path):
     </shape>"""
     doc, warnings = convert(tmp_path, body)
     assert doc["shape"] == [{"type": "sphere", "center": [13, 0, 0], "radius": 6}] and warnings == []
-    _, warnings = convert(tmp_path, '<shape type="sphere"><transform name="to_world"><scale x="2"/></transform></shape>')
+    _, warnings = convert(
+        tmp_path, '<shape type="sphere"><transform name="to_world"><scale x="2"/></transform></shape>'
+    )
     assert len(warnings) == 1 and "non-uniform" in warnings[0]
 
 
 def test_shapes_keep_file_order_and_default_bsdf(tmp_path):
     body = """
     <shape type="sphere" id="a"/>
-    <shape type="rectangle" id="light"><emitter type="area"/><bsdf type="diffuse"><float name="reflectance" value="0"/></bsdf></shape>
+    <shape type="rectangle" id="light"><emitter type="area"/>
+        <bsdf type="diffuse"><float name="reflectance" value="0"/></bsdf></shape>
     <shape type="sphere" id="b"><float name="radius" value="2"/></shape>"""
     doc, _ = convert(tmp_path, body)
     assert [s["radius"] for s in doc["shape"]] == [1, 2]  # the light is not a shape
@@ -270,14 +313,18 @@ def test_shapes_keep_file_order_and_default_bsdf(tmp_path):
 def test_named_iors_and_exterior(tmp_path):
     body = """
     <shape type="sphere"><bsdf type="dielectric"><string name="int_ior" value="Water"/></bsdf></shape>
-    <shape type="sphere"><bsdf type="dielectric"><float name="int_ior" value="1.7"/><string name="ext_ior" value="air"/></bsdf></shape>"""
+    <shape type="sphere"><bsdf type="dielectric">
+        <float name="int_ior" value="1.7"/><string name="ext_ior" value="air"/></bsdf></shape>"""
     doc, warnings = convert(tmp_path, body)
     assert [m["ior"] for m in doc["material"]] == [1.3330, 1.7]
     assert doc["render"]["exterior_ior"] == IOR_TABLE["air"] == 1.000277 and warnings == []
     doc, _ = convert(tmp_path, '<shape type="sphere"><bsdf type="dielectric"/></shape>')
     assert doc["material"][0]["ior"] == 1.5046  # Mitsuba's default: bk7 in air
     with pytest.raises(WrtError, match="unknown IOR name"):
-        convert(tmp_path, '<shape type="sphere"><bsdf type="dielectric"><string name="int_ior" value="glass"/></bsdf></shape>')
+        convert(
+            tmp_path,
+            '<shape type="sphere"><bsdf type="dielectric"><string name="int_ior" value="glass"/></bsdf></shape>',
+        )
 
 
 def test_inconsistent_ext_ior_warns(tmp_path):
@@ -312,10 +359,14 @@ def test_conductors(tmp_path):
     <shape type="sphere"><ref name="bsdf" id="rough"/></shape>
     <shape type="sphere"><ref id="rough"/></shape>"""
     doc, warnings = convert(tmp_path, body)
-    assert doc["material"] == [{"name": "mirror", "type": "mirror", "reflectance": [1, 1, 1]},
-                               {"name": "rough", "type": "glossy", "roughness": 0.2, "reflectance": [0.9, 0.8, 0.7]}]
+    assert doc["material"] == [
+        {"name": "mirror", "type": "mirror", "reflectance": [1, 1, 1]},
+        {"name": "rough", "type": "glossy", "roughness": 0.2, "reflectance": [0.9, 0.8, 0.7]},
+    ]
     assert [s["material"] for s in doc["shape"]] == ["mirror", "rough", "rough"] and warnings == []
-    doc, warnings = convert(tmp_path, '<shape type="sphere"><bsdf type="roughconductor"><string name="material" value="Au"/></bsdf></shape>')
+    doc, warnings = convert(
+        tmp_path, '<shape type="sphere"><bsdf type="roughconductor"><string name="material" value="Au"/></bsdf></shape>'
+    )
     assert doc["material"][0]["reflectance"] == [0.9667, 0.802, 0.3241] and doc["material"][0]["roughness"] == 0.1
     assert len(warnings) == 2 and "beckmann" in warnings[0] and "normal-incidence" in warnings[1]
 
@@ -343,12 +394,13 @@ def test_area_rectangle_becomes_area_light_emitting_on_mitsubas_side(tmp_path):
 
 def test_area_sphere_becomes_sphere_light_and_other_shapes_get_emission(tmp_path):
     body = """
-    <shape type="sphere"><point name="center" value="1, 2, 3"/><emitter type="area"><rgb name="radiance" value="4"/></emitter></shape>
+    <shape type="sphere"><point name="center" value="1, 2, 3"/>
+        <emitter type="area"><rgb name="radiance" value="4"/></emitter></shape>
     <shape type="cube"><bsdf type="diffuse" id="d"/><emitter type="area"/></shape>"""
     doc, warnings = convert(tmp_path, body)
     assert doc["light"] == [{"type": "sphere", "center": [1, 2, 3], "radius": 1, "radiance": [4, 4, 4]}]
-    assert doc["material"] == [{"name": "d+emission@3", "type": "diffuse", "albedo": [0.5] * 3, "emission": [1, 1, 1]}]
-    assert len(doc["shape"]) == 6 and {s["material"] for s in doc["shape"]} == {"d+emission@3"}
+    assert doc["material"] == [{"name": "d+emission@4", "type": "diffuse", "albedo": [0.5] * 3, "emission": [1, 1, 1]}]
+    assert len(doc["shape"]) == 6 and {s["material"] for s in doc["shape"]} == {"d+emission@4"}
     assert len(warnings) == 2 and "reflect" in warnings[0] and "emission of its material" in warnings[1]
 
 
@@ -409,7 +461,9 @@ def test_unsupported_input_warns_or_fails_strict(tmp_path):
 
 def test_malformed_xml_names_file_and_line(tmp_path):
     path = tmp_path / "bad.xml"
-    path.write_text('<scene version="3.0.0">\n  <shape type="sphere">\n    <float name="radius" value="1">\n  </shape>\n</scene>\n')
+    path.write_text(
+        '<scene version="3.0.0">\n  <shape type="sphere">\n    <float name="radius" value="1">\n  </shape>\n</scene>\n'
+    )
     with pytest.raises(WrtError, match=r"bad.xml:4:\d+: malformed XML: mismatched tag"):
         load_mitsuba(path)
     with pytest.raises(WrtError, match="cannot read"):
@@ -450,7 +504,9 @@ def test_camera_rays_match_mitsuba(path):
 
 
 @needs_mitsuba
-@pytest.mark.parametrize("transform", [RECTANGLE_TO_WORLD, '<transform name="to_world"><scale x="-1" y="2"/></transform>'])
+@pytest.mark.parametrize(
+    "transform", [RECTANGLE_TO_WORLD, '<transform name="to_world"><scale x="-1" y="2"/></transform>']
+)
 def test_polygon_fronts_match_mitsubas_shading_normals(tmp_path, transform):
     """Rays at each converted polygon's centre hit Mitsuba's rectangle / cube with the shading
     normal (the side that emits and that one-sided BSDFs shade) equal to the polygon's normal."""

@@ -4,6 +4,7 @@ The render runs in a child process: when no OpenGL backend can be loaded, the VT
 wheel can crash the interpreter (SIGSEGV) instead of raising, and that must turn into a
 test failure with instructions, not a dead test run.
 """
+
 from __future__ import annotations
 
 import os
@@ -45,7 +46,10 @@ def test_offscreen_sphere_is_not_blank(tmp_path):
     try:
         proc = subprocess.run(
             [sys.executable, "-c", CHILD, str(out)],
-            capture_output=True, text=True, timeout=180, env=os.environ.copy(),
+            capture_output=True,
+            text=True,
+            timeout=180,
+            env=os.environ.copy(),
         )
     except subprocess.TimeoutExpired as exc:
         raise AssertionError(f"off-screen render hung for {exc.timeout}s. {APT_HINT}") from None

@@ -1,4 +1,5 @@
 """Reflection, Snell refraction and Fresnel (kernels/optics.py) against closed forms in float64."""
+
 import numpy as np
 import pytest
 import warp as wp
@@ -27,9 +28,17 @@ def optics_batch(
 def run(d, n, eta):
     d = np.asarray(d, np.float32).reshape(-1, 3)
     k = len(d)
-    arrays = [wp.array(d, dtype=wp.vec3), wp.array(np.broadcast_to(np.asarray(n, np.float32), (k, 3)).copy(), dtype=wp.vec3)]
+    arrays = [
+        wp.array(d, dtype=wp.vec3),
+        wp.array(np.broadcast_to(np.asarray(n, np.float32), (k, 3)).copy(), dtype=wp.vec3),
+    ]
     arrays.append(wp.array(np.broadcast_to(np.asarray(eta, np.float32), (k,)).copy(), dtype=float))
-    outs = [wp.zeros(k, dtype=wp.vec3), wp.zeros(k, dtype=wp.int32), wp.zeros(k, dtype=wp.vec3), wp.zeros(k, dtype=float)]
+    outs = [
+        wp.zeros(k, dtype=wp.vec3),
+        wp.zeros(k, dtype=wp.int32),
+        wp.zeros(k, dtype=wp.vec3),
+        wp.zeros(k, dtype=float),
+    ]
     wp.launch(optics_batch, dim=k, inputs=arrays + outs, device="cpu")
     r, ok, t, f = (a.numpy() for a in outs)
     return r, ok.astype(bool), t, f

@@ -1,4 +1,5 @@
 """The path integrator (kernels/path.py): furnaces, closed forms, MIS-weighted emitters, determinism."""
+
 import numpy as np
 import pytest
 from conftest import CAMERA, make_scene
@@ -15,7 +16,12 @@ def path(shapes, materials, lights, camera=None, size=(32, 24), spp=64, **render
 
 def test_white_furnace():
     """A diffuse sphere of albedo 1 in a uniform environment renders exactly the environment."""
-    r = path([{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "white"}], [{"name": "white", "albedo": [1, 1, 1]}], [ENV], max_depth=64)
+    r = path(
+        [{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "white"}],
+        [{"name": "white", "albedo": [1, 1, 1]}],
+        [ENV],
+        max_depth=64,
+    )
     values = r.rgb[..., 0].astype(np.float64)
     assert values.mean() == pytest.approx(0.5, abs=4 * values.std() / np.sqrt(values.size) + 1e-4)
     assert values.max() < 0.6 and values.min() > 0.4  # per pixel, 64 spp
@@ -36,13 +42,22 @@ def test_diffuse_plane_under_uniform_sky_returns_albedo_times_radiance():
 
 def corner_form_factor(a, b, h):
     x, y = a / h, b / h
-    return (x / np.sqrt(1 + x * x) * np.arctan(y / np.sqrt(1 + x * x)) + y / np.sqrt(1 + y * y) * np.arctan(x / np.sqrt(1 + y * y))) / (2 * np.pi)
+    return (
+        x / np.sqrt(1 + x * x) * np.arctan(y / np.sqrt(1 + x * x))
+        + y / np.sqrt(1 + y * y) * np.arctan(x / np.sqrt(1 + y * y))
+    ) / (2 * np.pi)
 
 
 def test_area_light_over_a_corner_matches_the_form_factor():
     """Floor point under a corner of a parallel a x b light at height h: radiance albedo L F."""
     a, b, h, L, albedo = 2.0, 1.0, 1.5, 4.0, 0.6
-    light = {"type": "area", "corner": [0, h, 0], "edge_u": [a, 0, 0], "edge_v": [0, 0, b], "radiance": [L, L, L]}  # emits down: cross = -y
+    light = {
+        "type": "area",
+        "corner": [0, h, 0],
+        "edge_u": [a, 0, 0],
+        "edge_v": [0, 0, b],
+        "radiance": [L, L, L],
+    }  # emits down: cross = -y
     r = path(
         [{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "floor"}],
         [{"name": "floor", "albedo": [albedo] * 3}],
@@ -56,23 +71,50 @@ def test_area_light_over_a_corner_matches_the_form_factor():
 
 
 def test_emitters_are_seen_from_the_front_only_and_max_depth_1_shows_only_emitters():
-    lights = [{"type": "area", "corner": [-1, -1, 0], "edge_u": [2, 0, 0], "edge_v": [0, 2, 0], "radiance": [3, 2, 1]}]  # faces +z
+    lights = [
+        {"type": "area", "corner": [-1, -1, 0], "edge_u": [2, 0, 0], "edge_v": [0, 2, 0], "radiance": [3, 2, 1]}
+    ]  # faces +z
     floor = [{"type": "plane", "point": [0, 0, -1], "normal": [0, 0, 1], "material": "grey"}]
     grey = [{"name": "grey", "albedo": [0.5, 0.5, 0.5]}]
-    front = path(floor, grey, lights, camera={"origin": [0, 0, 3], "look_at": [0, 0, 0], "fov": 10}, size=(8, 8), spp=4, max_depth=1)
+    front = path(
+        floor,
+        grey,
+        lights,
+        camera={"origin": [0, 0, 3], "look_at": [0, 0, 0], "fov": 10},
+        size=(8, 8),
+        spp=4,
+        max_depth=1,
+    )
     np.testing.assert_allclose(front.rgb.reshape(-1, 3), np.broadcast_to([3, 2, 1], (64, 3)), rtol=1e-6)
     assert (front.aovs["object_id"] == -2).all()  # the surface of light 0 is not a shape
-    back = path(floor, grey, lights, camera={"origin": [0, 0, -0.5], "look_at": [0, 0, 1], "up": [0, 1, 0], "fov": 10}, size=(8, 8), spp=4, max_depth=8)
+    back = path(
+        floor,
+        grey,
+        lights,
+        camera={"origin": [0, 0, -0.5], "look_at": [0, 0, 1], "up": [0, 1, 0], "fov": 10},
+        size=(8, 8),
+        spp=4,
+        max_depth=8,
+    )
     assert (back.rgb == 0).all()  # its back: no emission, and it reflects nothing
 
 
-@pytest.mark.parametrize("material", [
-    {"name": "m", "type": "dielectric", "ior": 1.5},
-    {"name": "m", "type": "mirror", "reflectance": [1, 1, 1]},
-    {"name": "m", "type": "glossy", "roughness": 0.3, "reflectance": [1, 1, 1]},
-])
+@pytest.mark.parametrize(
+    "material",
+    [
+        {"name": "m", "type": "dielectric", "ior": 1.5},
+        {"name": "m", "type": "mirror", "reflectance": [1, 1, 1]},
+        {"name": "m", "type": "glossy", "roughness": 0.3, "reflectance": [1, 1, 1]},
+    ],
+)
 def test_energy_never_increases_under_a_uniform_environment(material):
-    r = path([{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "m"}], [material], [ENV], spp=32, max_depth=32)
+    r = path(
+        [{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "m"}],
+        [material],
+        [ENV],
+        spp=32,
+        max_depth=32,
+    )
     assert np.isfinite(r.rgb).all()
     if material["type"] == "glossy":  # GGX loses what single scattering cannot reflect, never gains
         assert r.rgb.mean() <= 0.5 + 0.005 and r.rgb.mean() > 0.4
@@ -82,7 +124,11 @@ def test_energy_never_increases_under_a_uniform_environment(material):
 
 @pytest.mark.parametrize("sampler, filter", [("independent", "box"), ("stratified", "tent"), ("sobol", "gaussian")])
 def test_bit_identical_for_any_thread_count(sampler, filter):
-    args = ([{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "w", "velocity": [0.3, 0, 0]}], [{"name": "w", "albedo": [0.7, 0.7, 0.7]}], [ENV, {"type": "point", "position": [2, 2, 2], "intensity": [5, 5, 5]}])
+    args = (
+        [{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "w", "velocity": [0.3, 0, 0]}],
+        [{"name": "w", "albedo": [0.7, 0.7, 0.7]}],
+        [ENV, {"type": "point", "position": [2, 2, 2], "intensity": [5, 5, 5]}],
+    )
     camera = {**CAMERA, "shutter": [0.0, 1.0], "aperture_radius": 0.05}
     render = {"width": 24, "height": 16, "integrator": "path", "spp": 8, "sampler": sampler, "filter": filter}
     scene = make_scene(*args[:1], materials=args[1], lights=args[2], camera=camera, render=render)
@@ -93,12 +139,20 @@ def test_bit_identical_for_any_thread_count(sampler, filter):
 def test_error_falls_as_one_over_sqrt_spp():
     """With independent samples the error of a path-traced image falls as 1/sqrt(spp) (the default
     sobol sampler falls faster on this smooth scene: tests/test_sampling.py measures its rates)."""
-    lights = [{"type": "area", "corner": [-0.5, 2, -0.5], "edge_u": [1, 0, 0], "edge_v": [0, 0, 1], "radiance": [5, 5, 5]}]
-    shapes = [{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "g"}, {"type": "sphere", "center": [0, 0.5, 0], "radius": 0.5, "material": "g"}]
+    lights = [
+        {"type": "area", "corner": [-0.5, 2, -0.5], "edge_u": [1, 0, 0], "edge_v": [0, 0, 1], "radiance": [5, 5, 5]}
+    ]
+    shapes = [
+        {"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "g"},
+        {"type": "sphere", "center": [0, 0.5, 0], "radius": 0.5, "material": "g"},
+    ]
     mats = [{"name": "g", "albedo": [0.6, 0.6, 0.6]}]
     cam = {"origin": [0, 1.5, 3], "look_at": [0, 0.4, 0], "fov": 50}
     reference = path(shapes, mats, lights, camera=cam, spp=2048, seed=99).rgb
-    errors = [np.sqrt(np.mean((path(shapes, mats, lights, camera=cam, spp=n, sampler="independent").rgb - reference) ** 2)) for n in (4, 16, 64)]
+    errors = [
+        np.sqrt(np.mean((path(shapes, mats, lights, camera=cam, spp=n, sampler="independent").rgb - reference) ** 2))
+        for n in (4, 16, 64)
+    ]
     slope = np.polyfit(np.log([4, 16, 64]), np.log(errors), 1)[0]
     assert -0.6 < slope < -0.4
 

@@ -1,5 +1,6 @@
 """Progressive rendering (wrt/renderer.py passes, the integrator's sample offset, `wrt render`'s
 progress bar, --checkpoint-every and Ctrl-C)."""
+
 import fcntl
 import os
 import pty
@@ -53,7 +54,9 @@ def test_passes_are_bit_identical_to_one_pass(monkeypatch, every, pass_seconds):
     monkeypatch.setattr(wrt.renderer, "TILE_PIXELS", 97)  # tiles that cut rows anywhere
     for threads in (1, 2, 3):
         passes = []
-        progressive = wrt.render(scene, threads=threads, progress=lambda done, *_: passes.append(done), progress_every=every)
+        progressive = wrt.render(
+            scene, threads=threads, progress=lambda done, *_: passes.append(done), progress_every=every
+        )
         assert len(passes) > 3 and passes[-1] == 13 and progressive.spp == 13
         assert np.array_equal(one.rgb, progressive.rgb)
         for name in one.aovs:
@@ -80,7 +83,8 @@ def test_progress_reports_every_pass_and_stops_when_asked():
 
 
 def test_first_pass_of_a_many_sample_render_is_not_the_pixel_centre():
-    """spp = 1 renders the pixel centre; a render of more samples never does, even one stopped after its first sample."""
+    """spp = 1 renders the pixel centre; a render of more samples never does, even one stopped
+    after its first sample."""
     scene = path_scene(spp=8)
     first = wrt.render(scene, progress=lambda *_: False)
     centre = wrt.render(scene, spp=1)
@@ -109,7 +113,22 @@ def test_checkpoints_are_written_every_n_samples(tmp_path, monkeypatch, capsys):
     write_image = wrt.imageio.write_image
     monkeypatch.setattr(wrt.imageio, "write_image", write_and_read)
     scene_file = str(ROOT / "examples/spheres.toml")
-    args = ["render", scene_file, "-o", str(out), "--width", "40", "--height", "30", "--spp", "7", "--checkpoint-every", "2", "--aov", "depth"]
+    args = [
+        "render",
+        scene_file,
+        "-o",
+        str(out),
+        "--width",
+        "40",
+        "--height",
+        "30",
+        "--spp",
+        "7",
+        "--checkpoint-every",
+        "2",
+        "--aov",
+        "depth",
+    ]
     assert main(args) == 0
     assert [image.metadata["spp"] for image in written] == [2, 4, 6, 7]
     scene = override_render(wrt.load_scene(scene_file), width=40, height=30)
@@ -128,7 +147,21 @@ def test_ctrl_c_writes_the_samples_done_and_exits_130(tmp_path):
     spp = 10**6
     controller, terminal = pty.openpty()
     fcntl.ioctl(terminal, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 120, 0, 0))  # tqdm draws nothing on 0 columns
-    cmd = [sys.executable, "-m", "wrt.cli", "render", str(ROOT / "examples/spheres.toml"), "-o", str(out), "--width", "64", "--height", "48", "--spp", str(spp)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "wrt.cli",
+        "render",
+        str(ROOT / "examples/spheres.toml"),
+        "-o",
+        str(out),
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--spp",
+        str(spp),
+    ]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=terminal, text=True)
     os.close(terminal)
     shown, sent, deadline = b"", None, time.monotonic() + 300  # a cold Warp kernel cache compiles first

@@ -1,4 +1,5 @@
 """Ray recording (kernels/record.py, wrt/rays.py) against closed forms, and `wrt rays` (harness/rayview.py)."""
+
 import os
 import subprocess
 import sys
@@ -25,7 +26,11 @@ from wrt.cli import main
 from wrt.rays import trace_rays
 
 GLASS = {"name": "glass", "type": "dielectric", "ior": 1.5}
-HEAD_ON = {"origin": [0, 0, 5], "look_at": [0, 0, 0], "fov": 30}  # odd image size: the centre pixel looks down -z exactly
+HEAD_ON = {
+    "origin": [0, 0, 5],
+    "look_at": [0, 0, 0],
+    "fov": 30,
+}  # odd image size: the centre pixel looks down -z exactly
 
 
 def whitted_scene(shapes, materials, lights=(), camera=HEAD_ON, size=(33, 33), **render):
@@ -94,7 +99,10 @@ def test_total_internal_reflection_is_marked():
 def test_false_interface_goes_straight_at_the_same_depth():
     """Inside glass of priority 1, the surface of overlapping water (priority 0) is no interface."""
     scene = whitted_scene(
-        [{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "glass"}, {"type": "sphere", "center": [0, 0, -1], "radius": 1.0, "material": "water"}],
+        [
+            {"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "glass"},
+            {"type": "sphere", "center": [0, 0, -1], "radius": 1.0, "material": "water"},
+        ],
         [{**GLASS, "priority": 1}, {"name": "water", "type": "dielectric", "ior": 1.33}],
         max_depth=3,
     )
@@ -133,7 +141,10 @@ def test_shadow_ray_is_blocked_at_the_occluder():
             {"type": "sphere", "center": [0, 2, 0], "radius": 0.5},
         ],
         [],
-        [{"type": "point", "position": [0, 4, 0], "intensity": [5, 5, 5]}, {"type": "point", "position": [3, 4, 0], "intensity": [5, 5, 5]}],
+        [
+            {"type": "point", "position": [0, 4, 0], "intensity": [5, 5, 5]},
+            {"type": "point", "position": [3, 4, 0], "intensity": [5, 5, 5]},
+        ],
         camera={"origin": [0, 3, 4], "look_at": [0, 0, 0], "fov": 30},
     )
     tree = trace_rays(scene, [(16, 16)])
@@ -158,7 +169,9 @@ MIXED = [
 MIXED_MATERIALS = [GLASS, {"name": "mirror", "type": "mirror"}, {"name": "floor", "albedo": [0.6, 0.5, 0.4]}]
 
 
-@pytest.mark.parametrize("integrator, samples", [("whitted", 1), ("whitted", 3), ("raycast", 1), ("path", 1), ("path", 4)])
+@pytest.mark.parametrize(
+    "integrator, samples", [("whitted", 1), ("whitted", 3), ("raycast", 1), ("path", 1), ("path", 4)]
+)
 def test_recording_matches_the_render(integrator, samples):
     """Recorded camera hits equal the `position` AOV (spp 1: the pixel-centre ray) bit for bit, and
     the recording launch computes the very radiance `wrt.render` does, at any spp."""
@@ -196,17 +209,22 @@ def test_truncation_is_reported():
     assert tree.truncated and len(tree) == 2 and tree.recorded > 2
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["--pixel", "33", "0"], "pixel (33, 0) is outside the 33 x 33 image"),
-    (["--pixel", "0", "-1"], "pixel (0, -1) is outside"),
-    (["--pixel", "0", "0", "--depth", "0"], "max_depth"),
-    (["--pixel", "0", "0", "--samples", "0"], "samples must be >= 1"),
-    ([], "give at least one --pixel"),
-])
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--pixel", "33", "0"], "pixel (33, 0) is outside the 33 x 33 image"),
+        (["--pixel", "0", "-1"], "pixel (0, -1) is outside"),
+        (["--pixel", "0", "0", "--depth", "0"], "max_depth"),
+        (["--pixel", "0", "0", "--samples", "0"], "samples must be >= 1"),
+        ([], "give at least one --pixel"),
+    ],
+)
 def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, argv, message):
     path = tmp_path / "s.toml"
-    path.write_text('[render]\nwidth = 33\nheight = 33\nintegrator = "whitted"\n[camera]\norigin = [0, 0, 5]\nlook_at = [0, 0, 0]\n'
-                    '[[shape]]\ntype = "sphere"\ncenter = [0, 0, 0]\nradius = 1.0\n')
+    path.write_text(
+        '[render]\nwidth = 33\nheight = 33\nintegrator = "whitted"\n[camera]\norigin = [0, 0, 5]\nlook_at = [0, 0, 0]\n'
+        '[[shape]]\ntype = "sphere"\ncenter = [0, 0, 0]\nradius = 1.0\n'
+    )
     assert main(["rays", str(path), *argv, "-o", str(tmp_path / "v.png")]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1 and err.startswith("wrt: error: ")
@@ -220,7 +238,10 @@ def test_unknown_scene_is_exit_2(tmp_path, capsys):
 
 def test_export_reopens_with_pyvista(tmp_path):
     scene = whitted_scene(
-        [{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "glass"}, {"type": "plane", "point": [0, -1, 0], "normal": [0, 1, 0]}],
+        [
+            {"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "glass"},
+            {"type": "plane", "point": [0, -1, 0], "normal": [0, 1, 0]},
+        ],
         [GLASS],
         [{"type": "point", "position": [0, 4, 4], "intensity": [5, 5, 5]}],
     )
@@ -244,7 +265,9 @@ def test_view_png_off_screen_is_not_blank(tmp_path):
     scene = os.path.join(os.path.dirname(__file__), "..", "examples", "spheres.toml")
     proc = subprocess.run(
         [sys.executable, "-m", "wrt.cli", "rays", scene, "--grid", "3", "2", "--depth", "3", "-o", str(out)],
-        capture_output=True, text=True, timeout=300,
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
     img = imread(out)[..., :3]
@@ -258,9 +281,18 @@ def test_path_recording_follows_the_bsdf_and_samples_the_light():
     """A diffuse floor under a parallelogram light: every scattered ray starts where its parent
     ended, leaves into the hemisphere of the surface it left, and every shadow ray that reaches
     the light ends on the light's rectangle."""
-    light = {"type": "area", "corner": [-0.5, 2.0, -0.5], "edge_u": [1.0, 0.0, 0.0], "edge_v": [0.0, 0.0, 1.0], "radiance": [5, 5, 5]}
+    light = {
+        "type": "area",
+        "corner": [-0.5, 2.0, -0.5],
+        "edge_u": [1.0, 0.0, 0.0],
+        "edge_v": [0.0, 0.0, 1.0],
+        "radiance": [5, 5, 5],
+    }
     scene = make_scene(
-        [{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "floor"}, {"type": "sphere", "center": [0, 0.5, 0], "radius": 0.5, "material": "floor"}],
+        [
+            {"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "floor"},
+            {"type": "sphere", "center": [0, 0.5, 0], "radius": 0.5, "material": "floor"},
+        ],
         materials=[{"name": "floor", "albedo": [0.7, 0.7, 0.7]}],
         lights=[light],
         camera={"origin": [0, 1.5, 3], "look_at": [0, 0.4, 0]},
@@ -272,9 +304,15 @@ def test_path_recording_follows_the_bsdf_and_samples_the_light():
     parents = tree.parent[scattered]
     offset = np.linalg.norm(tree.origin[scattered] - tree.end[parents], axis=1)
     o, p = tree.origin[parents], tree.end[parents]
-    bound = 16 * 2.0**-24 * (np.abs(o).max(axis=1) + np.abs(p).max(axis=1) + np.linalg.norm(p - o, axis=1))  # wrt.kernels.spawn
+    bound = (
+        16 * 2.0**-24 * (np.abs(o).max(axis=1) + np.abs(p).max(axis=1) + np.linalg.norm(p - o, axis=1))
+    )  # wrt.kernels.spawn
     assert np.all(offset <= 1.01 * bound + 1e-7)
-    facing = np.where((np.sum((tree.end[parents] - tree.origin[parents]) * tree.normal[parents], axis=1) < 0)[:, None], tree.normal[parents], -tree.normal[parents])
+    facing = np.where(
+        (np.sum((tree.end[parents] - tree.origin[parents]) * tree.normal[parents], axis=1) < 0)[:, None],
+        tree.normal[parents],
+        -tree.normal[parents],
+    )
     assert np.all(np.sum((tree.end[scattered] - tree.origin[scattered]) * facing, axis=1) > 0)
     lit = np.flatnonzero(tree.kind == SHADOW_LIT)
     assert len(lit) > 20

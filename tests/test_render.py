@@ -1,4 +1,5 @@
 """Render orchestration (wrt/renderer.py), the raycast integrator and the `wrt render` command."""
+
 import numpy as np
 from conftest import make_scene
 
@@ -72,7 +73,25 @@ def test_miss_aovs_and_normals_face_the_camera():
 def test_cli_writes_exr_with_all_aovs_for_a_mesh_scene(tmp_path):
     """The foundation's end-to-end case: spheres, a plane, a triangle, a non-convex polygon and the 100k+ PLY."""
     out = tmp_path / "showcase.exr"
-    assert main(["render", "examples/showcase.toml", "-o", str(out), "--aov", "all", "--width", "160", "--height", "90", "--spp", "1"]) == 0
+    assert (
+        main(
+            [
+                "render",
+                "examples/showcase.toml",
+                "-o",
+                str(out),
+                "--aov",
+                "all",
+                "--width",
+                "160",
+                "--height",
+                "90",
+                "--spp",
+                "1",
+            ]
+        )
+        == 0
+    )
     image = read_image(out)
     assert image.rgb.shape == (90, 160, 3) and set(image.aovs) == {"depth", "normal", "object_id", "position"}
     n_shapes = len(wrt.load_scene("examples/showcase.toml").shapes)

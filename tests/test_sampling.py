@@ -1,6 +1,7 @@
 """The samplers (wrt.kernels.sampling) and pixel filters (wrt.kernels.camera), checked on their numbers:
 uniformity, the stratification each sampler promises, determinism, and faster convergence
 where the theory says so."""
+
 import math
 
 import numpy as np
@@ -20,7 +21,13 @@ from wrt.device import SAMPLER_CODES, sampler_data
 
 
 @wp.kernel
-def draw(sampler: Sampler, first_pixel: wp.int32, dim: wp.int32, out2: wp.array2d(dtype=wp.vec2), out1: wp.array2d(dtype=float)):
+def draw(
+    sampler: Sampler,
+    first_pixel: wp.int32,
+    dim: wp.int32,
+    out2: wp.array2d(dtype=wp.vec2),
+    out1: wp.array2d(dtype=float),
+):
     p, s = wp.tid()
     out2[p, s] = sample_2d(sampler, first_pixel + p, s, dim)
     out1[p, s] = sample_1d(sampler, first_pixel + p, s, dim + 7)
@@ -30,7 +37,9 @@ def samples(kind: str, pixels: int, spp: int, dim: int = 2, seed: int = 3, first
     """(pixels, spp, 2) points of a 2D dimension pair and (pixels, spp) values of a 1D dimension."""
     out2 = wp.zeros((pixels, spp), dtype=wp.vec2, device="cpu")
     out1 = wp.zeros((pixels, spp), dtype=float, device="cpu")
-    wp.launch(draw, dim=(pixels, spp), inputs=[sampler_data(kind, spp, seed), first_pixel, dim, out2, out1], device="cpu")
+    wp.launch(
+        draw, dim=(pixels, spp), inputs=[sampler_data(kind, spp, seed), first_pixel, dim, out2, out1], device="cpu"
+    )
     return out2.numpy(), out1.numpy()
 
 

@@ -1,5 +1,6 @@
 """Kernels specialised on a scene's features (kernels/features.py, kernels/variants.py) render
 exactly what the all-features kernels render: specialisation only removes unreachable code."""
+
 import numpy as np
 import pytest
 from conftest import CAMERA, make_scene
@@ -20,10 +21,22 @@ AREA = {"type": "area", "corner": [-1, 3, -1], "edge_u": [2, 0, 0], "edge_v": [0
 def test_features_follow_the_scene():
     plain = make_scene([FLOOR], materials=DIFFUSE)
     assert scene_features(plain) == Features(
-        lights=False, specular=False, dielectric=False, lens=False, motion=False, moving=False, spheres=False, triangles=False, polygons=False
+        lights=False,
+        specular=False,
+        dielectric=False,
+        lens=False,
+        motion=False,
+        moving=False,
+        spheres=False,
+        triangles=False,
+        polygons=False,
     )
     mesh = make_scene([{"type": "mesh", "file": "examples/meshes/tetra.obj"}], scene_dir=".")
-    assert (scene_features(mesh).triangles, scene_features(mesh).spheres, scene_features(mesh).polygons) == (True, False, False)
+    assert (scene_features(mesh).triangles, scene_features(mesh).spheres, scene_features(mesh).polygons) == (
+        True,
+        False,
+        False,
+    )
     rich = make_scene(
         [
             FLOOR,
@@ -35,7 +48,10 @@ def test_features_follow_the_scene():
         camera={**CAMERA, "aperture_radius": 0.1, "shutter": [0, 1]},
     )
     assert scene_features(rich) == ALL
-    still = make_scene([{"type": "sphere", "center": [0, 0, 0], "radius": 1, "velocity": [1, 0, 0]}], camera={**CAMERA, "shutter": [2, 2]})
+    still = make_scene(
+        [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "velocity": [1, 0, 0]}],
+        camera={**CAMERA, "shutter": [2, 2]},
+    )
     assert not scene_features(still).motion  # moving shapes, but a closed shutter: no time to sample
     assert scene_features(still).moving  # ... though at time 2 the sphere is not where it was at 0
 
@@ -56,18 +72,52 @@ def test_variants_are_built_once_and_only_for_flags_that_pay():
 
 
 SCENES = {
-    "whitted diffuse": ([FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"}], DIFFUSE, [POINT], {}, "whitted"),
-    "whitted glass and mirror": (
-        [FLOOR, {"type": "sphere", "center": [-1, 0, 0], "radius": 0.8, "material": "glass"}, {"type": "sphere", "center": [1, 0, 0], "radius": 0.8, "material": "mirror"}],
-        DIFFUSE + [GLASS, MIRROR], [POINT], {}, "whitted",
+    "whitted diffuse": (
+        [FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"}],
+        DIFFUSE,
+        [POINT],
+        {},
+        "whitted",
     ),
-    "whitted no lights": ([FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "mirror"}], DIFFUSE + [MIRROR], [], {}, "whitted"),
-    "path diffuse, lens": ([FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"}], DIFFUSE, [AREA], {"aperture_radius": 0.2}, "path"),
+    "whitted glass and mirror": (
+        [
+            FLOOR,
+            {"type": "sphere", "center": [-1, 0, 0], "radius": 0.8, "material": "glass"},
+            {"type": "sphere", "center": [1, 0, 0], "radius": 0.8, "material": "mirror"},
+        ],
+        DIFFUSE + [GLASS, MIRROR],
+        [POINT],
+        {},
+        "whitted",
+    ),
+    "whitted no lights": (
+        [FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "mirror"}],
+        DIFFUSE + [MIRROR],
+        [],
+        {},
+        "whitted",
+    ),
+    "path diffuse, lens": (
+        [FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"}],
+        DIFFUSE,
+        [AREA],
+        {"aperture_radius": 0.2},
+        "path",
+    ),
     "path glass, motion": (
         [FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "glass", "velocity": [0.5, 0, 0]}],
-        DIFFUSE + [GLASS], [AREA, POINT], {"shutter": [0, 1]}, "path",
+        DIFFUSE + [GLASS],
+        [AREA, POINT],
+        {"shutter": [0, 1]},
+        "path",
     ),
-    "raycast": ([FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"}], DIFFUSE, [], {}, "raycast"),
+    "raycast": (
+        [FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"}],
+        DIFFUSE,
+        [],
+        {},
+        "raycast",
+    ),
 }
 
 
@@ -85,7 +135,11 @@ def test_small_renders_take_the_all_features_kernel_by_default(monkeypatch):
     """A variant's first compilation costs seconds: by default only renders of at least
     SPECIALIZE_MIN_SAMPLES pixel samples use one (the image is the same either way)."""
     chosen = []
-    monkeypatch.setattr(wrt.renderer, "render_kernel", lambda integrator, features: chosen.append(features) or render_kernel(integrator, features))
+    monkeypatch.setattr(
+        wrt.renderer,
+        "render_kernel",
+        lambda integrator, features: chosen.append(features) or render_kernel(integrator, features),
+    )
     scene = make_scene([FLOOR], materials=DIFFUSE, render={"width": 16, "height": 8, "spp": 2, "integrator": "path"})
     wrt.render(scene)
     monkeypatch.setattr(wrt.renderer, "SPECIALIZE_MIN_SAMPLES", 16 * 8 * 2)

@@ -1,5 +1,6 @@
 """The stress suite (wrt/stress/, `wrt stress`) with a small ray budget: every case passes,
 and the checks have teeth (they do fail on a mesh with a hole, or without the spawn offset)."""
+
 import json
 
 import numpy as np
@@ -28,7 +29,20 @@ def assert_all_pass(rows):
 
 @pytest.mark.parametrize(
     "group",
-    ["watertight", "self-intersection", "sphere-precision", "ulps", "grazing", "degenerate", "zero-radius", "coincident", "zero-components", "critical-angle", "camera-inside", "not-finite"],
+    [
+        "watertight",
+        "self-intersection",
+        "sphere-precision",
+        "ulps",
+        "grazing",
+        "degenerate",
+        "zero-radius",
+        "coincident",
+        "zero-components",
+        "critical-angle",
+        "camera-inside",
+        "not-finite",
+    ],
 )
 def test_case_group_passes(group):
     assert_all_pass(run(group))

@@ -4,6 +4,7 @@ It checks that the benchmark runs end to end through its command line and that i
 sane: finite positive rates for every engine, ray set, query and thread setting, builds timed,
 memory reported, and the engines agreeing ray by ray. It never checks a timing against a threshold.
 """
+
 from __future__ import annotations
 
 import json

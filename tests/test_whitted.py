@@ -1,4 +1,5 @@
 """The whitted integrator (kernels/whitted.py) against closed forms, at the origin and far from it."""
+
 import numpy as np
 import pytest
 from conftest import make_scene
@@ -18,7 +19,7 @@ def diffuse(name, albedo):
 
 
 def lambert_point(P, normal, albedo, light_pos, intensity):
-    """albedo/pi * I * cos(theta) / d^2 in float64 (0 where the light is behind the surface)."""
+    """albedo/pi * intensity * cos(theta) / d^2 in float64 (0 where the light is behind the surface)."""
     to = np.asarray(light_pos) - P
     d2 = (to**2).sum(-1)
     cos = np.maximum((to * normal).sum(-1) / np.sqrt(d2), 0)
@@ -26,10 +27,14 @@ def lambert_point(P, normal, albedo, light_pos, intensity):
 
 
 def test_point_light_on_diffuse_plane_is_exact():
-    albedo, I, L = [0.5, 0.6, 0.7], [10.0, 20.0, 5.0], [0.3, 2.0, 0.5]
-    r = whitted([{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "m"}], [diffuse("m", albedo)], [{"type": "point", "position": L, "intensity": I}])
+    albedo, intensity, L = [0.5, 0.6, 0.7], [10.0, 20.0, 5.0], [0.3, 2.0, 0.5]
+    r = whitted(
+        [{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "m"}],
+        [diffuse("m", albedo)],
+        [{"type": "point", "position": L, "intensity": intensity}],
+    )
     hit = r.aovs["object_id"] == 0
-    expected = lambert_point(r.aovs["position"], np.array([0, 1.0, 0]), albedo, L, I)
+    expected = lambert_point(r.aovs["position"], np.array([0, 1.0, 0]), albedo, L, intensity)
     np.testing.assert_allclose(r.rgb[hit], expected[hit], rtol=1e-4)
 
 
@@ -37,11 +42,24 @@ def test_directional_and_spot_lights():
     albedo = [0.8, 0.8, 0.8]
     plane = [{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "m"}]
     direction = np.array([1.0, -2.0, 0.5])
-    r = whitted(plane, [diffuse("m", albedo)], [{"type": "directional", "direction": direction.tolist(), "irradiance": [2.0, 1.0, 3.0]}])
+    r = whitted(
+        plane,
+        [diffuse("m", albedo)],
+        [{"type": "directional", "direction": direction.tolist(), "irradiance": [2.0, 1.0, 3.0]}],
+    )
     cos = 2.0 / np.linalg.norm(direction)
     lit = r.rgb[r.aovs["object_id"] == 0]
-    np.testing.assert_allclose(lit, np.broadcast_to(np.array([2.0, 1.0, 3.0]) * 0.8 / np.pi * cos, lit.shape), rtol=1e-5)
-    spot = {"type": "spot", "position": [0, 2, 0], "direction": [0, -1, 0], "intensity": [30, 30, 30], "cutoff_angle": 30.0, "beam_width": 20.0}
+    np.testing.assert_allclose(
+        lit, np.broadcast_to(np.array([2.0, 1.0, 3.0]) * 0.8 / np.pi * cos, lit.shape), rtol=1e-5
+    )
+    spot = {
+        "type": "spot",
+        "position": [0, 2, 0],
+        "direction": [0, -1, 0],
+        "intensity": [30, 30, 30],
+        "cutoff_angle": 30.0,
+        "beam_width": 20.0,
+    }
     r = whitted(plane, [diffuse("m", albedo)], [spot])
     P = r.aovs["position"]
     angle = np.degrees(np.arctan2(np.hypot(P[..., 0], P[..., 2]), 2.0))
@@ -54,11 +72,11 @@ def test_directional_and_spot_lights():
 
 def test_phong_lobe_closed_form():
     kd, ks, n = np.array([0.3, 0.2, 0.1]), np.array([0.5, 0.6, 0.7]), 20.0
-    L, I = np.array([0.5, 2.0, 1.0]), np.array([8.0, 8.0, 8.0])
+    L, intensity = np.array([0.5, 2.0, 1.0]), np.array([8.0, 8.0, 8.0])
     r = whitted(
         [{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "p"}],
         [{"name": "p", "type": "phong", "albedo": kd.tolist(), "specular": ks.tolist(), "exponent": n}],
-        [{"type": "point", "position": L.tolist(), "intensity": I.tolist()}],
+        [{"type": "point", "position": L.tolist(), "intensity": intensity.tolist()}],
     )
     P = r.aovs["position"].astype(np.float64)
     N = np.array([0, 1.0, 0])
@@ -70,7 +88,7 @@ def test_phong_lobe_closed_form():
     mirror = -wi + 2 * wi[..., 1:2] * N
     cos_alpha = np.maximum((mirror * wo).sum(-1, keepdims=True), 0)
     f = kd / np.pi + ks * (n + 2) / (2 * np.pi) * cos_alpha**n
-    expected = f * I * wi[..., 1:2] / d2
+    expected = f * intensity * wi[..., 1:2] / d2
     hit = r.aovs["object_id"] == 0
     np.testing.assert_allclose(r.rgb[hit], expected[hit], rtol=2e-4)
 
@@ -78,7 +96,12 @@ def test_phong_lobe_closed_form():
 def test_mirror_returns_reflectance_times_the_wall_radiance():
     """A mirror (plane z = 0) facing a lit diffuse wall (plane z = 6): each mirror pixel equals
     reflectance x the wall's closed-form radiance at the reflected point."""
-    rho, albedo, L, I = np.array([0.9, 0.7, 0.5]), [0.6, 0.6, 0.6], np.array([0.0, 0.0, 3.0]), [20.0, 20.0, 20.0]
+    rho, albedo, L, intensity = (
+        np.array([0.9, 0.7, 0.5]),
+        [0.6, 0.6, 0.6],
+        np.array([0.0, 0.0, 3.0]),
+        [20.0, 20.0, 20.0],
+    )
     cam = {"origin": [0.0, 1.0, 4.0], "look_at": [0.0, 0.0, 0.0], "fov": 40}
     r = whitted(
         [
@@ -86,7 +109,7 @@ def test_mirror_returns_reflectance_times_the_wall_radiance():
             {"type": "plane", "point": [0, 0, 6], "normal": [0, 0, -1], "material": "wall"},
         ],
         [{"name": "mirror", "type": "mirror", "reflectance": rho.tolist()}, diffuse("wall", albedo)],
-        [{"type": "point", "position": L.tolist(), "intensity": I}],
+        [{"type": "point", "position": L.tolist(), "intensity": intensity}],
         camera=cam,
     )
     on_mirror = r.aovs["object_id"] == 0
@@ -96,25 +119,36 @@ def test_mirror_returns_reflectance_times_the_wall_radiance():
     d[..., 2] *= -1  # reflected about the mirror's normal
     t = (6.0 - P[..., 2]) / d[..., 2]
     W = P + t[..., None] * d  # where the reflected ray meets the wall
-    wall = lambert_point(W, np.array([0, 0, -1.0]), albedo, L, I)
+    wall = lambert_point(W, np.array([0, 0, -1.0]), albedo, L, intensity)
     np.testing.assert_allclose(r.rgb[on_mirror], rho * wall[on_mirror], rtol=1e-4)
 
 
-SLAB = {"type": "mesh", "file": "examples/meshes/cube.stl", "material": "glass", "transform": {"scale": [40.0, 40.0, 0.5]}}
+SLAB = {
+    "type": "mesh",
+    "file": "examples/meshes/cube.stl",
+    "material": "glass",
+    "transform": {"scale": [40.0, 40.0, 0.5]},
+}
 EMITTER = {"type": "plane", "point": [0, 0, -3], "normal": [0, 0, 1], "material": "light"}
 
 
-@pytest.mark.parametrize("max_depth, min_throughput, expected", [
-    (3, 1e-4, lambda F: (1 - F) ** 2),  # one pass straight through, no internal reflections
-    (64, 0.0, lambda F: (1 - F) / (1 + F)),  # every internal reflection: (1-F)^2 sum F^2k
-])
+@pytest.mark.parametrize(
+    "max_depth, min_throughput, expected",
+    [
+        (3, 1e-4, lambda F: (1 - F) ** 2),  # one pass straight through, no internal reflections
+        (64, 0.0, lambda F: (1 - F) / (1 + F)),  # every internal reflection: (1-F)^2 sum F^2k
+    ],
+)
 def test_glass_slab_at_normal_incidence(max_depth, min_throughput, expected):
     n = 1.5
     F = ((n - 1) / (n + 1)) ** 2
     L = np.array([1.0, 2.0, 3.0])
     r = whitted(
         [SLAB, EMITTER],
-        [{"name": "glass", "type": "dielectric", "ior": n}, {"name": "light", "albedo": [0, 0, 0], "emission": L.tolist()}],
+        [
+            {"name": "glass", "type": "dielectric", "ior": n},
+            {"name": "light", "albedo": [0, 0, 0], "emission": L.tolist()},
+        ],
         camera={"origin": [0, 0, 5], "look_at": [0, 0, 0], "fov": 10},
         size=(1, 1),
         max_depth=max_depth,
@@ -129,7 +163,10 @@ def test_beer_lambert_through_a_slab():
     F = ((n - 1) / (n + 1)) ** 2
     r = whitted(
         [SLAB, EMITTER],
-        [{"name": "glass", "type": "dielectric", "ior": n, "transmittance": T.tolist()}, {"name": "light", "albedo": [0, 0, 0], "emission": [1, 1, 1]}],
+        [
+            {"name": "glass", "type": "dielectric", "ior": n, "transmittance": T.tolist()},
+            {"name": "light", "albedo": [0, 0, 0], "emission": [1, 1, 1]},
+        ],
         camera={"origin": [0, 0, 5], "look_at": [0, 0, 0], "fov": 10},
         size=(1, 1),
         max_depth=3,
@@ -176,7 +213,9 @@ def test_ior_one_is_invisible():
     ]
     mats = [diffuse("floor", [0.5, 0.5, 0.5]), {"name": "ghost", "type": "dielectric", "ior": 1.0}]
     lights = [{"type": "point", "position": [1, 3, 2], "intensity": [10, 10, 10]}]
-    with_ghost = whitted(shapes, mats, lights, camera={"origin": [0, 1, 4], "look_at": [0, 0, 0]}, dielectric_shadows="filtered")
+    with_ghost = whitted(
+        shapes, mats, lights, camera={"origin": [0, 1, 4], "look_at": [0, 0, 0]}, dielectric_shadows="filtered"
+    )
     without = whitted(shapes[:1], mats, lights, camera={"origin": [0, 1, 4], "look_at": [0, 0, 0]})
     np.testing.assert_allclose(with_ghost.rgb, without.rgb, atol=1e-6)
 
@@ -186,7 +225,10 @@ def test_opaque_and_filtered_shadows_of_glass():
         {"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "floor"},
         {"type": "sphere", "center": [0, 1, 0], "radius": 0.5, "material": "glass"},
     ]
-    mats = [diffuse("floor", [0.5, 0.5, 0.5]), {"name": "glass", "type": "dielectric", "ior": 1.5, "transmittance": [0.5, 1.0, 1.0]}]
+    mats = [
+        diffuse("floor", [0.5, 0.5, 0.5]),
+        {"name": "glass", "type": "dielectric", "ior": 1.5, "transmittance": [0.5, 1.0, 1.0]},
+    ]
     lights = [{"type": "point", "position": [0, 3, 0], "intensity": [10, 10, 10]}]
     cam = {"origin": [0, 4, 4], "look_at": [0, 0, 0], "fov": 30}
     opaque = whitted(shapes, mats, lights, camera=cam, size=(48, 48))
@@ -215,18 +257,21 @@ def test_no_shadow_acne(offset, rtol):
     form (acne would leave dark speckles); shadowed plane pixels are exactly 0. Far from the
     origin float32 positions are spaced 1e-3 apart (0.2% of the sphere's radius), hence rtol."""
     o = np.asarray(offset, dtype=float)
-    C, R, L, I = o + [0, 0.5, 0], 0.5, o + [1.0, 3.0, 1.0], [15.0, 15.0, 15.0]
+    C, R, L, intensity = o + [0, 0.5, 0], 0.5, o + [1.0, 3.0, 1.0], [15.0, 15.0, 15.0]
     r = whitted(
-        [{"type": "plane", "point": o.tolist(), "normal": [0, 1, 0], "material": "m"}, {"type": "sphere", "center": C.tolist(), "radius": R, "material": "m"}],
+        [
+            {"type": "plane", "point": o.tolist(), "normal": [0, 1, 0], "material": "m"},
+            {"type": "sphere", "center": C.tolist(), "radius": R, "material": "m"},
+        ],
         [diffuse("m", [0.7, 0.7, 0.7])],
-        [{"type": "point", "position": L.tolist(), "intensity": I}],
+        [{"type": "point", "position": L.tolist(), "intensity": intensity}],
         camera={"origin": (o + [0, 2, 4]).tolist(), "look_at": (o + [0, 0.3, 0]).tolist(), "fov": 50},
         size=(96, 72),
     )
     P = r.aovs["position"].astype(np.float64)
     ids = r.aovs["object_id"]
     normal = np.where((ids == 1)[..., None], (P - C) / R, np.array([0, 1.0, 0]))
-    expected = lambert_point(P, normal, [0.7] * 3, L, I)
+    expected = lambert_point(P, normal, [0.7] * 3, L, intensity)
     # shadow test in float64: does the segment P -> L pass through the sphere?
     to = L - P
     length = np.linalg.norm(to, axis=-1)
@@ -246,22 +291,39 @@ def test_no_shadow_acne(offset, rtol):
 
 def test_no_nan_or_inf_in_degenerate_views():
     """Grazing angles, a camera exactly in a plane, rays along a plane, a camera inside glass."""
-    mats = [diffuse("d", [0.5, 0.5, 0.5]), {"name": "glass", "type": "dielectric", "ior": 1.5, "transmittance": [0.8, 0.9, 1.0]},
-            {"name": "mirror", "type": "mirror"}]
-    lights = [{"type": "point", "position": [0, 2, 0], "intensity": [5, 5, 5]}, {"type": "directional", "direction": [1, 0, 0], "irradiance": [1, 1, 1]}]
+    mats = [
+        diffuse("d", [0.5, 0.5, 0.5]),
+        {"name": "glass", "type": "dielectric", "ior": 1.5, "transmittance": [0.8, 0.9, 1.0]},
+        {"name": "mirror", "type": "mirror"},
+    ]
+    lights = [
+        {"type": "point", "position": [0, 2, 0], "intensity": [5, 5, 5]},
+        {"type": "directional", "direction": [1, 0, 0], "irradiance": [1, 1, 1]},
+    ]
     scenes = [
         # the camera sits in the plane y = 0 and looks along it
-        ([{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "d"}], {"origin": [0, 0, 3], "look_at": [0, 0, 0]}),
+        (
+            [{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "d"}],
+            {"origin": [0, 0, 3], "look_at": [0, 0, 0]},
+        ),
         # inside a glass sphere, with a mirror and a diffuse floor outside
-        ([{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "glass"},
-          {"type": "plane", "point": [0, -2, 0], "normal": [0, 1, 0], "material": "mirror"},
-          {"type": "triangle", "vertices": [[-3, -1.5, -3], [3, -1.5, -3], [0, 3, -3]], "material": "d"}],
-         {"origin": [0.1, 0.2, 0.3], "look_at": [0, 0, -1]}),
+        (
+            [
+                {"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "glass"},
+                {"type": "plane", "point": [0, -2, 0], "normal": [0, 1, 0], "material": "mirror"},
+                {"type": "triangle", "vertices": [[-3, -1.5, -3], [3, -1.5, -3], [0, 3, -3]], "material": "d"},
+            ],
+            {"origin": [0.1, 0.2, 0.3], "look_at": [0, 0, -1]},
+        ),
         # grazing views of glass and mirror, edge-on triangle
-        ([{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "glass"},
-          {"type": "triangle", "vertices": [[-2, 1, 0], [2, 1, 0], [0, 1, -4]], "material": "mirror"},
-          {"type": "plane", "point": [0, -1, 0], "normal": [0, 1, 0], "material": "d"}],
-         {"origin": [0, 1.0, 5], "look_at": [0, 1.0, 0]}),
+        (
+            [
+                {"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "glass"},
+                {"type": "triangle", "vertices": [[-2, 1, 0], [2, 1, 0], [0, 1, -4]], "material": "mirror"},
+                {"type": "plane", "point": [0, -1, 0], "normal": [0, 1, 0], "material": "d"},
+            ],
+            {"origin": [0, 1.0, 5], "look_at": [0, 1.0, 0]},
+        ),
     ]
     bad = 0
     for shapes, cam in scenes:
@@ -287,8 +349,12 @@ def test_max_depth_counts_segments():
 
 
 def slab(z_center, thickness, material):
-    return {"type": "mesh", "file": "examples/meshes/cube.stl", "material": material,
-            "transform": {"scale": [40.0, 40.0, thickness], "translate": [0.0, 0.0, z_center]}}
+    return {
+        "type": "mesh",
+        "file": "examples/meshes/cube.stl",
+        "material": material,
+        "transform": {"scale": [40.0, 40.0, thickness], "translate": [0.0, 0.0, z_center]},
+    }
 
 
 def fresnel_normal(n1, n2):
@@ -303,7 +369,13 @@ def through_slabs(shapes, max_depth, glass_priority=0):
         {"name": "glass", "type": "dielectric", "ior": 1.5, "priority": glass_priority},
         {"name": "light", "albedo": [0, 0, 0], "emission": [1, 1, 1]},
     ]
-    r = whitted(shapes + [EMITTER], mats, camera={"origin": [0, 0, 5], "look_at": [0, 0, 0], "fov": 10}, size=(1, 1), max_depth=max_depth)
+    r = whitted(
+        shapes + [EMITTER],
+        mats,
+        camera={"origin": [0, 0, 5], "look_at": [0, 0, 0], "fov": 10},
+        size=(1, 1),
+        max_depth=max_depth,
+    )
     return r.rgb[0, 0, 0]
 
 
@@ -314,10 +386,13 @@ def test_nested_media_use_the_right_ior_pairs():
     assert value == pytest.approx(expected, rel=1e-5)
 
 
-@pytest.mark.parametrize("glass_priority, interfaces", [
-    (1, [(1.0, 1.5), (1.5, 1.33), (1.33, 1.0)]),  # glass owns the overlap: entering water there is false
-    (0, [(1.0, 1.5), (1.5, 1.33), (1.33, 1.0)]),  # tie: water, entered last, owns it; leaving glass is false
-])
+@pytest.mark.parametrize(
+    "glass_priority, interfaces",
+    [
+        (1, [(1.0, 1.5), (1.5, 1.33), (1.33, 1.0)]),  # glass owns the overlap: entering water there is false
+        (0, [(1.0, 1.5), (1.5, 1.33), (1.33, 1.0)]),  # tie: water, entered last, owns it; leaving glass is false
+    ],
+)
 def test_overlapping_media_follow_priority(glass_priority, interfaces):
     """Glass z in [-0.5, 0.5] overlapping water z in [-1, 0]: along the ray the real interfaces
     depend on who owns the overlap [-0.5, 0]; at normal incidence both orders give the same
@@ -337,8 +412,13 @@ def test_overlap_priority_changes_absorption():
     values = []
     for priority in (1, 0):
         mats_p = mats + [{"name": "glass", "type": "dielectric", "ior": 1.5, "priority": priority}]
-        r = whitted([slab(-0.5, 1.0, "water"), slab(0.0, 1.0, "glass"), EMITTER], mats_p,
-                    camera={"origin": [0, 0, 5], "look_at": [0, 0, 0], "fov": 10}, size=(1, 1), max_depth=4)
+        r = whitted(
+            [slab(-0.5, 1.0, "water"), slab(0.0, 1.0, "glass"), EMITTER],
+            mats_p,
+            camera={"origin": [0, 0, 5], "look_at": [0, 0, 0], "fov": 10},
+            size=(1, 1),
+            max_depth=4,
+        )
         values.append(r.rgb[0, 0, 0])
     fresnel = np.prod([1 - fresnel_normal(a, b) for a, b in [(1.0, 1.5), (1.5, 1.33), (1.33, 1.0)]])
     assert values[0] == pytest.approx(fresnel * 0.5**0.5, rel=1e-4)

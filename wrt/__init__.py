@@ -5,6 +5,7 @@
 >>> result = wrt.render(scene, spp=4, device="cpu")
 >>> result.rgb.shape, sorted(result.aovs)
 """
+
 from importlib import metadata as _metadata
 
 from .errors import SceneError, WrtError

@@ -15,6 +15,7 @@ distribution, such as primitives spaced in a geometric progression) is rebuilt a
 Morton-order tree, of depth ``ceil(log2 n)``, opened breadth first, whose need is at most 3 per
 two levels: ``3 * ceil(log2(n) / 2) <= 48`` entries for any ``n < 2^31``.
 """
+
 from __future__ import annotations
 
 import os
@@ -97,7 +98,12 @@ class _Builder:
         scale = np.divide(1.0, extent, out=np.zeros(3), where=extent > 0.0)
         keys = wp.empty(2 * n, dtype=wp.int32, device=device)
         self.sorted = wp.empty(2 * n, dtype=wp.int32, device=device)
-        wp.launch(morton_codes, dim=n, inputs=[self.lo, self.hi, wp.vec3(*c_lo), wp.vec3(*scale), keys, self.sorted], device=device)
+        wp.launch(
+            morton_codes,
+            dim=n,
+            inputs=[self.lo, self.hi, wp.vec3(*c_lo), wp.vec3(*scale), keys, self.sorted],
+            device=device,
+        )
         wp.utils.radix_sort_pairs(keys, self.sorted, n, 0, 30)
 
     def tree(self, breadth_first: bool) -> tuple[wp.array, int, int]:
@@ -119,7 +125,24 @@ class _Builder:
             wp.launch(ploc_flags, dim=m, inputs=[nn, survive, merge], device=dev)
             wp.utils.array_scan(survive[:m], survive_sum[:m], inclusive=True)
             wp.utils.array_scan(merge[:m], merge_sum[:m], inclusive=True)
-            self._chunked(ploc_merge, m, [tree, c_lo, c_hi, c_node, nn, survive, survive_sum, merge, merge_sum, next_node, int(breadth_first), *out])
+            self._chunked(
+                ploc_merge,
+                m,
+                [
+                    tree,
+                    c_lo,
+                    c_hi,
+                    c_node,
+                    nn,
+                    survive,
+                    survive_sum,
+                    merge,
+                    merge_sum,
+                    next_node,
+                    int(breadth_first),
+                    *out,
+                ],
+            )
             next_node += _last(merge_sum, m)
             m = _last(survive_sum, m)
             iterations += 1
@@ -131,7 +154,10 @@ class _Builder:
         if self.pool is None or m <= CHUNK:
             wp.launch(kernel, dim=m, inputs=[*inputs, 0], device=self.device)
             return
-        jobs = [self.pool.submit(wp.launch, kernel, dim=min(CHUNK, m - first), inputs=[*inputs, first], device=self.device) for first in range(0, m, CHUNK)]
+        jobs = [
+            self.pool.submit(wp.launch, kernel, dim=min(CHUNK, m - first), inputs=[*inputs, first], device=self.device)
+            for first in range(0, m, CHUNK)
+        ]
         for job in jobs:
             job.result()
 
@@ -144,7 +170,9 @@ class _Builder:
         order = wp.empty(self.n, dtype=wp.int32, device=dev)
         first = np.zeros(total, dtype=np.int32)
         first[0] = root
-        level = [wp.array(first, dtype=wp.int32, device=dev)] + [wp.zeros(total, dtype=wp.int32, device=dev) for _ in range(2)]
+        level = [wp.array(first, dtype=wp.int32, device=dev)] + [
+            wp.zeros(total, dtype=wp.int32, device=dev) for _ in range(2)
+        ]
         spare = [wp.empty(total, dtype=wp.int32, device=dev) for _ in range(3)]
         counts, counts_sum = wp.empty(total, dtype=wp.int32, device=dev), wp.empty(total, dtype=wp.int32, device=dev)
         width = 1
@@ -190,7 +218,9 @@ def build_bvh(lo: np.ndarray, hi: np.ndarray, device) -> DeviceBvh:
             tree, root, iterations = builder.tree(breadth_first=True)
             stack = int(tree[root : root + 1].numpy()["stack"][0])
             if stack > STACK_SIZE:
-                raise RuntimeError(f"BVH of {n} primitives needs {stack} traversal stack entries, more than {STACK_SIZE}")
+                raise RuntimeError(
+                    f"BVH of {n} primitives needs {stack} traversal stack entries, more than {STACK_SIZE}"
+                )
         phases["cluster_s"] = time.perf_counter() - t1
         t1 = time.perf_counter()
         nodes, order, leaves = builder.wide(tree, root)

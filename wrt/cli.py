@@ -6,6 +6,7 @@ verbs through entry points of the group ``wrt.commands`` (the harness: ``matrix`
 returns the function that runs it. They are looked up only when the verb is not the library's
 (or for ``wrt --help``), so ``wrt render`` loads nothing else, and nothing here imports them.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,7 +18,13 @@ import threading
 
 from .errors import WrtError
 
-AOV_CHOICES = {"depth": "depth", "normal": "normal", "id": "object_id", "object_id": "object_id", "position": "position"}
+AOV_CHOICES = {
+    "depth": "depth",
+    "normal": "normal",
+    "id": "object_id",
+    "object_id": "object_id",
+    "position": "position",
+}
 
 
 def _aov_list(text: str) -> list[str]:
@@ -26,7 +33,9 @@ def _aov_list(text: str) -> list[str]:
         return ["depth", "normal", "object_id", "position"]
     unknown = [n for n in names if n not in AOV_CHOICES]
     if unknown or not names:
-        raise argparse.ArgumentTypeError(f"unknown AOV {unknown[0] if unknown else text!r} (choose from depth, normal, id, position, or all)")
+        raise argparse.ArgumentTypeError(
+            f"unknown AOV {unknown[0] if unknown else text!r} (choose from depth, normal, id, position, or all)"
+        )
     return list(dict.fromkeys(AOV_CHOICES[n] for n in names))
 
 
@@ -36,7 +45,9 @@ PLUGIN_GROUP = "wrt.commands"
 def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
     """The parser, and the run function of each verb; with ``plugins``, the verbs of the
     ``wrt.commands`` entry points too."""
-    parser = argparse.ArgumentParser(prog="wrt", description="wrt: a ray tracer whose rendering runs as NVIDIA Warp kernels.")
+    parser = argparse.ArgumentParser(
+        prog="wrt", description="wrt: a ray tracer whose rendering runs as NVIDIA Warp kernels."
+    )
     verbs = parser.add_subparsers(dest="verb", metavar="VERB", required=True)
     r = verbs.add_parser(
         "render",
@@ -51,7 +62,11 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
     r.add_argument("-o", "--output", required=True, help="output image, .exr or .png (written atomically)")
     r.add_argument("--spp", type=int, help="samples per pixel (default: the scene's [render] spp)")
     r.add_argument("--seed", type=int, help="random seed (default: the scene's [render] seed)")
-    r.add_argument("--sampler", choices=("independent", "stratified", "sobol"), help="random numbers (default: the scene's [render] sampler)")
+    r.add_argument(
+        "--sampler",
+        choices=("independent", "stratified", "sobol"),
+        help="random numbers (default: the scene's [render] sampler)",
+    )
     r.add_argument("--width", type=int, help="image width in pixels (default: the scene's)")
     r.add_argument("--height", type=int, help="image height in pixels (default: the scene's)")
     r.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
@@ -68,8 +83,9 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
         "--target-error",
         type=float,
         metavar="E",
-        help="adaptive sampling: a pixel stops once the estimated relative standard error of its mean luminance is below E "
-        "(e.g. 0.02); --spp is then the most a pixel takes, and an EXR output gets the per-pixel sample count as channel 'spp'",
+        help="adaptive sampling: a pixel stops once the estimated relative standard error of its mean luminance is "
+        "below E (e.g. 0.02); --spp is then the most a pixel takes, and an EXR output gets the per-pixel sample count "
+        "as channel 'spp'",
     )
     r.add_argument(
         "--checkpoint-every",
@@ -86,18 +102,42 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
         "over the scene geometry, or export them as a VTK multiblock. See docs/rays.md.",
     )
     rays.add_argument("scene", help="scene file (.toml)")
-    rays.add_argument("--pixel", nargs=2, type=int, action="append", default=[], metavar=("X", "Y"), help="a pixel to trace (row 0 at the top); repeatable")
-    rays.add_argument("--grid", nargs=2, type=int, metavar=("NX", "NY"), help="also trace the centre pixels of an NX x NY grid over the image")
+    rays.add_argument(
+        "--pixel",
+        nargs=2,
+        type=int,
+        action="append",
+        default=[],
+        metavar=("X", "Y"),
+        help="a pixel to trace (row 0 at the top); repeatable",
+    )
+    rays.add_argument(
+        "--grid",
+        nargs=2,
+        type=int,
+        metavar=("NX", "NY"),
+        help="also trace the centre pixels of an NX x NY grid over the image",
+    )
     rays.add_argument("--samples", type=int, default=1, help="samples per pixel (default 1: the pixel centre)")
-    rays.add_argument("--depth", type=int, help="max_depth: ray segments per path, camera ray included (default: the scene's)")
+    rays.add_argument(
+        "--depth", type=int, help="max_depth: ray segments per path, camera ray included (default: the scene's)"
+    )
     shown = rays.add_mutually_exclusive_group(required=True)
     shown.add_argument("-o", "--output", help="render the view off screen to this .png")
     shown.add_argument("--interactive", action="store_true", help="open a window (needs a display)")
     shown.add_argument("--export", help="write a VTK multiblock (.vtm) for ParaView or pyvista.read")
-    rays.add_argument("--view", nargs=2, type=float, metavar=("AZIMUTH", "ELEVATION"), help="view angles in degrees relative to the scene camera (default: automatic)")
+    rays.add_argument(
+        "--view",
+        nargs=2,
+        type=float,
+        metavar=("AZIMUTH", "ELEVATION"),
+        help="view angles in degrees relative to the scene camera (default: automatic)",
+    )
     rays.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
     rays.add_argument("--capacity", type=int, default=1 << 18, help="segments the record buffer holds (default 262144)")
-    rays.add_argument("--show-bvh", action="store_true", help="also draw the BVH boxes each traced ray's closest-hit query visited")
+    rays.add_argument(
+        "--show-bvh", action="store_true", help="also draw the BVH boxes each traced ray's closest-hit query visited"
+    )
 
     st = verbs.add_parser(
         "stress",
@@ -158,7 +198,14 @@ def _render(args) -> int:
     messages = init_warp()
     if args.device.startswith("cuda") and messages:
         print(messages, end="", file=sys.stderr)
-    scene = override_render(load_scene(args.scene, strict=args.strict), width=args.width, height=args.height, spp=args.spp, seed=args.seed, sampler=args.sampler)
+    scene = override_render(
+        load_scene(args.scene, strict=args.strict),
+        width=args.width,
+        height=args.height,
+        spp=args.spp,
+        seed=args.seed,
+        sampler=args.sampler,
+    )
     pixels = scene.render.width * scene.render.height
 
     def write(result) -> None:
@@ -190,7 +237,9 @@ def _render(args) -> int:
             if args.target_error is None:
                 rate = done / max(elapsed, 1e-9)  # spp per second
                 eta = tqdm.format_interval((spp - done) / rate)
-                bar.set_postfix_str(f"{tqdm.format_interval(elapsed)}<{eta}, {rate * pixels / 1e6:.3g} M samples/s", refresh=False)
+                bar.set_postfix_str(
+                    f"{tqdm.format_interval(elapsed)}<{eta}, {rate * pixels / 1e6:.3g} M samples/s", refresh=False
+                )
             else:  # fewer pixels each pass: no rate or ETA to promise
                 bar.set_postfix_str(f"{tqdm.format_interval(elapsed)}, adaptive", refresh=False)
             bar.update(done - bar.n)
@@ -199,7 +248,12 @@ def _render(args) -> int:
             return not stop.is_set()
 
         result = render(
-            scene, device=args.device, threads=args.threads, progress=on_pass, progress_every=args.checkpoint_every, target_error=args.target_error
+            scene,
+            device=args.device,
+            threads=args.threads,
+            progress=on_pass,
+            progress_every=args.checkpoint_every,
+            target_error=args.target_error,
         )
     write(result)
     h, w = result.rgb.shape[:2]
@@ -223,8 +277,17 @@ def _rays(args) -> int:
     if not args.pixel and not args.grid:
         raise WrtError("give at least one --pixel X Y or a --grid NX NY")
     return rayview.run(
-        args.scene, [tuple(p) for p in args.pixel], grid=args.grid, samples=args.samples, max_depth=args.depth, output=args.output,
-        interactive=args.interactive, export_path=args.export, view=args.view, device=args.device, capacity=args.capacity,
+        args.scene,
+        [tuple(p) for p in args.pixel],
+        grid=args.grid,
+        samples=args.samples,
+        max_depth=args.depth,
+        output=args.output,
+        interactive=args.interactive,
+        export_path=args.export,
+        view=args.view,
+        device=args.device,
+        capacity=args.capacity,
         show_bvh=args.show_bvh,
     )
 

@@ -3,6 +3,7 @@
 This is the one place where numpy arrays become ``wp.array``s; kernels receive the structs
 built here. float64 host values are rounded to float32 once, here.
 """
+
 from __future__ import annotations
 
 import math
@@ -54,7 +55,14 @@ from .scene import (
 
 SAMPLER_CODES = {"independent": INDEPENDENT, "stratified": STRATIFIED, "sobol": SOBOL}
 FILTER_CODES = {"box": BOX, "tent": TENT, "gaussian": GAUSSIAN}
-MATERIAL_CODES = {"diffuse": DIFFUSE, "phong": PHONG, "mirror": MIRROR, "dielectric": DIELECTRIC, "glossy": GLOSSY, "emitter": EMITTER}
+MATERIAL_CODES = {
+    "diffuse": DIFFUSE,
+    "phong": PHONG,
+    "mirror": MIRROR,
+    "dielectric": DIELECTRIC,
+    "glossy": GLOSSY,
+    "emitter": EMITTER,
+}
 
 
 def init_warp() -> str:
@@ -151,7 +159,12 @@ def upload_geometry(p: Primitives, device) -> SceneData:
 
 def _base_color(mat) -> tuple:
     """The colour the raycast integrator shows for a material."""
-    return {"mirror": mat.reflectance, "glossy": mat.reflectance, "dielectric": mat.transmittance, "emitter": mat.emission}.get(mat.type, mat.albedo)
+    return {
+        "mirror": mat.reflectance,
+        "glossy": mat.reflectance,
+        "dielectric": mat.transmittance,
+        "emitter": mat.emission,
+    }.get(mat.type, mat.albedo)
 
 
 def surface_materials(scene: Scene) -> tuple[list[int], list[Material]]:
@@ -163,7 +176,9 @@ def surface_materials(scene: Scene) -> tuple[list[int], list[Material]]:
     for k, light in enumerate(scene.lights):
         surfaces.append(len(materials) if isinstance(light, SURFACE_LIGHTS) else -1)
         if isinstance(light, SURFACE_LIGHTS):
-            materials.append(Material(name=f"light[{k}]", type="emitter", albedo=(0.0, 0.0, 0.0), emission=light.radiance))
+            materials.append(
+                Material(name=f"light[{k}]", type="emitter", albedo=(0.0, 0.0, 0.0), emission=light.radiance)
+            )
     return surfaces, materials
 
 
@@ -192,13 +207,28 @@ def upload_lights(scene: Scene, device) -> LightData:
     the surface of light k is surface ``num_shapes + k`` of the geometry."""
     rows = []
     for light in scene.lights:
-        row = {"position": (0.0, 0.0, 0.0), "direction": (0.0, 0.0, 1.0), "edge_u": (0.0, 0.0, 0.0), "edge_v": (0.0, 0.0, 0.0), "radius": 0.0, "cutoff": 180.0, "beam": 180.0}
+        row = {
+            "position": (0.0, 0.0, 0.0),
+            "direction": (0.0, 0.0, 1.0),
+            "edge_u": (0.0, 0.0, 0.0),
+            "edge_v": (0.0, 0.0, 0.0),
+            "radius": 0.0,
+            "cutoff": 180.0,
+            "beam": 180.0,
+        }
         if isinstance(light, PointLight):
             row.update(type=POINT, position=light.position, power=light.intensity)
         elif isinstance(light, DirectionalLight):
             row.update(type=DIRECTIONAL, direction=light.direction, power=light.irradiance)
         elif isinstance(light, SpotLight):
-            row.update(type=SPOT, position=light.position, direction=light.direction, power=light.intensity, cutoff=light.cutoff_angle, beam=light.beam_width)
+            row.update(
+                type=SPOT,
+                position=light.position,
+                direction=light.direction,
+                power=light.intensity,
+                cutoff=light.cutoff_angle,
+                beam=light.beam_width,
+            )
         elif isinstance(light, AreaLight):
             row.update(type=AREA, position=light.corner, edge_u=light.edge_u, edge_v=light.edge_v, power=light.radiance)
         elif isinstance(light, SphereLight):
@@ -252,7 +282,11 @@ def camera_data(camera: Camera, render: RenderSettings, width: int, height: int)
     c.forward, c.right, c.up = wp.vec3(*forward), wp.vec3(*right), wp.vec3(*up)
     c.tan_half_fov = math.tan(math.radians(camera.fov) / 2.0)
     c.aperture_radius = camera.aperture_radius
-    c.focus_distance = camera.focus_distance if camera.focus_distance is not None else float(np.linalg.norm(np.subtract(camera.look_at, camera.origin)))
+    c.focus_distance = (
+        camera.focus_distance
+        if camera.focus_distance is not None
+        else float(np.linalg.norm(np.subtract(camera.look_at, camera.origin)))
+    )
     c.aspect = width / height
     c.width, c.height = width, height
     c.filter = FILTER_CODES[render.filter]

@@ -4,6 +4,7 @@ The target is always either the previous file or the complete new one, never a p
 whatever stops the program (an exception, Ctrl-C). The new file gets the usual permissions
 (``0o666`` less the umask; ``mkstemp`` alone would leave ``0o600``).
 """
+
 from __future__ import annotations
 
 import json

@@ -8,6 +8,7 @@ primitives go into one BVH with mixed kinds (built on the render device, ``wrt.b
 unbounded and stay outside it. After the build each kind's arrays are reordered to the order the
 leaves list them, for memory locality.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -56,7 +57,12 @@ class Primitives:
         packed = np.asarray(packed, dtype=np.int64)
         kind, index = packed & 3, packed >> 2
         out = np.full(packed.shape, -1, dtype=np.int32)
-        for k, table in ((SPHERE, self.sphere_shape), (TRIANGLE, self.tri_shape), (POLYGON, self.poly_shape), (PLANE, self.plane_shape)):
+        for k, table in (
+            (SPHERE, self.sphere_shape),
+            (TRIANGLE, self.tri_shape),
+            (POLYGON, self.poly_shape),
+            (PLANE, self.plane_shape),
+        ):
             hit = (packed >= 0) & (kind == k)
             out[hit] = table[index[hit]]
         return out
@@ -187,4 +193,3 @@ def polygon_projection(vertices: np.ndarray, normal: np.ndarray) -> tuple[int, n
     axis = int(np.argmax(np.abs(normal)))
     keep = [k for k in range(3) if k != axis]
     return axis, vertices[:, keep]
-

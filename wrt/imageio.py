@@ -203,9 +203,7 @@ def read_image(path):
         inp.close()
     pixels = pixels.reshape(spec.height, spec.width, spec.nchannels)
     metadata = {
-        a.name[len(METADATA_PREFIX):]: a.value
-        for a in spec.extra_attribs
-        if a.name.startswith(METADATA_PREFIX)
+        a.name[len(METADATA_PREFIX) :]: a.value for a in spec.extra_attribs if a.name.startswith(METADATA_PREFIX)
     }
     if ext == ".png":
         if spec.nchannels < 3:
@@ -224,10 +222,7 @@ def _extension(path):
     """Return the lower-case extension of `path`, raising WrtError if it is unsupported."""
     ext = os.path.splitext(path)[1].lower()
     if ext not in SUPPORTED_EXTENSIONS:
-        raise WrtError(
-            f"{path}: unsupported image extension {ext!r}; use one of "
-            + ", ".join(SUPPORTED_EXTENSIONS)
-        )
+        raise WrtError(f"{path}: unsupported image extension {ext!r}; use one of " + ", ".join(SUPPORTED_EXTENSIONS))
     return ext
 
 

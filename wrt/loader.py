@@ -4,6 +4,7 @@ Every problem is reported as one ``SceneError`` naming the file, the table (``re
 ``camera``, ``material[i]``, ``shape[i]``, ``light[i]``; ``i`` counts from 0 in file order), the
 key and the offending value. The format is documented in ``docs/scene-format.md``.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -71,7 +72,9 @@ class _Table:
             raise self.error(key, "is required")
         return default
 
-    def number(self, key: str, default=_REQUIRED, *, integer=False, lo=-math.inf, hi=math.inf, lo_open=False, hi_open=False):
+    def number(
+        self, key: str, default=_REQUIRED, *, integer=False, lo=-math.inf, hi=math.inf, lo_open=False, hi_open=False
+    ):
         value = self.get(key, default)
         if value is default and default is not _REQUIRED:
             return value
@@ -183,7 +186,11 @@ def _camera(file: str, data) -> Camera:
     focus = t.number("focus_distance", None, lo=0.0, lo_open=True)
     shutter = t.get("shutter", Camera.shutter)
     if shutter is not Camera.shutter:
-        if not isinstance(shutter, list) or len(shutter) != 2 or any(isinstance(c, bool) or not isinstance(c, (int, float)) for c in shutter):
+        if (
+            not isinstance(shutter, list)
+            or len(shutter) != 2
+            or any(isinstance(c, bool) or not isinstance(c, (int, float)) for c in shutter)
+        ):
             raise t.error("shutter", "must be 2 numbers [open, close]", shutter)
         _check_float32(t, "shutter", shutter, shutter)
         if shutter[1] < shutter[0]:
@@ -197,7 +204,9 @@ def _camera(file: str, data) -> Camera:
     sin_angle = np.linalg.norm(np.cross(forward, np.asarray(up) / np.linalg.norm(up)))
     if sin_angle < 1e-6:
         raise t.error("up", "is parallel to the viewing direction (look_at - origin)", list(up))
-    return Camera(origin=origin, look_at=look_at, up=up, fov=fov, aperture_radius=aperture, focus_distance=focus, shutter=shutter)
+    return Camera(
+        origin=origin, look_at=look_at, up=up, fov=fov, aperture_radius=aperture, focus_distance=focus, shutter=shutter
+    )
 
 
 # keys each material type reads, besides name, type and emission
@@ -229,7 +238,11 @@ def _material(file: str, index: int, data) -> Material:
     t.finish()
     material = Material(**values)
     if kind == "phong" and any(a + s > 1.0 for a, s in zip(material.albedo, material.specular)):
-        raise t.error("specular", "albedo + specular must not exceed 1 in any channel (energy conservation)", list(material.specular))
+        raise t.error(
+            "specular",
+            "albedo + specular must not exceed 1 in any channel (energy conservation)",
+            list(material.specular),
+        )
     return material
 
 
@@ -325,11 +338,20 @@ def _light(file: str, index: int, data):
             beam_width=t.number("beam_width", 0.75 * cutoff, lo=0.0, hi=cutoff),
         )
     elif kind == "area":
-        light = AreaLight(corner=t.vec3("corner"), edge_u=t.vec3("edge_u", nonzero=True), edge_v=t.vec3("edge_v", nonzero=True), radiance=t.vec3("radiance", lo=0.0))
+        light = AreaLight(
+            corner=t.vec3("corner"),
+            edge_u=t.vec3("edge_u", nonzero=True),
+            edge_v=t.vec3("edge_v", nonzero=True),
+            radiance=t.vec3("radiance", lo=0.0),
+        )
         if not np.any(np.cross(light.edge_u, light.edge_v)):
             raise t.error("edge_v", "is parallel to edge_u (the light has no area)", list(light.edge_v))
     elif kind == "sphere":
-        light = SphereLight(center=t.vec3("center"), radius=t.number("radius", lo=0.0, lo_open=True), radiance=t.vec3("radiance", lo=0.0))
+        light = SphereLight(
+            center=t.vec3("center"),
+            radius=t.number("radius", lo=0.0, lo_open=True),
+            radiance=t.vec3("radiance", lo=0.0),
+        )
     else:
         light = EnvironmentLight(radiance=t.vec3("radiance", lo=0.0))
     t.finish()
@@ -358,12 +380,21 @@ def parse_scene(doc: Mapping, file: str = "<memory>", scene_dir: str = ".") -> S
     material_index[DEFAULT_MATERIAL.name] = len(materials)
     materials.append(DEFAULT_MATERIAL)
     shapes = [_shape(file, i, s, material_index, scene_dir) for i, s in enumerate(_array_of_tables(file, doc, "shape"))]
-    lights = [_light(file, i, l) for i, l in enumerate(_array_of_tables(file, doc, "light"))]
+    lights = [_light(file, i, light) for i, light in enumerate(_array_of_tables(file, doc, "light"))]
     if render.integrator == "whitted":
         for i, light in enumerate(lights):
             if isinstance(light, (AreaLight, SphereLight, EnvironmentLight)):
-                raise SceneError(file, f"light[{i}]", "type", "the whitted integrator takes point, directional and spot lights (area, sphere and environment lights need integrator = \"path\")", light.type)
-    return Scene(render=render, camera=camera, materials=tuple(materials), shapes=tuple(shapes), lights=tuple(lights), path=file)
+                raise SceneError(
+                    file,
+                    f"light[{i}]",
+                    "type",
+                    "the whitted integrator takes point, directional and spot lights (area, sphere and environment "
+                    'lights need integrator = "path")',
+                    light.type,
+                )
+    return Scene(
+        render=render, camera=camera, materials=tuple(materials), shapes=tuple(shapes), lights=tuple(lights), path=file
+    )
 
 
 def load_scene(path: str | os.PathLike, strict: bool = False) -> Scene:
@@ -404,5 +435,7 @@ def override_render(scene: Scene, source: str = "command line", **changes) -> Sc
     values = {k: v for k, v in changes.items() if v is not None}
     if not values:
         return scene
-    merged = {k: list(v) if isinstance(v, tuple) else v for k, v in {**dataclasses.asdict(scene.render), **values}.items()}
+    merged = {
+        k: list(v) if isinstance(v, tuple) else v for k, v in {**dataclasses.asdict(scene.render), **values}.items()
+    }
     return dataclasses.replace(scene, render=_render(source, merged))

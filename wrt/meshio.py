@@ -213,7 +213,9 @@ def _checked_triangles(points, faces, path):
     MeshFileError (the checks of ``_triangles``, without VTK)."""
     outside = np.count_nonzero((faces < 0) | (faces >= len(points)))
     if outside:
-        raise MeshFileError(f"{path}: {outside} of {faces.size} face vertex indices are out of range for {len(points)} vertices")
+        raise MeshFileError(
+            f"{path}: {outside} of {faces.size} face vertex indices are out of range for {len(points)} vertices"
+        )
     bad_points = np.count_nonzero(~np.all(np.isfinite(points), axis=1))
     if bad_points:
         raise MeshFileError(f"{path}: {bad_points} of {len(points)} vertices are NaN or infinite")

@@ -18,6 +18,7 @@ seed, Russian roulette depth) or the output file (pixel and file formats) conver
 Frames and units are Mitsuba's and wrt's alike: right-handed world space, angles in degrees,
 linear RGB; radiance in W/(m^2 sr), intensity in W/sr, irradiance in W/m^2.
 """
+
 from __future__ import annotations
 
 import math
@@ -63,18 +64,42 @@ IOR_TABLE = {
 Hecht, Optics, 4th ed., ~589 nm)."""
 
 CONDUCTOR_F0 = {
-    "Ag": (0.9748, 0.9575, 0.9063), "Al": (0.9280, 0.9178, 0.9189), "AlAs": (0.3200, 0.2783, 0.1430),
-    "Au": (0.9667, 0.8020, 0.3241), "Be": (0.5975, 0.5206, 0.5062), "Cr": (0.6876, 0.6491, 0.6870),
-    "CsI": (0.1325, 0.0675, 0.0619), "Cu": (0.9520, 0.6198, 0.5106), "Cu2O": (0.3147, 0.2455, 0.2379),
-    "CuO": (0.2907, 0.1982, 0.1834), "Hg": (0.8140, 0.7702, 0.7631), "HgTe": (0.4699, 0.3665, 0.3507),
-    "Ir": (0.7426, 0.6802, 0.6308), "K": (0.9539, 0.9363, 0.9201), "Li": (0.9248, 0.8844, 0.7933),
-    "MgO": (0.1244, 0.0603, 0.0526), "Mo": (0.6182, 0.5618, 0.5409), "Na_palik": (0.9785, 0.9597, 0.9315),
-    "Nb": (0.5640, 0.4895, 0.4731), "Ni_palik": (0.7001, 0.5942, 0.4936), "Rh": (0.8243, 0.7544, 0.7216),
-    "Se": (0.3793, 0.2507, 0.2413), "SiC": (0.2711, 0.1873, 0.1808), "SnTe": (0.4070, 0.1084, 0.0152),
-    "Ta": (0.4565, 0.3419, 0.3799), "Te": (0.6350, 0.5781, 0.5617), "ThF4": (0.0861, 0.0328, 0.0264),
-    "TiC": (0.5482, 0.4397, 0.4116), "TiN": (0.6409, 0.4523, 0.1976), "TiO2": (0.3039, 0.2246, 0.2380),
-    "VC": (0.5297, 0.4179, 0.3798), "VN": (0.5251, 0.3926, 0.3106), "V_palik": (0.5727, 0.5107, 0.5365),
-    "W": (0.5746, 0.4778, 0.4331), "a-C": (0.2794, 0.1940, 0.1691), "d-C": (0.2123, 0.1579, 0.1449),
+    "Ag": (0.9748, 0.9575, 0.9063),
+    "Al": (0.9280, 0.9178, 0.9189),
+    "AlAs": (0.3200, 0.2783, 0.1430),
+    "Au": (0.9667, 0.8020, 0.3241),
+    "Be": (0.5975, 0.5206, 0.5062),
+    "Cr": (0.6876, 0.6491, 0.6870),
+    "CsI": (0.1325, 0.0675, 0.0619),
+    "Cu": (0.9520, 0.6198, 0.5106),
+    "Cu2O": (0.3147, 0.2455, 0.2379),
+    "CuO": (0.2907, 0.1982, 0.1834),
+    "Hg": (0.8140, 0.7702, 0.7631),
+    "HgTe": (0.4699, 0.3665, 0.3507),
+    "Ir": (0.7426, 0.6802, 0.6308),
+    "K": (0.9539, 0.9363, 0.9201),
+    "Li": (0.9248, 0.8844, 0.7933),
+    "MgO": (0.1244, 0.0603, 0.0526),
+    "Mo": (0.6182, 0.5618, 0.5409),
+    "Na_palik": (0.9785, 0.9597, 0.9315),
+    "Nb": (0.5640, 0.4895, 0.4731),
+    "Ni_palik": (0.7001, 0.5942, 0.4936),
+    "Rh": (0.8243, 0.7544, 0.7216),
+    "Se": (0.3793, 0.2507, 0.2413),
+    "SiC": (0.2711, 0.1873, 0.1808),
+    "SnTe": (0.4070, 0.1084, 0.0152),
+    "Ta": (0.4565, 0.3419, 0.3799),
+    "Te": (0.6350, 0.5781, 0.5617),
+    "ThF4": (0.0861, 0.0328, 0.0264),
+    "TiC": (0.5482, 0.4397, 0.4116),
+    "TiN": (0.6409, 0.4523, 0.1976),
+    "TiO2": (0.3039, 0.2246, 0.2380),
+    "VC": (0.5297, 0.4179, 0.3798),
+    "VN": (0.5251, 0.3926, 0.3106),
+    "V_palik": (0.5727, 0.5107, 0.5365),
+    "W": (0.5746, 0.4778, 0.4331),
+    "a-C": (0.2794, 0.1940, 0.1691),
+    "d-C": (0.2123, 0.1579, 0.1449),
 }
 """Normal-incidence reflectance (linear RGB) of Mitsuba 3's named conductors, measured with
 Mitsuba 3.9 ``scalar_rgb`` (a ``conductor`` sampled at normal incidence). A ``<name>_palik``
@@ -85,13 +110,30 @@ FILTERS = {"box": ("radius", 0.5), "gaussian": ("stddev", 0.5), "tent": ("radius
 """Mitsuba reconstruction filters wrt has, with the parameter that sets their width and the
 default width (pixels) that wrt's filter of the same name assumes."""
 
-SAMPLERS = {"independent": "independent", "stratified": "stratified", "multijitter": "stratified",
-            "orthogonal": "stratified", "ldsampler": "sobol"}
+SAMPLERS = {
+    "independent": "independent",
+    "stratified": "stratified",
+    "multijitter": "stratified",
+    "orthogonal": "stratified",
+    "ldsampler": "sobol",
+}
 """Mitsuba sampler -> wrt ``[render] sampler``. Samplers change the noise, not the expected image."""
 
 _VALUE_TAGS = ("float", "integer", "boolean", "string", "rgb", "spectrum", "point", "vector", "transform")
-_PLUGIN_TAGS = ("bsdf", "emitter", "film", "sampler", "rfilter", "texture", "shape", "medium", "phase", "volume",
-                "sensor", "integrator")
+_PLUGIN_TAGS = (
+    "bsdf",
+    "emitter",
+    "film",
+    "sampler",
+    "rfilter",
+    "texture",
+    "shape",
+    "medium",
+    "phase",
+    "volume",
+    "sensor",
+    "integrator",
+)
 _HARMLESS = {
     "hdrfilm": ("file_format", "pixel_format", "component_format", "compensate"),
     "path": ("rr_depth",),
@@ -300,8 +342,9 @@ class _Plugin:
             for nested_name, child in self.nested:
                 if nested_name == name and child.tag == "texture":
                     self.used_nested.add(id(child))
-                    self.conv.warn(child, f"textures are not supported: '{name}' of {self.element.describe()} "
-                                          "uses its default")
+                    self.conv.warn(
+                        child, f"textures are not supported: '{name}' of {self.element.describe()} uses its default"
+                    )
         return element
 
     def has(self, name: str) -> bool:
@@ -315,7 +358,9 @@ class _Plugin:
         try:
             return int(text) if integer else float(text)
         except ValueError:
-            raise self.conv.error(element, f"'{name}' = {text!r} is not {'an integer' if integer else 'a number'}") from None
+            raise self.conv.error(
+                element, f"'{name}' = {text!r} is not {'an integer' if integer else 'a number'}"
+            ) from None
 
     def boolean(self, name: str, default: bool) -> bool:
         element = self._value(name, ("boolean",))
@@ -339,7 +384,9 @@ class _Plugin:
         if element.tag == "spectrum" and (text is None or ":" in text):
             pairs = _SPLIT.split(text.strip()) if text else [f"0:{default}"]
             values = self.conv.floats(element, " ".join(pair.partition(":")[2] for pair in pairs))
-            self.conv.warn(element, f"spectral data for '{name}' is not supported: using its mean {np.mean(values):.4g}")
+            self.conv.warn(
+                element, f"spectral data for '{name}' is not supported: using its mean {np.mean(values):.4g}"
+            )
             return [float(np.mean(values))] * 3
         values = self.conv.floats(element, text)
         if len(values) not in (1, 3) or (element.tag != "rgb" and len(values) != 1):
@@ -435,7 +482,7 @@ class _Converter:
 
         def substitute(match):
             if match.group(1) not in self.params:
-                raise self.error(element, f"${match.group(1)} is not defined (no <default name=\"{match.group(1)}\">)")
+                raise self.error(element, f'${match.group(1)} is not defined (no <default name="{match.group(1)}">)')
             return self.params[match.group(1)]
 
         return _PARAMETER.sub(substitute, element.attrs[name])
@@ -523,7 +570,13 @@ class _Converter:
         exterior = self._exterior_ior()
         if exterior != 1.0:
             render["exterior_ior"] = exterior
-        doc = {"render": render, "camera": camera, "material": self.materials, "shape": self.shapes, "light": self.lights}
+        doc = {
+            "render": render,
+            "camera": camera,
+            "material": self.materials,
+            "shape": self.shapes,
+            "light": self.lights,
+        }
         return doc, self.warnings
 
     def _collect_ids(self, element: _Element) -> None:
@@ -539,7 +592,9 @@ class _Converter:
         films = p.children("film")
         render = self._film(films[0] if films else _Element("film", {"type": "hdrfilm"}, element.line))
         samplers = p.children("sampler")
-        render.update(self._sampler(samplers[0] if samplers else _Element("sampler", {"type": "independent"}, element.line)))
+        render.update(
+            self._sampler(samplers[0] if samplers else _Element("sampler", {"type": "independent"}, element.line))
+        )
 
         if p.has("fov") and p.has("focal_length"):
             raise self.error(element, "give either fov or focal_length, not both")
@@ -583,13 +638,19 @@ class _Converter:
         if np.any(np.abs(norms - 1.0) > 1e-4):
             self.warn(element, "the to_world transform scales (Mitsuba refuses this): its scale is dropped")
         if np.linalg.det(basis) < 0:
-            self.warn(element, "the to_world transform mirrors the image (negative determinant): wrt renders it unmirrored")
+            self.warn(
+                element, "the to_world transform mirrors the image (negative determinant): wrt renders it unmirrored"
+            )
         if lookat is not None:
             origin, target, up = lookat
             up = up if np.any(up) else matrix[:3, 1]
             return {"origin": _list(origin), "look_at": _list(target), "up": _list(up)}
         origin = matrix[:3, 3]
-        return {"origin": _list(origin), "look_at": _list(origin + basis[:, 2] / norms[2]), "up": _list(basis[:, 1] / norms[1])}
+        return {
+            "origin": _list(origin),
+            "look_at": _list(origin + basis[:, 2] / norms[2]),
+            "up": _list(basis[:, 1] / norms[1]),
+        }
 
     def _film(self, element: _Element) -> dict:
         p = _Plugin(self, element)
@@ -630,8 +691,14 @@ class _Converter:
         if p.type == "stratified":
             count = math.ceil(math.sqrt(count)) ** 2  # Mitsuba rounds up to a square
             if not p.boolean("jitter", True):
-                self.warn(p.params["jitter"], "jitter = false (pixel-grid samples) is not supported: samples are jittered")
-        render = {"spp": count, "seed": p.number("seed", 0, integer=True), "sampler": SAMPLERS.get(p.type, "independent")}
+                self.warn(
+                    p.params["jitter"], "jitter = false (pixel-grid samples) is not supported: samples are jittered"
+                )
+        render = {
+            "spp": count,
+            "seed": p.number("seed", 0, integer=True),
+            "sampler": SAMPLERS.get(p.type, "independent"),
+        }
         p.finish()
         return render
 
@@ -691,7 +758,9 @@ class _Converter:
             material = _Material({"type": "mirror", "reflectance": self._conductor_reflectance(p)}, False)
         elif p.type == "roughconductor":
             roughness = self._alpha(p)
-            material = _Material({"type": "glossy", "roughness": roughness, "reflectance": self._conductor_reflectance(p)}, False)
+            material = _Material(
+                {"type": "glossy", "roughness": roughness, "reflectance": self._conductor_reflectance(p)}, False
+            )
         elif p.type == "dielectric":
             interior, exterior = p.ior("int_ior", "bk7"), p.ior("ext_ior", "air")
             for name in ("specular_reflectance", "specular_transmittance"):
@@ -724,13 +793,18 @@ class _Converter:
     def _alpha(self, p: _Plugin) -> float:
         distribution = p.string("distribution", "beckmann")
         if distribution != "ggx":
-            self.warn(p.params.get("distribution", p.element),
-                      f"distribution '{distribution}' is converted as GGX with the same alpha")
+            self.warn(
+                p.params.get("distribution", p.element),
+                f"distribution '{distribution}' is converted as GGX with the same alpha",
+            )
         if p.has("alpha_u") or p.has("alpha_v"):
             alpha_u, alpha_v = p.number("alpha_u", 0.1), p.number("alpha_v", 0.1)
             if alpha_u != alpha_v:
-                self.warn(p.element, "anisotropic roughness is not supported: "
-                                     f"alpha = {math.sqrt(alpha_u * alpha_v):.4g} (geometric mean)")
+                self.warn(
+                    p.element,
+                    "anisotropic roughness is not supported: "
+                    f"alpha = {math.sqrt(alpha_u * alpha_v):.4g} (geometric mean)",
+                )
             return math.sqrt(alpha_u * alpha_v)
         return p.number("alpha", 0.1)
 
@@ -752,8 +826,11 @@ class _Converter:
                 raise self.error(p.element, f"unknown conductor material {name!r} (known: {known}, and <name>_palik)")
             f0, source = np.array(known), f"material '{name}'"
         reflectance = _list(np.clip(f0 * scale, 0.0, 1.0))
-        self.warn(p.element, f"{source}: angle-dependent Fresnel approximated by its normal-incidence value "
-                             f"{[round(c, 4) for c in reflectance]}")
+        self.warn(
+            p.element,
+            f"{source}: angle-dependent Fresnel approximated by its normal-incidence value "
+            f"{[round(c, 4) for c in reflectance]}",
+        )
         return reflectance
 
     def _exterior_ior(self) -> float:
@@ -764,8 +841,11 @@ class _Converter:
         chosen = Counter(v for v, _ in self.ext_iors).most_common(1)[0][0]
         for value, element in self.ext_iors:
             if value != chosen:
-                self.warn(element, f"ext_ior {value:g} differs from the scene's exterior_ior {chosen:g}: wrt takes the medium "
-                                   "outside a dielectric from the dielectric enclosing it, or [render] exterior_ior")
+                self.warn(
+                    element,
+                    f"ext_ior {value:g} differs from the scene's exterior_ior {chosen:g}: wrt takes the medium "
+                    "outside a dielectric from the dielectric enclosing it, or [render] exterior_ior",
+                )
         return chosen
 
     # --- shapes and emitters ------------------------------------------------------------------
@@ -786,7 +866,11 @@ class _Converter:
                 self.warn(element, "non-uniform scale: the radius is the to_world x axis scale (as in Mitsuba)")
             if front < 0:
                 self.warn(p.params["flip_normals"], "flip_normals on a sphere is not supported: normals point outward")
-            geometry = {"type": "sphere", "center": _list(placed[:3, 3]), "radius": float(np.linalg.norm(placed[:3, 0]))}
+            geometry = {
+                "type": "sphere",
+                "center": _list(placed[:3, 3]),
+                "radius": float(np.linalg.norm(placed[:3, 0])),
+            }
             tables = [geometry]
         elif p.type in ("rectangle", "cube"):
             loops = [_RECTANGLE] if p.type == "rectangle" else _cube_faces()
@@ -803,8 +887,11 @@ class _Converter:
             radiance = self._area_radiance(emitters[0])
             if p.type in ("rectangle", "sphere"):
                 if material.reflects():
-                    self.warn(bsdfs[0] if bsdfs else element, "wrt's area lights reflect no light, but this emitter's "
-                              "BSDF reflects in Mitsuba (set its reflectance to 0 to compare)")
+                    self.warn(
+                        bsdfs[0] if bsdfs else element,
+                        "wrt's area lights reflect no light, but this emitter's "
+                        "BSDF reflects in Mitsuba (set its reflectance to 0 to compare)",
+                    )
                 self.lights.append(self._surface_light(tables[0], radiance))
                 p.finish()
                 return
@@ -814,8 +901,11 @@ class _Converter:
             self.materials.append({"name": name, **material.table, "emission": radiance})
         else:
             if p.type in ("rectangle", "obj", "ply") and not material.two_sided:
-                self.warn(bsdfs[0] if bsdfs else element, "one-sided BSDF on an open surface: Mitsuba renders its back black, "
-                          "wrt shades both sides (wrap it in a twosided BSDF to compare)")
+                self.warn(
+                    bsdfs[0] if bsdfs else element,
+                    "one-sided BSDF on an open surface: Mitsuba renders its back black, "
+                    "wrt shades both sides (wrap it in a twosided BSDF to compare)",
+                )
             name = self._material_name(bsdfs[0]) if bsdfs else None
         for table in tables:
             self.shapes.append({**table, "material": name} if name else table)
@@ -828,12 +918,18 @@ class _Converter:
         if p.boolean("flip_normals", False):
             self.warn(p.params["flip_normals"], "flip_normals on a mesh is not supported: the file's winding is kept")
         if np.linalg.det(matrix[:3, :3]) < 0:
-            self.warn(p.element, "the to_world transform mirrors the mesh: wrt's front side follows the mirrored winding, "
-                                 "Mitsuba's shading normals do not")
+            self.warn(
+                p.element,
+                "the to_world transform mirrors the mesh: wrt's front side follows the mirrored winding, "
+                "Mitsuba's shading normals do not",
+            )
         face_normals = p.boolean("face_normals", False)
         if not face_normals and _has_vertex_normals(os.path.join(os.path.dirname(self.path), filename)):
-            self.warn(p.element, "Mitsuba interpolates this file's vertex normals, wrt shades with face normals "
-                                 "(set face_normals = true to compare)")
+            self.warn(
+                p.element,
+                "Mitsuba interpolates this file's vertex normals, wrt shades with face normals "
+                "(set face_normals = true to compare)",
+            )
         table = {"type": "mesh", "file": filename}
         if not np.array_equal(matrix, np.eye(4)):
             table["transform"] = {"matrix": [_list(row) for row in matrix]}
@@ -855,7 +951,13 @@ class _Converter:
             return {"type": "sphere", "center": geometry["center"], "radius": geometry["radius"], "radiance": radiance}
         v = np.array(geometry["vertices"])
         edge_u, edge_v = v[1] - v[0], v[3] - v[0]
-        return {"type": "area", "corner": _list(v[0]), "edge_u": _list(edge_u), "edge_v": _list(edge_v), "radiance": radiance}
+        return {
+            "type": "area",
+            "corner": _list(v[0]),
+            "edge_u": _list(edge_u),
+            "edge_v": _list(edge_v),
+            "radiance": radiance,
+        }
 
     def _emitter(self, element: _Element) -> None:
         p = _Plugin(self, element)
@@ -865,9 +967,16 @@ class _Converter:
             self.lights.append({"type": "point", "position": _list(position), "intensity": p.color("intensity", 1.0)})
         elif p.type == "spot":
             cutoff = p.number("cutoff_angle", 20.0)
-            self.lights.append({"type": "spot", "position": _list(matrix[:3, 3]), "direction": _list(matrix[:3, 2]),
-                                "intensity": p.color("intensity", 1.0), "cutoff_angle": cutoff,
-                                "beam_width": p.number("beam_width", 0.75 * cutoff)})
+            self.lights.append(
+                {
+                    "type": "spot",
+                    "position": _list(matrix[:3, 3]),
+                    "direction": _list(matrix[:3, 2]),
+                    "intensity": p.color("intensity", 1.0),
+                    "cutoff_angle": cutoff,
+                    "beam_width": p.number("beam_width", 0.75 * cutoff),
+                }
+            )
         elif p.type == "directional":
             direction = p.vector("direction", matrix[:3, 2])
             irradiance = p.color("irradiance", 1.0)

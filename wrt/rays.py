@@ -11,6 +11,7 @@ decisions. Nothing is re-implemented in Python.
 >>> tree = trace_rays(scene, [(130, 200)])
 >>> tree.kind_name(0), tree.end[0], tree.children(0)
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -40,7 +41,11 @@ from .loader import override_render
 from .renderer import prepare
 from .scene import Scene
 
-RECORD_KERNELS = {"raycast": raycast_record, "whitted": whitted_record, "path": path_record}  # all three, before any launch
+RECORD_KERNELS = {
+    "raycast": raycast_record,
+    "whitted": whitted_record,
+    "path": path_record,
+}  # all three, before any launch
 DEFAULT_CAPACITY = 1 << 18  # segments (about 30 MB); a whitted camera ray is at most 512 plus its shadow rays
 MAX_VISITS = 512  # BVH nodes logged per replayed ray (--show-bvh)
 
@@ -204,7 +209,9 @@ def trace_rays(
     recorded = int(rec.count.numpy()[0])
     seg = rec.segments.numpy()[: min(recorded, capacity)]
     flags = seg["flags"]
-    visit_row, visit_node, bvh_lo, bvh_hi = (np.zeros(0, dtype=np.int64),) * 2 + (np.zeros((0, 3), dtype=np.float32),) * 2
+    visit_row, visit_node, bvh_lo, bvh_hi = (np.zeros(0, dtype=np.int64),) * 2 + (
+        np.zeros((0, 3), dtype=np.float32),
+    ) * 2
     if bvh:
         visit_row, visit_node = bvh_visits(frame, seg, dev)
         bvh_lo, bvh_hi = node_bounds(frame.geometry.nodes.numpy())

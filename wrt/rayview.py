@@ -28,6 +28,7 @@ normal reflection and refraction use), misses fading out, visited BVH boxes as t
 renders off screen to a PNG (EGL when there is no display), ``show`` opens a window, ``export``
 writes the blocks to a ``.vtm`` that ParaView and ``pyvista.read`` open.
 """
+
 from __future__ import annotations
 
 import os
@@ -125,7 +126,9 @@ def _segment_data(mesh: pv.PolyData, tree: RayTree, rows: np.ndarray) -> None:
     mesh.cell_data["shape"] = tree.shape[rows]
     mesh.cell_data["entering"] = tree.entering[rows].astype(np.uint8)
     mesh.cell_data["throughput"] = tree.throughput[rows]
-    mesh.cell_data["color"] = np.array([_rgb255(KIND_COLORS[k]) for k in tree.kind[rows]], dtype=np.uint8).reshape(-1, 3)
+    mesh.cell_data["color"] = np.array([_rgb255(KIND_COLORS[k]) for k in tree.kind[rows]], dtype=np.uint8).reshape(
+        -1, 3
+    )
     mesh.field_data["kind_names"] = np.array(RayTree.KIND_NAMES)
 
 
@@ -173,7 +176,11 @@ def ray_blocks(tree: RayTree) -> pv.MultiBlock:
             light_points += [centre - 0.6 * size * d, centre - 0.45 * size * d]
     lights = pv.PolyData()
     if light_points:
-        lights = pv.PolyData(np.asarray(light_points, dtype=np.float64), verts=np.array(verts, dtype=np.int64), lines=np.array(lines, dtype=np.int64))
+        lights = pv.PolyData(
+            np.asarray(light_points, dtype=np.float64),
+            verts=np.array(verts, dtype=np.int64),
+            lines=np.array(lines, dtype=np.int64),
+        )
 
     cam = scene.camera
     forward, right, up = cam.basis()
@@ -181,7 +188,10 @@ def ray_blocks(tree: RayTree) -> pv.MultiBlock:
     half_w = half_h * scene.render.width / scene.render.height
     depth = 0.08 * size
     origin = np.asarray(cam.origin, dtype=np.float64)
-    corners = [origin + depth * (forward + sx * half_w * right + sy * half_h * up) for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+    corners = [
+        origin + depth * (forward + sx * half_w * right + sy * half_h * up)
+        for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))
+    ]
     pyramid = np.array([origin, *corners])
     camera = pv.PolyData(pyramid, lines=np.array([2, 0, 1, 2, 0, 2, 2, 0, 3, 2, 0, 4, 5, 1, 2, 3, 4, 1]))
 
@@ -250,12 +260,32 @@ def draw(plotter: pv.Plotter, tree: RayTree, view: tuple[float, float] | None = 
         plotter.add_mesh(mesh, scalars="color", rgb=True, opacity=opacity, show_scalar_bar=False, smooth_shading=True)
     segments, misses, hits = blocks["segments"], blocks["misses"], blocks["hits"]
     if segments.n_cells:
-        plotter.add_mesh(segments, scalars="color", rgb=True, line_width=4, render_lines_as_tubes=True, show_scalar_bar=False, lighting=False)
+        plotter.add_mesh(
+            segments,
+            scalars="color",
+            rgb=True,
+            line_width=4,
+            render_lines_as_tubes=True,
+            show_scalar_bar=False,
+            lighting=False,
+        )
     if misses.n_cells:
-        plotter.add_mesh(misses, scalars="rgba", rgb=True, line_width=4, render_lines_as_tubes=True, show_scalar_bar=False, lighting=False)
+        plotter.add_mesh(
+            misses,
+            scalars="rgba",
+            rgb=True,
+            line_width=4,
+            render_lines_as_tubes=True,
+            show_scalar_bar=False,
+            lighting=False,
+        )
     if hits.n_points:
         colors = np.array([_rgb255(KIND_COLORS[k]) for k in hits.point_data["kind"]], dtype=np.uint8)
-        balls = hits.glyph(geom=pv.Sphere(radius=HIT_FRACTION * size, theta_resolution=12, phi_resolution=12), orient=False, scale=False)
+        balls = hits.glyph(
+            geom=pv.Sphere(radius=HIT_FRACTION * size, theta_resolution=12, phi_resolution=12),
+            orient=False,
+            scale=False,
+        )
         balls.point_data["color"] = np.repeat(colors, balls.n_points // hits.n_points, axis=0)
         plotter.add_mesh(balls, scalars="color", rgb=True, show_scalar_bar=False)
         arrow = pv.Arrow(tip_length=0.3, tip_radius=0.08, shaft_radius=0.025, scale=NORMAL_FRACTION * size)
@@ -265,7 +295,14 @@ def draw(plotter: pv.Plotter, tree: RayTree, view: tuple[float, float] | None = 
         plotter.add_mesh(boxes, color=BVH_COLOR, opacity=0.6, line_width=1, lighting=False)
     lights = blocks["lights"]
     if lights.n_points:
-        plotter.add_mesh(lights, color=LIGHT_COLOR, point_size=20, render_points_as_spheres=True, line_width=6, render_lines_as_tubes=True)
+        plotter.add_mesh(
+            lights,
+            color=LIGHT_COLOR,
+            point_size=20,
+            render_points_as_spheres=True,
+            line_width=6,
+            render_lines_as_tubes=True,
+        )
     plotter.add_mesh(blocks["camera"], color="#303030", line_width=2)
     legend = [[RayTree.KIND_NAMES[k], KIND_COLORS[k]] for k in sorted(set(tree.kind.tolist()))]
     if tree.hit.any():
@@ -277,8 +314,13 @@ def draw(plotter: pv.Plotter, tree: RayTree, view: tuple[float, float] | None = 
     width, height = 0.011 * max(len(label) for label, _ in legend) + 0.04, 0.032 * len(legend)
     box = plotter.add_legend(legend, bcolor="white", border=True, size=(width, height), face="rectangle")
     box.SetPosition(0.99 - width, 0.95 - height)  # upper right (pyvista's loc offsets x by the height)
-    px = ", ".join(f"({x}, {y})" for x, y in tree.pixels[:4]) + (f" and {len(tree.pixels) - 4} more" if len(tree.pixels) > 4 else "")
-    title = f"{os.path.basename(tree.scene.path)}: pixel{'s' if len(tree.pixels) > 1 else ''} {px}, {tree.samples} sample{'s' if tree.samples > 1 else ''}, max_depth {tree.scene.render.max_depth}"
+    px = ", ".join(f"({x}, {y})" for x, y in tree.pixels[:4]) + (
+        f" and {len(tree.pixels) - 4} more" if len(tree.pixels) > 4 else ""
+    )
+    title = (
+        f"{os.path.basename(tree.scene.path)}: pixel{'s' if len(tree.pixels) > 1 else ''} {px}, {tree.samples} "
+        f"sample{'s' if tree.samples > 1 else ''}, max_depth {tree.scene.render.max_depth}"
+    )
     if tree.truncated:
         title += f"\n(truncated: {len(tree)} of {tree.recorded} segments recorded)"
     plotter.add_text(title, position="upper_left", font_size=10, color="black")
@@ -313,7 +355,10 @@ def _has_display() -> bool:
 
 def _require_display() -> None:
     if not _has_display():
-        raise WrtError("an interactive window needs a display, and neither DISPLAY nor WAYLAND_DISPLAY is set (use -o view.png or --export rays.vtm)")
+        raise WrtError(
+            "an interactive window needs a display, and neither DISPLAY nor WAYLAND_DISPLAY is set (use -o view.png "
+            "or --export rays.vtm)"
+        )
 
 
 def _offscreen_backend() -> None:
@@ -322,7 +367,9 @@ def _offscreen_backend() -> None:
         os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 
 
-def save_view(tree: RayTree, path: str, size: tuple[int, int] = (1280, 960), view: tuple[float, float] | None = None) -> None:
+def save_view(
+    tree: RayTree, path: str, size: tuple[int, int] = (1280, 960), view: tuple[float, float] | None = None
+) -> None:
     """Render the recording off screen to the PNG ``path`` (``view``: see ``draw``), atomically: to a
     temporary file beside it, renamed into place once complete."""
     folder, name = _folder_of(path)
@@ -382,12 +429,21 @@ def run(
     chosen = list(pixels)
     if grid is not None:
         chosen += grid_pixels(scene.render.width, scene.render.height, *grid)
-    tree = trace_rays(scene, chosen, samples=samples, max_depth=max_depth, device=device, capacity=capacity, bvh=show_bvh)
+    tree = trace_rays(
+        scene, chosen, samples=samples, max_depth=max_depth, device=device, capacity=capacity, bvh=show_bvh
+    )
     counts = np.bincount(tree.kind, minlength=len(RayTree.KIND_NAMES))
     summary = ", ".join(f"{n} {name}" for name, n in zip(RayTree.KIND_NAMES, counts) if n)
-    print(f"{scene_file}: {len(tree.pixels)} pixel{'s' if len(tree.pixels) > 1 else ''} x {samples} sample{'s' if samples > 1 else ''}: {len(tree)} segments ({summary})")
+    print(
+        f"{scene_file}: {len(tree.pixels)} pixel{'s' if len(tree.pixels) > 1 else ''} x {samples} "
+        f"sample{'s' if samples > 1 else ''}: {len(tree)} segments ({summary})"
+    )
     if tree.truncated:
-        print(f"wrt: warning: the record buffer was full: kept {len(tree)} of {tree.recorded} segments (raise --capacity)", file=sys.stderr)
+        print(
+            f"wrt: warning: the record buffer was full: kept {len(tree)} of {tree.recorded} segments (raise "
+            "--capacity)",
+            file=sys.stderr,
+        )
     if export_path is not None:
         export(tree, export_path)
         print(f"wrote {export_path}")

@@ -15,6 +15,7 @@ render with the samples done.
 kernel: ``render`` launches the rendering variants over the image, ``wrt.rays`` the recording
 variants over chosen pixels.
 """
+
 from __future__ import annotations
 
 import os
@@ -132,8 +133,18 @@ class DeviceScene:
         pass_spp = spp - first_sample if pass_spp is None else pass_spp
         sampler = sampler_data(self.sampler, spp, seed)
         inputs = [
-            self.geometry, self.materials, self.lights, self.settings, self.camera, sampler, first_sample, pass_spp, first,
-            self.no_active if active is None else active, self.film, NO_RECORD if rec is None else rec,
+            self.geometry,
+            self.materials,
+            self.lights,
+            self.settings,
+            self.camera,
+            sampler,
+            first_sample,
+            pass_spp,
+            first,
+            self.no_active if active is None else active,
+            self.film,
+            NO_RECORD if rec is None else rec,
         ]
         wp.launch(kernel, dim=count, inputs=inputs, device=self.device)
 
@@ -225,8 +236,10 @@ def check_memory(scene: Scene, dev) -> None:
     for where, bytes_needed, available in budgets:
         if available is not None and bytes_needed > available:
             raise WrtError(
-                f"{scene.path}: render.width x height = {w} x {h}: needs about {bytes_needed / 2**30:.1f} GiB of {where} "
-                f"(film and AOVs {FILM_BYTES_PER_PIXEL} B/pixel, writing the image about {WRITE_BYTES_PER_PIXEL} B/pixel more), "
+                f"{scene.path}: render.width x height = {w} x {h}: needs about {bytes_needed / 2**30:.1f} GiB of "
+                f"{where} "
+                f"(film and AOVs {FILM_BYTES_PER_PIXEL} B/pixel, writing the image about {WRITE_BYTES_PER_PIXEL} "
+                "B/pixel more), "
                 f"only {available / 2**30:.1f} GiB available: render a smaller image"
             )
 
@@ -353,7 +366,10 @@ def render(
             wp.synchronize_device(dev)
         else:
             tiles = [(first, min(TILE_PIXELS, n - first)) for first in range(0, n, TILE_PIXELS)]
-            for future in [pool.submit(frame.launch, kernel, first, count, spp, seed, None, first_sample, pass_spp, on_device) for first, count in tiles]:
+            for future in [
+                pool.submit(frame.launch, kernel, first, count, spp, seed, None, first_sample, pass_spp, on_device)
+                for first, count in tiles
+            ]:
                 future.result()
         counts[slice(None) if active is None else active] = first_sample + pass_spp
 
@@ -388,7 +404,9 @@ def render(
             done += n
             if schedule is not None and done < spp:
                 pixels = np.arange(w * h) if active is None else active
-                error = relative_error(frame.film.rgb_sum.numpy()[pixels], frame.film.luminance_sq_sum.numpy()[pixels], done)
+                error = relative_error(
+                    frame.film.rgb_sum.numpy()[pixels], frame.film.luminance_sq_sum.numpy()[pixels], done
+                )
                 active = pixels[error > target_error].astype(np.int32)
             busy += time.perf_counter() - t2
             if progress is not None and progress(done, spp, busy, partial(result, done, busy, True)) is False:
@@ -399,4 +417,3 @@ def render(
         if pool is not None:
             pool.shutdown(cancel_futures=True)  # interrupted: drop the tiles not started
     return result(done, busy, copy=False)
-

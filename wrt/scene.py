@@ -4,6 +4,7 @@ Units and frames: world space is right-handed, lengths in scene units, angles in
 colours linear RGB. ``wrt.loader`` builds these from a TOML file and is the only place that
 validates; code downstream trusts them.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -11,6 +11,7 @@ shape indices). The kernels are the all-features ones unless ``specialize=True``
 of the scene's geometry (a triangle mesh: no sphere or polygon tests), as a large render of the
 scene uses; each variant compiles (seconds) the first time.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -42,7 +43,9 @@ class Tracer:
         self.device = resolve_device(device)
         self.prims = build(scene, self.device)
         self.data = upload_geometry(self.prims, self.device)
-        self.closest_kernel, self.any_kernel, self.visits_kernel = trace_kernels(scene_features(scene) if specialize else ALL)
+        self.closest_kernel, self.any_kernel, self.visits_kernel = trace_kernels(
+            scene_features(scene) if specialize else ALL
+        )
 
     def closest(self, origins, directions, t_min: float = 0.0, t_max: float = np.inf, brute_force: bool = False):
         """``(t, packed primitive id)`` per ray in ``(t_min, t_max)``; ``t = t_max`` and id -1 on a
@@ -58,7 +61,9 @@ class Tracer:
         """Whether anything lies in ``(t_min, t_max)`` along each ray."""
         o, d = vec3_array(origins, self.device), vec3_array(directions, self.device)
         hit = wp.zeros(len(o), dtype=wp.int32, device=self.device)
-        wp.launch(self.any_kernel, dim=len(o), inputs=[self.data, o, d, float(t_min), float(t_max), hit], device=self.device)
+        wp.launch(
+            self.any_kernel, dim=len(o), inputs=[self.data, o, d, float(t_min), float(t_max), hit], device=self.device
+        )
         return hit.numpy().astype(bool)
 
     def triangles(self, packed):

@@ -11,6 +11,7 @@ geometry), ``refraction`` (and whole images); ``common`` builds their scenes, ``
 Ray budget: ``rays`` (N, ``wrt stress --rays``) is the number of rays each ray-batch case
 shoots; the image cases render fixed small images whatever N (their ray count is reported).
 """
+
 from .report import CaseResult, format_table
 from .suite import CASES, DEFAULT_RAYS, command, run_suite
 

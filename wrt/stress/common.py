@@ -1,5 +1,6 @@
 """What every stress case builds on: scenes built in memory, unit vectors, float32 rounding, and
 the closed meshes the watertightness and self-intersection cases shoot at."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -21,13 +22,24 @@ def make_scene(shapes=(), meshes=(), materials=(), camera=None, render=None, lig
     ``meshes``: ``(vertices (V, 3), faces (F, 3), material name or None)``; they follow the
     ``shapes`` in ``[[shape]]`` order (so their object ids come after).
     """
-    doc = {"camera": camera or {"origin": [0.0, 0.0, 5.0], "look_at": [0.0, 0.0, 0.0]}, "shape": list(shapes), "material": list(materials), "light": list(lights)}
+    doc = {
+        "camera": camera or {"origin": [0.0, 0.0, 5.0], "look_at": [0.0, 0.0, 0.0]},
+        "shape": list(shapes),
+        "material": list(materials),
+        "light": list(lights),
+    }
     if render:
         doc["render"] = render
     scene = parse_scene(doc, file="<stress>")
     index = {m.name: i for i, m in enumerate(scene.materials)}
     extra = tuple(
-        Mesh(file="<stress>", vertices=np.asarray(v, np.float64), faces=np.asarray(f, np.int32), material=index[m or "default"]) for v, f, m in meshes
+        Mesh(
+            file="<stress>",
+            vertices=np.asarray(v, np.float64),
+            faces=np.asarray(f, np.int32),
+            material=index[m or "default"],
+        )
+        for v, f, m in meshes
     )
     return dataclasses.replace(scene, shapes=scene.shapes + extra)
 
@@ -63,7 +75,10 @@ def uv_sphere(n_lon=64, n_lat=32):
     def idx(i, k):
         return 1 + i * n_lon + k
 
-    faces = [np.column_stack([np.zeros(n_lon, int), idx(0, jn), idx(0, j)]), np.column_stack([np.full(n_lon, south), idx(n_lat - 2, j), idx(n_lat - 2, jn)])]
+    faces = [
+        np.column_stack([np.zeros(n_lon, int), idx(0, jn), idx(0, j)]),
+        np.column_stack([np.full(n_lon, south), idx(n_lat - 2, j), idx(n_lat - 2, jn)]),
+    ]
     for i in range(n_lat - 2):
         a, b, c, d = idx(i, j), idx(i, jn), idx(i + 1, j), idx(i + 1, jn)
         faces += [np.column_stack([a, b, d]), np.column_stack([a, d, c])]

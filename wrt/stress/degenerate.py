@@ -1,5 +1,6 @@
 """Grazing and degenerate geometry: rays in a plane, zero-area triangles, zero-radius spheres,
 coincident surfaces, and directions with zero or -0.0 components (``docs/stress.md``)."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -100,7 +101,9 @@ def case_degenerate_triangles(rays, rng):
     tracer = Tracer(make_scene(shapes=[{"type": "triangle", "vertices": needle.tolist()}]))
     x = rng.uniform(0.05, 0.95, n)
     width = 1e-6 * (1.0 - np.abs(2.0 * x - 1.0))  # height of the needle at x
-    y = np.where(rng.random(n) < 0.5, width * rng.uniform(0.2, 0.8, n), np.where(rng.random(n) < 0.5, -1e-5, width + 1e-5))
+    y = np.where(
+        rng.random(n) < 0.5, width * rng.uniform(0.2, 0.8, n), np.where(rng.random(n) < 0.5, -1e-5, width + 1e-5)
+    )
     target = np.column_stack([x, y, np.zeros(n)])
     o = target + np.column_stack([rng.normal(size=(n, 2)) * 0.3, rng.uniform(0.5, 3.0, n)])
     d = unit(target - o)
@@ -119,8 +122,15 @@ def case_zero_radius_sphere(rays, rng):
     n = max(rays // 4, 8)
     failures, shot = 0, 0
     for radius in (0.0, 1e-30):
-        scene = make_scene(shapes=[{"type": "sphere", "center": [0.5, -0.25, 1.0], "radius": 1.0}, {"type": "sphere", "center": [3.0, 0.0, 0.0], "radius": 0.5}])
-        scene = dataclasses.replace(scene, shapes=(Sphere(center=(0.5, -0.25, 1.0), radius=radius, material=0), scene.shapes[1]))
+        scene = make_scene(
+            shapes=[
+                {"type": "sphere", "center": [0.5, -0.25, 1.0], "radius": 1.0},
+                {"type": "sphere", "center": [3.0, 0.0, 0.0], "radius": 0.5},
+            ]
+        )
+        scene = dataclasses.replace(
+            scene, shapes=(Sphere(center=(0.5, -0.25, 1.0), radius=radius, material=0), scene.shapes[1])
+        )
         tracer = Tracer(scene)
         c = np.array([0.5, -0.25, 1.0])
         o = c + random_directions(rng, n) * rng.uniform(0.1, 10.0, (n, 1))
@@ -131,7 +141,11 @@ def case_zero_radius_sphere(rays, rng):
         tb, primb = tracer.closest(o, d, brute_force=True)
         dist = np.linalg.norm(f32(o) - c, axis=1)
         small = (prim >> 2 == 0) & ((prim & 3) == 0) & (prim != NO_HIT)
-        failures += int(np.count_nonzero(_not_finite_t(t) | (small & (np.abs(t - dist) > 1e-5 * dist)) | (t != tb) | (prim != primb)))
+        failures += int(
+            np.count_nonzero(
+                _not_finite_t(t) | (small & (np.abs(t - dist) > 1e-5 * dist)) | (t != tb) | (prim != primb)
+            )
+        )
         shot += n
     return [CaseResult("degenerate: zero-radius spheres", shot, failures, unit="rays")]
 
@@ -146,7 +160,15 @@ def case_coincident(rays, rng):
     setups = [
         ("triangle x2", [{"type": "triangle", "vertices": tri}] * 2, [], 0.0),
         ("sphere x2", [{"type": "sphere", "center": [0.0, 0.0, 0.0], "radius": 1.0}] * 2, [], 0.0),
-        ("triangle in plane", [{"type": "triangle", "vertices": tri}, {"type": "plane", "point": [0.0, 0.0, 0.0], "normal": [0.0, 0.0, 1.0]}], [], 4.0),
+        (
+            "triangle in plane",
+            [
+                {"type": "triangle", "vertices": tri},
+                {"type": "plane", "point": [0.0, 0.0, 0.0], "normal": [0.0, 0.0, 1.0]},
+            ],
+            [],
+            4.0,
+        ),
         ("mesh x2", [], [(v, f, None), (v, f, None)], 0.0),
     ]
     failures, shot, worst = 0, 0, 0.0
@@ -161,7 +183,11 @@ def case_coincident(rays, rng):
         hit = p1 != NO_HIT
         ulps = np.abs(t2[hit] - t1[hit]) / np.spacing(t1[hit])
         worst = max(worst, float(ulps.max()) if ulps.size else 0.0)
-        failures += int(np.count_nonzero(hit & (p2 == NO_HIT))) + int(np.count_nonzero(ulps > tolerance)) + int(np.count_nonzero(np.isnan(t2)))
+        failures += (
+            int(np.count_nonzero(hit & (p2 == NO_HIT)))
+            + int(np.count_nonzero(ulps > tolerance))
+            + int(np.count_nonzero(np.isnan(t2)))
+        )
         shot += n
     return [CaseResult("coincident surfaces (z-fighting)", shot, failures, worst, 4.0, "ulps")]
 
@@ -170,7 +196,8 @@ def case_zero_components(rays, rng):
     """Unit directions with +0.0, -0.0, denormal (1e-40) and tiny components, from origins exactly on
     BVH box planes: the BVH's slab test must never cull what brute force hits (same t; the
     primitive may differ only on a tie), any-hit agrees, no NaN. A ray tangent to a sphere within
-    the sphere test's rounding (|h - r| <= SPHERE_BAND EPS32 |o - c|) may go either way. Scene: a split cube, spheres and triangles in a BVH."""
+    the sphere test's rounding (|h - r| <= SPHERE_BAND EPS32 |o - c|) may go either way. Scene: a
+    split cube, spheres and triangles in a BVH."""
     n = max(rays // 4, 16)
     v, f = split_cube(4)
     scene = make_scene(
@@ -212,8 +239,13 @@ def case_zero_components(rays, rng):
         c, r = f32(tracer.prims.sphere_center[k]), f32(tracer.prims.sphere_radius[k])
         f = f32(o[sphere]) - c
         dd = f32(d[sphere])
-        h = np.linalg.norm(f - np.einsum("ij,ij->i", f, dd)[:, None] * dd / np.einsum("ij,ij->i", dd, dd)[:, None], axis=1)
+        h = np.linalg.norm(
+            f - np.einsum("ij,ij->i", f, dd)[:, None] * dd / np.einsum("ij,ij->i", dd, dd)[:, None], axis=1
+        )
         tangent[np.flatnonzero(sphere)[np.abs(h - r) <= SPHERE_BAND * EPS32 * np.linalg.norm(f, axis=1)]] = True
     failures = int(np.count_nonzero((mismatch & ~tangent) | _not_finite_t(t)))
-    detail = {"bvh_vs_brute_force_mismatches": int(np.count_nonzero(mismatch & ~tangent)), "sphere_tangent_within_rounding": int(np.count_nonzero(mismatch & tangent))}
+    detail = {
+        "bvh_vs_brute_force_mismatches": int(np.count_nonzero(mismatch & ~tangent)),
+        "sphere_tangent_within_rounding": int(np.count_nonzero(mismatch & tangent)),
+    }
     return [CaseResult("zero and -0.0 direction components (BVH)", n, failures, unit="rays", detail=detail)]

@@ -1,6 +1,7 @@
 """Self-intersection: secondary rays spawned with the renderer's offset (``wrt.kernels.spawn``)
 must never hit the surface they leave, at scales 1e-3..1e3 and far from the origin; and the
 offset sweep that shows how much margin the bound has (``docs/stress.md``)."""
+
 from __future__ import annotations
 
 import math
@@ -59,9 +60,23 @@ def trace_spawned_batch(tracer, origins, directions, shadow_local, ior, offset_s
         "reflect_origin", "reflect_dir", "reflect_t", "reflect_prim",
         "refract_origin", "refract_dir", "refract_t", "refract_prim",
     ]  # fmt: skip
-    dtype = {"_prim": wp.int32, "_hit": wp.int32, "_point": wp.vec3, "_normal": wp.vec3, "_origin": wp.vec3, "_dir": wp.vec3}
-    out = {k: wp.zeros(n, dtype=dtype.get(k[k.rindex("_"):], float), device="cpu") for k in names}
-    inputs = [tracer.data, vec3_array(origins, "cpu"), vec3_array(directions, "cpu"), vec3_array(shadow_local, "cpu"), float(ior), float(offset_scale)]
+    dtype = {
+        "_prim": wp.int32,
+        "_hit": wp.int32,
+        "_point": wp.vec3,
+        "_normal": wp.vec3,
+        "_origin": wp.vec3,
+        "_dir": wp.vec3,
+    }
+    out = {k: wp.zeros(n, dtype=dtype.get(k[k.rindex("_") :], float), device="cpu") for k in names}
+    inputs = [
+        tracer.data,
+        vec3_array(origins, "cpu"),
+        vec3_array(directions, "cpu"),
+        vec3_array(shadow_local, "cpu"),
+        float(ior),
+        float(offset_scale),
+    ]
     wp.launch(trace_spawned, dim=n, inputs=inputs + [out[k] for k in names], device="cpu")
     return {k: v.numpy() for k, v in out.items()}
 
@@ -212,5 +227,7 @@ def case_self_intersection(rays, rng):
             "failures_by_offset_ulps": {f"{s * SPAWN_ULPS:g}": sum(totals[s][1:3]) for s in OFFSET_SWEEP},
             "worst_hit_point_error_ulps": worst,
         }
-        results.append(CaseResult(f"self-intersection: {kind}", judged, false_hits + escapes, worst, SPAWN_ULPS, "ulps", detail))
+        results.append(
+            CaseResult(f"self-intersection: {kind}", judged, false_hits + escapes, worst, SPAWN_ULPS, "ulps", detail)
+        )
     return results

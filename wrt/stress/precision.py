@@ -1,5 +1,6 @@
 """Precision against float64: sphere and triangle hit distances within their error bounds, and
 the distribution of the triangle test's error in ulps (``docs/stress.md``)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -93,7 +94,17 @@ def case_sphere_precision(rays, rng):
         "band_eps_dist": SPHERE_BAND,
     }
     bound = f"{SPHERE_C:g}(|o-c|/t+k) ulps"
-    return [CaseResult("sphere precision: 1e4-1e6 radii", n * len(SPHERE_RADII), int(np.count_nonzero(ratio > 1.0)) + disagree, float(rel.max()), bound, "ulps", detail)]
+    return [
+        CaseResult(
+            "sphere precision: 1e4-1e6 radii",
+            n * len(SPHERE_RADII),
+            int(np.count_nonzero(ratio > 1.0)) + disagree,
+            float(rel.max()),
+            bound,
+            "ulps",
+            detail,
+        )
+    ]
 
 
 TRIANGLE_C = 1.0  # |t32 - t64| <= TRIANGLE_C ulp(t): t is computed in float64 and rounded once
@@ -144,7 +155,17 @@ def case_ulps(rays, rng):
         tri_cos.append(cos)
         tri_disagree += disagree
     err, ratio, cos = np.concatenate(tri_err), np.concatenate(tri_norm), np.concatenate(tri_cos)
-    results.append(_ulps_result("t vs float64: triangles", 16 * n, err, ratio, tri_disagree, TRIANGLE_C, {"max_ulps_cos_above_0.1": float(err[cos > 0.1].max())}))
+    results.append(
+        _ulps_result(
+            "t vs float64: triangles",
+            16 * n,
+            err,
+            ratio,
+            tri_disagree,
+            TRIANGLE_C,
+            {"max_ulps_cos_above_0.1": float(err[cos > 0.1].max())},
+        )
+    )
     sph_err, sph_ratio, sph_disagree = [], [], 0
     for _ in range(16):
         radius = 10.0 ** rng.uniform(-2.0, 2.0)
@@ -159,11 +180,23 @@ def case_ulps(rays, rng):
         sph_ratio.append(ratio)
         sph_disagree += k
     err, ratio = np.concatenate(sph_err), np.concatenate(sph_ratio)
-    results.append(_ulps_result("t vs float64: spheres", 16 * n, err, ratio, sph_disagree, f"{SPHERE_C:g}(|o-c|/t+k) ulps", {}))
+    results.append(
+        _ulps_result("t vs float64: spheres", 16 * n, err, ratio, sph_disagree, f"{SPHERE_C:g}(|o-c|/t+k) ulps", {})
+    )
     return results
 
 
 def _ulps_result(name, rays, err, ratio, disagree, bound, extra):
     pct = np.percentile(err, [50, 90, 99, 99.9]) if err.size else [0.0] * 4
-    detail = {"median_ulps": float(pct[0]), "p90_ulps": float(pct[1]), "p99_ulps": float(pct[2]), "p99.9_ulps": float(pct[3]), "max_ratio_to_bound": float(ratio.max()), "hit_miss_disagreements_beyond_band": disagree, **extra}
-    return CaseResult(name, rays, int(np.count_nonzero(ratio > 1.0)) + disagree, float(err.max()), bound, "ulps", detail)
+    detail = {
+        "median_ulps": float(pct[0]),
+        "p90_ulps": float(pct[1]),
+        "p99_ulps": float(pct[2]),
+        "p99.9_ulps": float(pct[3]),
+        "max_ratio_to_bound": float(ratio.max()),
+        "hit_miss_disagreements_beyond_band": disagree,
+        **extra,
+    }
+    return CaseResult(
+        name, rays, int(np.count_nonzero(ratio > 1.0)) + disagree, float(err.max()), bound, "ulps", detail
+    )

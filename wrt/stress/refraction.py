@@ -1,6 +1,7 @@
 """Refraction and whole images: the critical angle, invisible ior-1 objects, high-ior furnaces,
 light trapped by total internal reflection, cameras inside objects, and no NaN or Inf pixel
 from adversarial scenes (``docs/stress.md``)."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -74,9 +75,24 @@ def critical_angle_case(ior, rng):
         scene = make_scene(
             shapes=[floor],
             meshes=[slab],
-            materials=[{"name": "glass", "type": "dielectric", "ior": ior}, {"name": "black", "albedo": [0.0, 0.0, 0.0]}],
-            camera={"origin": [0.0, 0.0, 0.0], "look_at": [math.sin(theta_c), math.cos(theta_c), 0.0], "up": [0.0, 1.0, 0.0], "fov": fov},
-            render={"width": size[0], "height": size[1], "integrator": "whitted", "background": [1.0, 1.0, 1.0], "max_depth": SLAB_DEPTH, "min_throughput": 0.0},
+            materials=[
+                {"name": "glass", "type": "dielectric", "ior": ior},
+                {"name": "black", "albedo": [0.0, 0.0, 0.0]},
+            ],
+            camera={
+                "origin": [0.0, 0.0, 0.0],
+                "look_at": [math.sin(theta_c), math.cos(theta_c), 0.0],
+                "up": [0.0, 1.0, 0.0],
+                "fov": fov,
+            },
+            render={
+                "width": size[0],
+                "height": size[1],
+                "integrator": "whitted",
+                "background": [1.0, 1.0, 1.0],
+                "max_depth": SLAB_DEPTH,
+                "min_throughput": 0.0,
+            },
         )
         r = render(scene)
         bad += count_not_finite(r)
@@ -90,8 +106,14 @@ def critical_angle_case(ior, rng):
         failures += int(np.count_nonzero(off > VALUE_SLACK))
         pixels += off.size
         near += int(np.count_nonzero(np.abs(np.arccos(np.clip(cos_i, -1, 1)) - theta_c) < 1e-4))
-    detail = {"pixels_within_1e-4_rad_of_critical": near, "not_finite_pixels": bad, "critical_angle_deg": math.degrees(theta_c)}
-    return CaseResult(f"refraction at the critical angle: ior {ior:g}", pixels, failures + bad, worst, VALUE_SLACK, "", detail)
+    detail = {
+        "pixels_within_1e-4_rad_of_critical": near,
+        "not_finite_pixels": bad,
+        "critical_angle_deg": math.degrees(theta_c),
+    }
+    return CaseResult(
+        f"refraction at the critical angle: ior {ior:g}", pixels, failures + bad, worst, VALUE_SLACK, "", detail
+    )
 
 
 def case_critical_angle(rays, rng):
@@ -105,20 +127,44 @@ def ior_one_case(name, offset):
     """Dielectrics of ior 1.0 (a sphere and a closed mesh) are invisible: the whitted image equals
     the same scene without them to 1e-6 (filtered shadows, so light passes them too)."""
     v, f = split_cube(4)
-    floor = {"type": "plane", "point": (offset + [0.0, -1.0, 0.0]).tolist(), "normal": [0.0, 1.0, 0.0], "material": "floor"}
+    floor = {
+        "type": "plane",
+        "point": (offset + [0.0, -1.0, 0.0]).tolist(),
+        "normal": [0.0, 1.0, 0.0],
+        "material": "floor",
+    }
     ghost = {"type": "sphere", "center": (offset + [0.3, 0.0, 0.0]).tolist(), "radius": 0.8, "material": "ghost"}
     common = {
-        "materials": [{"name": "floor", "albedo": [0.5, 0.5, 0.5]}, {"name": "ghost", "type": "dielectric", "ior": 1.0}],
+        "materials": [
+            {"name": "floor", "albedo": [0.5, 0.5, 0.5]},
+            {"name": "ghost", "type": "dielectric", "ior": 1.0},
+        ],
         "lights": [{"type": "point", "position": (offset + [1.0, 3.0, 2.0]).tolist(), "intensity": [10.0, 10.0, 10.0]}],
         "camera": {"origin": (offset + [0.0, 1.0, 4.0]).tolist(), "look_at": offset.tolist()},
-        "render": {"width": 64, "height": 48, "integrator": "whitted", "dielectric_shadows": "filtered", "background": [0.1, 0.2, 0.3]},
+        "render": {
+            "width": 64,
+            "height": 48,
+            "integrator": "whitted",
+            "dielectric_shadows": "filtered",
+            "background": [0.1, 0.2, 0.3],
+        },
     }
-    with_ghosts = render(make_scene(shapes=[floor, ghost], meshes=[(v * 0.4 + offset + [-0.9, -0.2, 0.5], f, "ghost")], **common))
+    with_ghosts = render(
+        make_scene(shapes=[floor, ghost], meshes=[(v * 0.4 + offset + [-0.9, -0.2, 0.5], f, "ghost")], **common)
+    )
     without = render(make_scene(shapes=[floor], **common))
     diff = np.abs(with_ghosts.rgb.astype(np.float64) - without.rgb).max(axis=-1)
     diff[np.isnan(diff)] = np.inf
     detail = {"pixels_through_ghosts": int(np.count_nonzero(with_ghosts.aovs["object_id"] >= 1))}
-    return CaseResult(f"refraction: ior 1.0 is invisible ({name})", diff.size, int(np.count_nonzero(diff > 1e-6)), float(diff.max()), 1e-6, "", detail)
+    return CaseResult(
+        f"refraction: ior 1.0 is invisible ({name})",
+        diff.size,
+        int(np.count_nonzero(diff > 1e-6)),
+        float(diff.max()),
+        1e-6,
+        "",
+        detail,
+    )
 
 
 def case_ior_one(rays, rng):
@@ -140,9 +186,19 @@ FURNACE_SCENES = {
 def _furnace(shapes, max_depth):
     scene = make_scene(
         shapes=shapes,
-        materials=[{"name": "glass", "type": "dielectric", "ior": 4.0}, {"name": "air", "type": "dielectric", "ior": 1.0}],
+        materials=[
+            {"name": "glass", "type": "dielectric", "ior": 4.0},
+            {"name": "air", "type": "dielectric", "ior": 1.0},
+        ],
         camera={"origin": [0.0, 0.0, 3.0], "look_at": [0.0, 0.0, 0.0], "fov": 40},
-        render={"width": 64, "height": 48, "integrator": "whitted", "background": [1.0, 1.0, 1.0], "max_depth": max_depth, "min_throughput": 1e-6},
+        render={
+            "width": 64,
+            "height": 48,
+            "integrator": "whitted",
+            "background": [1.0, 1.0, 1.0],
+            "max_depth": max_depth,
+            "min_throughput": 1e-6,
+        },
     )
     return render(scene)
 
@@ -167,7 +223,9 @@ def furnace_case(name, shapes):
         "max_pixel": float(r.rgb.max()),
         "glass_pixels": int(np.count_nonzero(r.aovs["object_id"] >= 0)),
     }
-    return CaseResult(f"refraction: ior 4.0 furnace, {name}", rgb.size, failures, float(loss[~silhouette].max()), 1e-3, "", detail)
+    return CaseResult(
+        f"refraction: ior 4.0 furnace, {name}", rgb.size, failures, float(loss[~silhouette].max()), 1e-3, "", detail
+    )
 
 
 def trapped_light_case(name, shapes):
@@ -188,11 +246,16 @@ def trapped_light_case(name, shapes):
         "pixels_losing_over_1e-3_depth_400": int(np.count_nonzero(loss_deep > 1e-3)),
         "max_pixel": float(max(shallow.rgb.max(), deep.rgb.max())),
     }
-    return CaseResult(f"refraction: ior 4.0 furnace, {name}", loss_shallow.size, failures, float(loss_deep.max()), 1.0, "", detail)
+    return CaseResult(
+        f"refraction: ior 4.0 furnace, {name}", loss_shallow.size, failures, float(loss_deep.max()), 1.0, "", detail
+    )
 
 
 def case_high_ior_furnace(rays, rng):
-    return [furnace_case("two spheres", FURNACE_SCENES["two spheres"]), trapped_light_case("air bubble in a sphere", FURNACE_SCENES["air bubble in a sphere"])]
+    return [
+        furnace_case("two spheres", FURNACE_SCENES["two spheres"]),
+        trapped_light_case("air bubble in a sphere", FURNACE_SCENES["air bubble in a sphere"]),
+    ]
 
 
 def _adversarial_scenes():
@@ -211,16 +274,35 @@ def _adversarial_scenes():
     lights = [
         {"type": "point", "position": [0.0, 0.5, 0.0], "intensity": [5.0, 5.0, 5.0]},
         {"type": "directional", "direction": [0.0, -1.0, 0.0], "irradiance": [1.0, 1.0, 1.0]},
-        {"type": "spot", "position": [0.0, 0.0, 3.0], "direction": [0.0, 0.0, -1.0], "intensity": [3.0, 3.0, 3.0], "cutoff_angle": 90.0, "beam_width": 0.0},
+        {
+            "type": "spot",
+            "position": [0.0, 0.0, 3.0],
+            "direction": [0.0, 0.0, -1.0],
+            "intensity": [3.0, 3.0, 3.0],
+            "cutoff_angle": 90.0,
+            "beam_width": 0.0,
+        },
     ]
     axis_camera = {"origin": [0.0, 0.0, 4.0], "look_at": [0.0, 0.0, 0.0], "up": [0.0, 1.0, 0.0]}
     degenerate = make_scene(
         shapes=[
             {"type": "sphere", "center": [0.0, 0.0, 0.0], "radius": 1.0, "material": "shiny"},  # radius 0 below
-            {"type": "triangle", "vertices": [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1e-6, 0.0]], "material": "mirror"},
+            {
+                "type": "triangle",
+                "vertices": [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1e-6, 0.0]],
+                "material": "mirror",
+            },
             {"type": "triangle", "vertices": [[0.0, -1.0, 0.0], [0.0, 0.0, 0.0], [0.0, 1.0, 0.0]], "material": "glass"},
-            {"type": "triangle", "vertices": [[-2.0, -2.0, -1.0], [2.0, -2.0, -1.0], [0.0, 2.0, -1.0]], "material": "d"},
-            {"type": "triangle", "vertices": [[-2.0, -2.0, -1.0], [2.0, -2.0, -1.0], [0.0, 2.0, -1.0]], "material": "mirror"},
+            {
+                "type": "triangle",
+                "vertices": [[-2.0, -2.0, -1.0], [2.0, -2.0, -1.0], [0.0, 2.0, -1.0]],
+                "material": "d",
+            },
+            {
+                "type": "triangle",
+                "vertices": [[-2.0, -2.0, -1.0], [2.0, -2.0, -1.0], [0.0, 2.0, -1.0]],
+                "material": "mirror",
+            },
             {"type": "plane", "point": [0.0, 0.0, -1.0], "normal": [0.0, 0.0, 1.0], "material": "lamp"},
             {"type": "plane", "point": [0.0, -1.0, 0.0], "normal": [0.0, 1.0, 0.0], "material": "glass"},
         ],
@@ -228,23 +310,67 @@ def _adversarial_scenes():
         lights=lights,
         camera=axis_camera,
     )
-    degenerate = dataclasses.replace(degenerate, shapes=(Sphere(center=(0.0, 0.0, 0.0), radius=0.0, material=degenerate.shapes[0].material), *degenerate.shapes[1:]))
+    degenerate = dataclasses.replace(
+        degenerate,
+        shapes=(
+            Sphere(center=(0.0, 0.0, 0.0), radius=0.0, material=degenerate.shapes[0].material),
+            *degenerate.shapes[1:],
+        ),
+    )
     far = np.array([1e5, -1e5, 1e5])
     return [
         ("degenerate primitives, axis camera", degenerate),
-        ("camera inside a diffuse mesh", make_scene(meshes=[(ball, ball_faces, "d")], materials=mats, lights=lights[:1], camera={"origin": [0.1, 0.2, 0.3], "look_at": [0.0, 0.0, -1.0]})),
-        ("camera inside a glass mesh", make_scene(shapes=[{"type": "plane", "point": [0.0, -3.0, 0.0], "normal": [0.0, 1.0, 0.0], "material": "mirror"}], meshes=[(box, box_faces, "glass")], materials=mats, lights=lights, camera={"origin": [0.0, 0.0, 0.0], "look_at": [0.0, 0.0, -1.0]})),
-        ("camera in a plane, looking along it", make_scene(shapes=[{"type": "plane", "point": [0.0, 0.0, 0.0], "normal": [0.0, 1.0, 0.0], "material": "shiny"}, {"type": "sphere", "center": [0.0, 0.0, -3.0], "radius": 1.0, "material": "dense"}], materials=mats, lights=lights, camera={"origin": [0.0, 0.0, 3.0], "look_at": [0.0, 0.0, 0.0]})),
-        ("dense glass and mirrors 1e5 from the origin", make_scene(
-            shapes=[
-                {"type": "sphere", "center": far.tolist(), "radius": 1.0, "material": "dense"},
-                {"type": "plane", "point": (far + [0.0, -1.0, 0.0]).tolist(), "normal": [0.0, 1.0, 0.0], "material": "mirror"},
-            ],
-            meshes=[(box * 0.5 + far + [2.0, 0.0, 0.0], box_faces, "glass")],
-            materials=mats,
-            lights=[{"type": "point", "position": (far + [0.0, 3.0, 2.0]).tolist(), "intensity": [10.0, 10.0, 10.0]}],
-            camera={"origin": (far + [0.0, 0.5, 5.0]).tolist(), "look_at": far.tolist()},
-        )),
+        (
+            "camera inside a diffuse mesh",
+            make_scene(
+                meshes=[(ball, ball_faces, "d")],
+                materials=mats,
+                lights=lights[:1],
+                camera={"origin": [0.1, 0.2, 0.3], "look_at": [0.0, 0.0, -1.0]},
+            ),
+        ),
+        (
+            "camera inside a glass mesh",
+            make_scene(
+                shapes=[{"type": "plane", "point": [0.0, -3.0, 0.0], "normal": [0.0, 1.0, 0.0], "material": "mirror"}],
+                meshes=[(box, box_faces, "glass")],
+                materials=mats,
+                lights=lights,
+                camera={"origin": [0.0, 0.0, 0.0], "look_at": [0.0, 0.0, -1.0]},
+            ),
+        ),
+        (
+            "camera in a plane, looking along it",
+            make_scene(
+                shapes=[
+                    {"type": "plane", "point": [0.0, 0.0, 0.0], "normal": [0.0, 1.0, 0.0], "material": "shiny"},
+                    {"type": "sphere", "center": [0.0, 0.0, -3.0], "radius": 1.0, "material": "dense"},
+                ],
+                materials=mats,
+                lights=lights,
+                camera={"origin": [0.0, 0.0, 3.0], "look_at": [0.0, 0.0, 0.0]},
+            ),
+        ),
+        (
+            "dense glass and mirrors 1e5 from the origin",
+            make_scene(
+                shapes=[
+                    {"type": "sphere", "center": far.tolist(), "radius": 1.0, "material": "dense"},
+                    {
+                        "type": "plane",
+                        "point": (far + [0.0, -1.0, 0.0]).tolist(),
+                        "normal": [0.0, 1.0, 0.0],
+                        "material": "mirror",
+                    },
+                ],
+                meshes=[(box * 0.5 + far + [2.0, 0.0, 0.0], box_faces, "glass")],
+                materials=mats,
+                lights=[
+                    {"type": "point", "position": (far + [0.0, 3.0, 2.0]).tolist(), "intensity": [10.0, 10.0, 10.0]}
+                ],
+                camera={"origin": (far + [0.0, 0.5, 5.0]).tolist(), "look_at": far.tolist()},
+            ),
+        ),
     ]
 
 
@@ -262,7 +388,15 @@ def case_not_finite(rays, rng):
                 bad += count
                 pixels += r.rgb.shape[0] * r.rgb.shape[1] * spp
                 by_scene[name] = by_scene.get(name, 0) + count
-    return [CaseResult("no NaN/Inf in integrator outputs", pixels, bad, unit="pixels", detail={"not_finite_pixels": bad, **{f"[{k}]": v for k, v in by_scene.items()}})]
+    return [
+        CaseResult(
+            "no NaN/Inf in integrator outputs",
+            pixels,
+            bad,
+            unit="pixels",
+            detail={"not_finite_pixels": bad, **{f"[{k}]": v for k, v in by_scene.items()}},
+        )
+    ]
 
 
 def case_camera_inside(rays, rng):
@@ -271,7 +405,14 @@ def case_camera_inside(rays, rng):
     shot, leaks = 0, 0
     for name, make in CLOSED_MESHES.items():
         v, f = make()
-        r = render(make_scene(meshes=[(v, f, None)], camera={"origin": [0.05, 0.1, -0.02], "look_at": [0.3, -0.2, -1.0], "fov": 120}), width=63, height=47, spp=1)
+        r = render(
+            make_scene(
+                meshes=[(v, f, None)], camera={"origin": [0.05, 0.1, -0.02], "look_at": [0.3, -0.2, -1.0], "fov": 120}
+            ),
+            width=63,
+            height=47,
+            spp=1,
+        )
         leaks += int(np.count_nonzero(r.aovs["object_id"] != 0))
         shot += r.rgb.shape[0] * r.rgb.shape[1]
     return [CaseResult("camera inside a closed mesh", shot, leaks, unit="pixels")]

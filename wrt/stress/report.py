@@ -1,5 +1,6 @@
 """The stress suite's results: one ``CaseResult`` per row, the table ``wrt stress`` prints, and its
 JSON and Markdown report."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -51,7 +52,16 @@ def _fmt(value, unit=""):
 def table_rows(results: list[CaseResult]) -> list[list[str]]:
     rows = [["case", "rays", "failures", "worst error", "bound", "result"]]
     for r in results:
-        rows.append([r.case, str(r.rays), str(r.failures), _fmt(r.worst, r.unit), _fmt(r.bound, r.unit), "pass" if r.passed else "FAIL"])
+        rows.append(
+            [
+                r.case,
+                str(r.rays),
+                str(r.failures),
+                _fmt(r.worst, r.unit),
+                _fmt(r.bound, r.unit),
+                "pass" if r.passed else "FAIL",
+            ]
+        )
     return rows
 
 
@@ -59,19 +69,29 @@ def format_table(results: list[CaseResult]) -> str:
     """The plain-text table ``wrt stress`` prints."""
     rows = table_rows(results)
     widths = [max(len(row[k]) for row in rows) for k in range(len(rows[0]))]
-    lines = ["  ".join(cell.ljust(w) if k == 0 else cell.rjust(w) for k, (cell, w) in enumerate(zip(row, widths))) for row in rows]
+    lines = [
+        "  ".join(cell.ljust(w) if k == 0 else cell.rjust(w) for k, (cell, w) in enumerate(zip(row, widths)))
+        for row in rows
+    ]
     lines.insert(1, "  ".join("-" * w for w in widths))
     return "\n".join(lines)
 
 
 def format_markdown(results: list[CaseResult], rays: int, seed: int) -> str:
     rows = table_rows(results)
-    lines = [f"# wrt stress: N = {rays} rays, seed {seed}", "", "| " + " | ".join(rows[0]) + " |", "|" + "---|" * len(rows[0])]
+    lines = [
+        f"# wrt stress: N = {rays} rays, seed {seed}",
+        "",
+        "| " + " | ".join(rows[0]) + " |",
+        "|" + "---|" * len(rows[0]),
+    ]
     lines += ["| " + " | ".join(row) + " |" for row in rows[1:]]
     lines += ["", "## Details", ""]
     for r in results:
         if r.detail:
-            lines.append(f"- **{r.case}** ({r.seconds:.1f} s): " + ", ".join(f"{k} = {_fmt(v)}" for k, v in r.detail.items()))
+            lines.append(
+                f"- **{r.case}** ({r.seconds:.1f} s): " + ", ".join(f"{k} = {_fmt(v)}" for k, v in r.detail.items())
+            )
         else:
             lines.append(f"- **{r.case}** ({r.seconds:.1f} s)")
     return "\n".join(lines) + "\n"
@@ -81,7 +101,12 @@ def write_report(results: list[CaseResult], folder: str, rays: int, seed: int) -
     """Write ``stress.json`` and ``stress.md`` into ``folder`` (created if needed); returns their paths."""
     os.makedirs(folder, exist_ok=True)
     json_path, md_path = os.path.join(folder, "stress.json"), os.path.join(folder, "stress.md")
-    doc = {"rays": rays, "seed": seed, "passed": all(r.passed for r in results), "cases": [r.as_dict() for r in results]}
+    doc = {
+        "rays": rays,
+        "seed": seed,
+        "passed": all(r.passed for r in results),
+        "cases": [r.as_dict() for r in results],
+    }
     write_atomic(json_path, json.dumps(doc, indent=2, default=float) + "\n")
     write_atomic(md_path, format_markdown(results, rays, seed))
     return json_path, md_path

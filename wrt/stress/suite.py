@@ -1,4 +1,5 @@
 """The suite: every case group in order, run with its own random stream, and ``wrt stress``."""
+
 from __future__ import annotations
 
 import sys
@@ -75,10 +76,19 @@ def run_suite(rays: int = DEFAULT_RAYS, seed: int = 0, only=None, progress=None)
 def command(rays: int, seed: int, report: str | None) -> int:
     """``wrt stress``: run the suite, print the table (and write the report); 0 if all pass, else 1."""
     start = time.perf_counter()
-    results = run_suite(rays, seed, progress=lambda r: print(f"  {'pass' if r.passed else 'FAIL'}  {r.case} ({r.seconds:.1f} s)", file=sys.stderr, flush=True))
+    results = run_suite(
+        rays,
+        seed,
+        progress=lambda r: print(
+            f"  {'pass' if r.passed else 'FAIL'}  {r.case} ({r.seconds:.1f} s)", file=sys.stderr, flush=True
+        ),
+    )
     print(format_table(results))
     failed = [r for r in results if not r.passed]
-    print(f"\n{len(results) - len(failed)} of {len(results)} cases pass; N = {rays} rays, seed {seed}, {time.perf_counter() - start:.0f} s")
+    print(
+        f"\n{len(results) - len(failed)} of {len(results)} cases pass; N = {rays} rays, seed {seed}, "
+        f"{time.perf_counter() - start:.0f} s"
+    )
     if report:
         try:
             paths = write_report(results, report, rays, seed)

@@ -1,5 +1,6 @@
 """Watertightness: rays aimed at the shared edges and vertices of closed meshes must never slip
 through (``docs/stress.md``)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -47,7 +48,13 @@ def watertight_case(name, vertices, faces, rays, rng) -> CaseResult:
                 t, prim = tracer.closest(target - distance * d, d)
                 leaks[kind] += int(np.count_nonzero((prim == NO_HIT) | (t > distance + 1e-3 * scale)))
             shot += n
-    return CaseResult(f"watertight: {name}", shot, leaks["inside"] + leaks["outside"], unit="leaks", detail={"leaks_from_inside": leaks["inside"], "leaks_from_outside": leaks["outside"]})
+    return CaseResult(
+        f"watertight: {name}",
+        shot,
+        leaks["inside"] + leaks["outside"],
+        unit="leaks",
+        detail={"leaks_from_inside": leaks["inside"], "leaks_from_outside": leaks["outside"]},
+    )
 
 
 def case_watertight(rays, rng):
