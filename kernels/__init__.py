@@ -2,20 +2,23 @@
 
 Modules, in data-flow order:
 
-- ``sampling``    counter-based random numbers (deterministic per pixel, sample, dimension)
-- ``warps``       uniform numbers to directions and points, MIS weights
-- ``camera``      pinhole camera rays
-- ``intersect``   ray-primitive tests (plane, sphere, watertight triangle, polygon, box)
-- ``traverse``    the device-side scene layout (``SceneData``) and BVH traversal
-- ``spawn``       the one origin offset for rays leaving a surface
-- ``optics``      reflection, Snell refraction, Fresnel
-- ``materials``   material parameters and BRDFs; ``microfacet``: GGX
-- ``lights``      light parameters and delta lights; ``emitters``: sampling lights with area
-- ``media``       nested and overlapping dielectrics along a ray
-- ``film``        the per-pixel outputs and AOVs
-- ``integrator``  the pixel loop every integrator shares; ``record``: ray recording
+- ``sampling``      counter-based random numbers (deterministic per pixel, sample, dimension)
+- ``sample_warps``  uniform numbers to directions and points, with their densities; MIS weights
+- ``camera``        pinhole and thin-lens camera rays, pixel filters
+- ``intersect``     ray-primitive tests (plane, sphere, watertight triangle, polygon)
+- ``bvh``           the 4-wide BVH's node layout and its four-box slab test
+- ``bvh_build``     building that BVH on the device (Morton order, PLOC, SAH leaves, collapse)
+- ``traverse``      the device-side geometry (``GeometryData``) and the BVH traversal
+- ``features``      the scene features kernels are specialised on; ``variants``: the variants
+- ``spawn``         the one origin offset for rays leaving a surface
+- ``optics``        reflection, Snell refraction, Fresnel
+- ``materials``     material parameters and BRDFs; ``microfacet``: GGX
+- ``lights``        light parameters and delta lights; ``emitters``: sampling lights with area
+- ``media``         nested and overlapping dielectrics along a ray
+- ``film``          the per-pixel outputs and AOVs
+- ``integrator``    the pixel loop every integrator shares; ``record``: ray recording
 - ``raycast``, ``whitted``, ``path``   the integrators
-- ``stress``      kernels of the numerical stress suite
+- ``stress``        kernels of the numerical stress suite
 
 This package imports only Warp: it knows nothing of scene files, images or the harness.
 Importing it configures Warp for rendering: no gradients (smaller, faster modules) and

@@ -11,7 +11,7 @@ import warp as wp
 
 from .intersect import intersect_sphere
 from .lights import AREA, ENVIRONMENT, SPHERE_LIGHT, LightData
-from .warps import frame, uniform_cone, uniform_sphere
+from .sample_warps import frame, uniform_cone, uniform_sphere
 
 
 @wp.func

@@ -13,7 +13,7 @@ AOVs (arbitrary output variables) describe the primary ray through the pixel CEN
 
 import warp as wp
 
-from .traverse import NO_HIT, SceneData, geometric_normal, prim_shape
+from .traverse import NO_HIT, GeometryData, geometric_normal, prim_shape
 
 LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)  # Y of linear Rec. 709 RGB (host code reads them too)
 
@@ -40,9 +40,9 @@ class Film:
 
 
 @wp.func
-def facing_normal(scene: SceneData, prim: wp.int32, p: wp.vec3, d: wp.vec3, time: float) -> wp.vec3:
+def facing_normal(geometry: GeometryData, prim: wp.int32, p: wp.vec3, d: wp.vec3, time: float) -> wp.vec3:
     """Unit geometric normal at ``p`` flipped to the side the ray direction ``d`` comes from."""
-    n = geometric_normal(scene, prim, p, time)
+    n = geometric_normal(geometry, prim, p, time)
     if wp.dot(n, d) > 0.0:
         return -n
     return n
@@ -50,7 +50,7 @@ def facing_normal(scene: SceneData, prim: wp.int32, p: wp.vec3, d: wp.vec3, time
 
 @wp.func
 def write_aovs(
-    film: Film, scene: SceneData, pixel: wp.int32, o: wp.vec3, d: wp.vec3, t: float, prim: wp.int32, time: float
+    film: Film, geometry: GeometryData, pixel: wp.int32, o: wp.vec3, d: wp.vec3, t: float, prim: wp.int32, time: float
 ):
     """Record the AOVs of the pixel-centre ray ``o + t d`` (unit ``d``, at ray time ``time``) that hit
     ``prim`` (or missed)."""
@@ -62,9 +62,9 @@ def write_aovs(
     else:
         p = o + t * d
         film.depth[pixel] = t
-        film.normal[pixel] = facing_normal(scene, prim, p, d, time)
-        surface = prim_shape(scene, prim)
-        if surface >= scene.num_shapes:  # the surface of light k is not a shape: -2 - k
-            surface = scene.num_shapes - 2 - surface
+        film.normal[pixel] = facing_normal(geometry, prim, p, d, time)
+        surface = prim_shape(geometry, prim)
+        if surface >= geometry.num_shapes:  # the surface of light k is not a shape: -2 - k
+            surface = geometry.num_shapes - 2 - surface
         film.object_id[pixel] = surface
         film.position[pixel] = p

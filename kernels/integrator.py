@@ -33,9 +33,9 @@ from .film import Film, luminance, write_aovs
 from .lights import LightData
 from .materials import MaterialData
 from .record import CAMERA, RayRecord, record_ray
+from .sample_warps import concentric_disk
 from .sampling import Sampler, sample_1d, sample_2d
-from .traverse import SceneData, traversal
-from .warps import concentric_disk
+from .traverse import GeometryData, traversal
 
 RECORD_MODULE = "wrt.kernels.record_variants"
 
@@ -73,7 +73,7 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
 
     @wp.kernel(module=module or (RECORD_MODULE if record else None))
     def render_pixels(
-        scene: SceneData,
+        geometry: GeometryData,
         materials: MaterialData,
         lights: LightData,
         settings: IntegratorSettings,
@@ -97,13 +97,15 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
         time = shutter_time(cam, 0.5)
         if first_sample == 0:
             d = camera_ray_direction(cam, x, y, 0.5, 0.5)
-            t, prim = trace.closest_hit(scene, cam.origin, d, time, 0.0, wp.inf)
-            write_aovs(film, scene, pixel, cam.origin, d, t, prim, time)
+            t, prim = trace.closest_hit(geometry, cam.origin, d, time, 0.0, wp.inf)
+            write_aovs(film, geometry, pixel, cam.origin, d, t, prim, time)
             if sampler.spp == 1:
                 if wp.static(record):
-                    parent = record_ray(rec, scene, pixel, 0, CAMERA, cam.origin, d, t, prim, time, wp.vec3(1.0), 1, -1)
+                    parent = record_ray(
+                        rec, geometry, pixel, 0, CAMERA, cam.origin, d, t, prim, time, wp.vec3(1.0), 1, -1
+                    )
                 total = radiance(
-                    scene, materials, lights, settings, cam.origin, d, t, prim, time, rec, sampler, pixel, 0, parent
+                    geometry, materials, lights, settings, cam.origin, d, t, prim, time, rec, sampler, pixel, 0, parent
                 )
                 film.rgb_sum[pixel] = total
                 film.luminance_sq_sum[pixel] = luminance(total) * luminance(total)
@@ -123,11 +125,11 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
             time_s = time
             if wp.static(features.motion):
                 time_s = shutter_time(cam, sample_1d(sampler, pixel, s, 4))
-            ts, prim_s = trace.closest_hit(scene, o_s, ds, time_s, 0.0, wp.inf)
+            ts, prim_s = trace.closest_hit(geometry, o_s, ds, time_s, 0.0, wp.inf)
             if wp.static(record):
-                parent = record_ray(rec, scene, pixel, s, CAMERA, o_s, ds, ts, prim_s, time_s, wp.vec3(1.0), 1, -1)
+                parent = record_ray(rec, geometry, pixel, s, CAMERA, o_s, ds, ts, prim_s, time_s, wp.vec3(1.0), 1, -1)
             value = radiance(
-                scene, materials, lights, settings, o_s, ds, ts, prim_s, time_s, rec, sampler, pixel, s, parent
+                geometry, materials, lights, settings, o_s, ds, ts, prim_s, time_s, rec, sampler, pixel, s, parent
             )
             total += value
             total_sq += luminance(value) * luminance(value)

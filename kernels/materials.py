@@ -18,7 +18,7 @@ import warp as wp
 
 from .microfacet import ggx_eval
 from .optics import reflect
-from .warps import frame
+from .sample_warps import frame
 
 DIFFUSE = wp.constant(0)
 PHONG = wp.constant(1)

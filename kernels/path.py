@@ -45,10 +45,10 @@ from .record import (
     RayRecord,
     record_ray,
 )
+from .sample_warps import cosine_hemisphere, frame, power_heuristic
 from .sampling import Sampler, sample_1d, sample_2d
 from .spawn import hit_error, spawn_origin
-from .traverse import NO_HIT, SceneData, Traversal, geometric_normal, prim_shape, traversal
-from .warps import cosine_hemisphere, frame, power_heuristic
+from .traverse import NO_HIT, GeometryData, Traversal, geometric_normal, prim_shape, traversal
 
 RR_DEPTH = wp.constant(5)
 SHADOW_MARGIN = wp.constant(1.0e-4)  # shadow rays toward a light's surface stop this fraction short of it
@@ -101,7 +101,7 @@ def make_next_event(record: bool, trace: Traversal):
 
     @wp.func
     def next_event(
-        scene: SceneData,
+        geometry: GeometryData,
         materials: MaterialData,
         lights: LightData,
         m: wp.int32,
@@ -147,12 +147,12 @@ def make_next_event(record: bool, trace: Traversal):
                     contribution = wp.cw_mul(eval_brdf(materials, m, n, wo, wi), radiance) * (cos_theta * mis / pdf)
             if max_component(contribution) > 0.0:
                 o_shadow = spawn_origin(p, n, err, wi)
-                if not trace.any_hit(scene, o_shadow, wi, time, 0.0, t_max):
+                if not trace.any_hit(geometry, o_shadow, wi, time, 0.0, t_max):
                     total += contribution
                     if wp.static(record):
                         record_ray(
                             rec,
-                            scene,
+                            geometry,
                             pixel,
                             sample,
                             SHADOW_LIT,
@@ -166,10 +166,10 @@ def make_next_event(record: bool, trace: Traversal):
                             parent,
                         )
                 elif wp.static(record):
-                    t_block, prim_block = trace.closest_hit(scene, o_shadow, wi, time, 0.0, t_max)
+                    t_block, prim_block = trace.closest_hit(geometry, o_shadow, wi, time, 0.0, t_max)
                     record_ray(
                         rec,
-                        scene,
+                        geometry,
                         pixel,
                         sample,
                         SHADOW_BLOCKED,
@@ -209,7 +209,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
 
     @wp.func
     def path_radiance(
-        scene: SceneData,
+        geometry: GeometryData,
         materials: MaterialData,
         lights: LightData,
         settings: IntegratorSettings,
@@ -242,11 +242,11 @@ def make_path_radiance(record: bool, features: Features = ALL):
             segment_kind = int(SCATTERED)
         for _segment in range(4 * settings.max_depth + 16):
             if not traced:
-                t, prim = trace.closest_hit(scene, o, d, time, t_from, wp.inf)
+                t, prim = trace.closest_hit(geometry, o, d, time, t_from, wp.inf)
                 if wp.static(record):
                     current = record_ray(
                         rec,
-                        scene,
+                        geometry,
                         pixel,
                         sample,
                         segment_kind,
@@ -271,8 +271,8 @@ def make_path_radiance(record: bool, features: Features = ALL):
                     radiance += wp.cw_mul(beta, environment_radiance(lights, prev_pdf, specular))
                 break
             p = o + t * d
-            n = geometric_normal(scene, prim, p, time)
-            surface = prim_shape(scene, prim)
+            n = geometric_normal(geometry, prim, p, time)
+            surface = prim_shape(geometry, prim)
             m = materials.shape_material[surface]
             entering = wp.dot(d, n) < 0.0
             n_facing = n
@@ -280,9 +280,9 @@ def make_path_radiance(record: bool, features: Features = ALL):
                 n_facing = -n
             if entering and max_component(materials.emission[m]) > 0.0:
                 mis = float(1.0)
-                if not specular and surface >= scene.num_shapes:
+                if not specular and surface >= geometry.num_shapes:
                     mis = power_heuristic(
-                        prev_pdf, emitter_pdf(lights, surface - scene.num_shapes, prev_p, d, wp.length(p - prev_p))
+                        prev_pdf, emitter_pdf(lights, surface - geometry.num_shapes, prev_p, d, wp.length(p - prev_p))
                     )
                 radiance += wp.cw_mul(beta, materials.emission[m]) * mis
             kind = materials.type[m]
@@ -338,7 +338,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
                     radiance += wp.cw_mul(
                         beta,
                         next_event(
-                            scene,
+                            geometry,
                             materials,
                             lights,
                             m,

@@ -15,12 +15,12 @@ from .lights import LightData
 from .materials import MaterialData
 from .record import RayRecord
 from .sampling import Sampler
-from .traverse import NO_HIT, SceneData, prim_shape
+from .traverse import NO_HIT, GeometryData, prim_shape
 
 
 @wp.func
 def raycast_radiance(
-    scene: SceneData,
+    geometry: GeometryData,
     materials: MaterialData,
     lights: LightData,
     settings: IntegratorSettings,
@@ -38,8 +38,8 @@ def raycast_radiance(
     """``base_color * |dot(n, d)|`` at the hit of unit ray ``o + t d``, black on a miss."""
     if prim == NO_HIT:
         return wp.vec3(0.0)
-    n = facing_normal(scene, prim, o + t * d, d, time)
-    color = materials.base_color[materials.shape_material[prim_shape(scene, prim)]]
+    n = facing_normal(geometry, prim, o + t * d, d, time)
+    color = materials.base_color[materials.shape_material[prim_shape(geometry, prim)]]
     return color * wp.abs(wp.dot(n, d))
 
 

@@ -44,7 +44,7 @@ are dropped (a truncated recording), and their children still name them as paren
 
 import warp as wp
 
-from .traverse import NO_HIT, SceneData, geometric_normal, prim_shape
+from .traverse import NO_HIT, GeometryData, geometric_normal, prim_shape
 
 CAMERA = wp.constant(0)
 SHADOW_LIT = wp.constant(1)
@@ -98,7 +98,7 @@ class RayRecord:
 @wp.func
 def record_ray(
     rec: RayRecord,
-    scene: SceneData,
+    geometry: GeometryData,
     pixel: wp.int32,
     sample: wp.int32,
     kind: wp.int32,
@@ -133,8 +133,8 @@ def record_ray(
         s.normal = wp.vec3(0.0)
         if prim != NO_HIT:
             s.end = o + t * d
-            s.normal = geometric_normal(scene, prim, s.end, time)
-            s.shape = prim_shape(scene, prim)
+            s.normal = geometric_normal(geometry, prim, s.end, time)
+            s.shape = prim_shape(geometry, prim)
             s.flags = HIT
             if wp.dot(d, s.normal) < 0.0:
                 s.flags = HIT | ENTERING

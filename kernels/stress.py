@@ -1,4 +1,4 @@
-"""Kernels of the stress suite (``wrt stress``, ``harness/stress.py``).
+"""Kernels of the stress suite (``wrt stress``, ``wrt.stress``).
 
 ``trace_spawned`` follows a batch of rays to their first hit and, from each hit, spawns the
 secondary rays an integrator would spawn there (shadow, mirror reflection, refraction), with the
@@ -9,28 +9,16 @@ The suite checks on the host that none of them falls back onto the surface it le
 import warp as wp
 
 from .optics import reflect, refract
+from .sample_warps import frame
 from .spawn import hit_error, spawn_origin
-from .traverse import NO_HIT, SceneData, any_hit, closest_hit, geometric_normal
+from .traverse import NO_HIT, GeometryData, any_hit, closest_hit, geometric_normal
 
 NOT_TRACED = wp.constant(-2)  # a secondary ray that does not exist (no first hit, or total internal reflection)
 
 
-@wp.func
-def local_to_world(v: wp.vec3, n: wp.vec3) -> wp.vec3:
-    """``v`` given in a frame whose z axis is the unit vector ``n`` (Duff et al., JCGT 6(1), 2017)."""
-    s = 1.0
-    if n[2] < 0.0:
-        s = -1.0
-    a = -1.0 / (s + n[2])
-    b = n[0] * n[1] * a
-    b1 = wp.vec3(1.0 + s * n[0] * n[0] * a, s * b, -s * n[0])
-    b2 = wp.vec3(b, s + n[1] * n[1] * a, -n[1])
-    return v[0] * b1 + v[1] * b2 + v[2] * n
-
-
 @wp.kernel
 def trace_spawned(
-    scene: SceneData,
+    geometry: GeometryData,
     origins: wp.array(dtype=wp.vec3),
     directions: wp.array(dtype=wp.vec3),
     shadow_local: wp.array(dtype=wp.vec3),
@@ -64,7 +52,7 @@ def trace_spawned(
     i = wp.tid()
     o = origins[i]
     d = directions[i]
-    t, prim = closest_hit(scene, o, d, 0.0, 0.0, wp.inf)
+    t, prim = closest_hit(geometry, o, d, 0.0, 0.0, wp.inf)
     hit_t[i] = t
     hit_prim[i] = prim
     shadow_hit[i] = NOT_TRACED
@@ -73,7 +61,7 @@ def trace_spawned(
     if prim == NO_HIT:
         return
     p = o + t * d
-    n = geometric_normal(scene, prim, p, 0.0)
+    n = geometric_normal(geometry, prim, p, 0.0)
     entering = wp.dot(d, n) < 0.0
     n_facing = n
     eta = 1.0 / ior
@@ -84,16 +72,16 @@ def trace_spawned(
     hit_point[i] = p
     hit_normal[i] = n
     hit_err[i] = err
-    wi = local_to_world(shadow_local[i], n_facing)
+    wi = frame(n_facing) * shadow_local[i]
     o_shadow = spawn_origin(p, n_facing, err, wi)
     shadow_origin[i] = o_shadow
     shadow_dir[i] = wi
-    shadow_hit[i] = wp.where(any_hit(scene, o_shadow, wi, 0.0, 0.0, wp.inf), 1, 0)
+    shadow_hit[i] = wp.where(any_hit(geometry, o_shadow, wi, 0.0, 0.0, wp.inf), 1, 0)
     wr = reflect(d, n_facing)
     o_reflect = spawn_origin(p, n, err, wr)
     reflect_origin[i] = o_reflect
     reflect_dir[i] = wr
-    tr, pr = closest_hit(scene, o_reflect, wr, 0.0, 0.0, wp.inf)
+    tr, pr = closest_hit(geometry, o_reflect, wr, 0.0, 0.0, wp.inf)
     reflect_t[i] = tr
     reflect_prim[i] = pr
     ok, wt = refract(d, n_facing, eta)
@@ -101,6 +89,6 @@ def trace_spawned(
         o_refract = spawn_origin(p, n, err, wt)
         refract_origin[i] = o_refract
         refract_dir[i] = wt
-        tt, pt = closest_hit(scene, o_refract, wt, 0.0, 0.0, wp.inf)
+        tt, pt = closest_hit(geometry, o_refract, wt, 0.0, 0.0, wp.inf)
         refract_t[i] = tt
         refract_prim[i] = pt

@@ -1,4 +1,4 @@
-"""The device-side scene (``SceneData``) and its BVH traversal: closest hit and any hit.
+"""The device-side scene (``GeometryData``) and its BVH traversal: closest hit and any hit.
 
 Primitives are referred to by a packed id ``(index << 2) | kind`` with ``kind`` one of
 ``SPHERE``, ``TRIANGLE``, ``POLYGON`` (bounded, in the BVH) and ``PLANE`` (unbounded, tested
@@ -43,7 +43,7 @@ StackFloat = wp.types.vector(length=STACK_SIZE, dtype=wp.float32)
 
 
 @wp.struct
-class SceneData:
+class GeometryData:
     """All geometry of a scene on one device, world space, float32."""
 
     nodes: wp.array(dtype=WideNode)  # the BVH (wrt.kernels.bvh); empty without bounded primitives
@@ -69,7 +69,7 @@ class SceneData:
 
 
 @wp.func
-def prim_shape(scene: SceneData, prim: wp.int32) -> wp.int32:
+def prim_shape(geometry: GeometryData, prim: wp.int32) -> wp.int32:
     """Surface a primitive belongs to: its ``[[shape]]`` index, or ``num_shapes + k`` on the
     surface of light k (-1 for ``NO_HIT``)."""
     if prim == NO_HIT:
@@ -77,33 +77,33 @@ def prim_shape(scene: SceneData, prim: wp.int32) -> wp.int32:
     kind = prim & 3
     i = prim >> 2
     if kind == TRIANGLE:
-        return scene.tri_shape[i]
+        return geometry.tri_shape[i]
     if kind == SPHERE:
-        return scene.sphere_shape[i]
+        return geometry.sphere_shape[i]
     if kind == POLYGON:
-        return scene.poly_shape[i]
-    return scene.plane_shape[i]
+        return geometry.poly_shape[i]
+    return geometry.plane_shape[i]
 
 
 @wp.func
-def ray_origin_at(scene: SceneData, prim: wp.int32, o: wp.vec3, time: float) -> wp.vec3:
+def ray_origin_at(geometry: GeometryData, prim: wp.int32, o: wp.vec3, time: float) -> wp.vec3:
     """The point ``o`` moved into the frame of primitive ``prim`` at ``time`` (``o`` itself when
     nothing in the scene moves)."""
-    if scene.moving == 0:
+    if geometry.moving == 0:
         return o
-    return o - time * scene.surface_velocity[prim_shape(scene, prim)]
+    return o - time * geometry.surface_velocity[prim_shape(geometry, prim)]
 
 
 @wp.func
-def closest_plane(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float):
+def closest_plane(geometry: GeometryData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float):
     """Nearest of the unbounded planes (tested outside the BVH): ``(t, prim)`` as ``closest_hit``."""
     hit = int(NO_HIT)
-    for i in range(scene.plane_point.shape[0]):
+    for i in range(geometry.plane_point.shape[0]):
         t = intersect_plane(
-            ray_origin_at(scene, (i << 2) | PLANE, o, time),
+            ray_origin_at(geometry, (i << 2) | PLANE, o, time),
             d,
-            scene.plane_point[i],
-            scene.plane_normal[i],
+            geometry.plane_point[i],
+            geometry.plane_normal[i],
             t_min,
             t_max,
         )
@@ -137,10 +137,10 @@ def _leaf_entry(features: Features):
     only = present[0] if len(present) == 1 else -1
 
     @wp.func
-    def leaf_entry(scene: SceneData, k: wp.int32) -> wp.int32:
+    def leaf_entry(geometry: GeometryData, k: wp.int32) -> wp.int32:
         if wp.static(only >= 0):
             return (k << 2) | wp.static(only)
-        return scene.prims[k]
+        return geometry.prims[k]
 
     return leaf_entry
 
@@ -153,7 +153,7 @@ def _intersect_prim(features: Features):
 
     @wp.func
     def intersect_prim(
-        scene: SceneData,
+        geometry: GeometryData,
         prim: wp.int32,
         o: wp.vec3,
         d: wp.vec3,
@@ -168,32 +168,32 @@ def _intersect_prim(features: Features):
         i = prim >> 2
         o_rel = o
         if wp.static(features.moving):
-            o_rel = ray_origin_at(scene, prim, o, time)
+            o_rel = ray_origin_at(geometry, prim, o, time)
         if wp.static(features.triangles):
             if wp.static(single) or kind == TRIANGLE:
                 return intersect_triangle_sheared(
                     o_rel,
                     d,
                     shear,
-                    scene.tri_verts[3 * i],
-                    scene.tri_verts[3 * i + 1],
-                    scene.tri_verts[3 * i + 2],
+                    geometry.tri_verts[3 * i],
+                    geometry.tri_verts[3 * i + 1],
+                    geometry.tri_verts[3 * i + 2],
                     t_min,
                     t_max,
                 )
         if wp.static(features.spheres):
             if wp.static(single) or kind == SPHERE:
-                return intersect_sphere(o_rel, d, scene.sphere_center[i], scene.sphere_radius[i], t_min, t_max)
+                return intersect_sphere(o_rel, d, geometry.sphere_center[i], geometry.sphere_radius[i], t_min, t_max)
         if wp.static(features.polygons):
             return intersect_polygon(
                 o_rel,
                 d,
-                scene.poly_normal[i],
-                scene.poly_offset[i],
-                scene.poly_axis[i],
-                scene.poly_uv,
-                scene.poly_start[i],
-                scene.poly_count[i],
+                geometry.poly_normal[i],
+                geometry.poly_offset[i],
+                geometry.poly_axis[i],
+                geometry.poly_uv,
+                geometry.poly_start[i],
+                geometry.poly_count[i],
                 t_min,
                 t_max,
             )
@@ -210,10 +210,17 @@ def _closest_hit(features: Features, log_visits: bool):
 
     @wp.func
     def closest_hit_logged(
-        scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float, log: VisitLog, row: wp.int32
+        geometry: GeometryData,
+        o: wp.vec3,
+        d: wp.vec3,
+        time: float,
+        t_min: float,
+        t_max: float,
+        log: VisitLog,
+        row: wp.int32,
     ):
-        t_max, hit = closest_plane(scene, o, d, time, t_min, t_max)
-        if scene.nodes.shape[0] == 0:
+        t_max, hit = closest_plane(geometry, o, d, time, t_min, t_max)
+        if geometry.nodes.shape[0] == 0:
             return t_max, hit
         inv_d = safe_inverse(d)
         moves = inv_d[0] != INV_ZERO and inv_d[1] != INV_ZERO and inv_d[2] != INV_ZERO
@@ -229,7 +236,7 @@ def _closest_hit(features: Features, log_visits: bool):
                     if k < log.nodes.shape[1]:
                         log.nodes[row, k] = ref
                     log.count[row] = k + 1
-                node = scene.nodes[ref]
+                node = geometry.nodes[ref]
                 entry = child_entry(node, o, inv_d, moves, t_max)
                 # the hit children nearest first: a sorting network on (entry, child) pairs
                 e0 = entry[0]
@@ -263,8 +270,8 @@ def _closest_hit(features: Features, log_visits: bool):
             else:
                 start = leaf_start(ref)
                 for k in range(start, start + leaf_count(ref)):
-                    prim = leaf_entry(scene, k)
-                    t = intersect_prim(scene, prim, o, d, shear, time, t_min, t_max)
+                    prim = leaf_entry(geometry, k)
+                    t = intersect_prim(geometry, prim, o, d, shear, time, t_min, t_max)
                     if t < t_max:
                         t_max = t
                         hit = prim
@@ -288,23 +295,23 @@ def _any_hit(features: Features):
     leaf_entry = _leaf_entry(features)
 
     @wp.func
-    def any_hit(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float) -> bool:
+    def any_hit(geometry: GeometryData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float) -> bool:
         """Whether anything lies in ``(t_min, t_max)`` along the ray at ray time ``time`` (for shadow
         rays); stops at the first hit."""
-        for i in range(scene.plane_point.shape[0]):
+        for i in range(geometry.plane_point.shape[0]):
             if (
                 intersect_plane(
-                    ray_origin_at(scene, (i << 2) | PLANE, o, time),
+                    ray_origin_at(geometry, (i << 2) | PLANE, o, time),
                     d,
-                    scene.plane_point[i],
-                    scene.plane_normal[i],
+                    geometry.plane_point[i],
+                    geometry.plane_normal[i],
                     t_min,
                     t_max,
                 )
                 < t_max
             ):
                 return True
-        if scene.nodes.shape[0] == 0:
+        if geometry.nodes.shape[0] == 0:
             return False
         inv_d = safe_inverse(d)
         moves = inv_d[0] != INV_ZERO and inv_d[1] != INV_ZERO and inv_d[2] != INV_ZERO
@@ -316,7 +323,7 @@ def _any_hit(features: Features):
             sp -= 1
             ref = stack[sp]
             if ref >= 0:
-                node = scene.nodes[ref]
+                node = geometry.nodes[ref]
                 entry = child_entry(node, o, inv_d, moves, t_max)
                 for k in range(4):
                     if entry[k] < wp.inf:
@@ -325,7 +332,7 @@ def _any_hit(features: Features):
             else:
                 start = leaf_start(ref)
                 for k in range(start, start + leaf_count(ref)):
-                    if intersect_prim(scene, leaf_entry(scene, k), o, d, shear, time, t_min, t_max) < t_max:
+                    if intersect_prim(geometry, leaf_entry(geometry, k), o, d, shear, time, t_min, t_max) < t_max:
                         return True
         return False
 
@@ -341,10 +348,10 @@ class Traversal:
         closest_hit_unlogged = _closest_hit(features, log_visits=False)
 
         @wp.func
-        def closest_hit(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float):
+        def closest_hit(geometry: GeometryData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float):
             """Nearest intersection in ``(t_min, t_max)`` at ray time ``time``: returns ``(t, prim)``;
             ``prim == NO_HIT`` on a miss."""
-            t, prim = closest_hit_unlogged(scene, o, d, time, t_min, t_max, VisitLog(), 0)
+            t, prim = closest_hit_unlogged(geometry, o, d, time, t_min, t_max, VisitLog(), 0)
             return t, prim
 
         self.closest_hit = closest_hit
@@ -366,13 +373,13 @@ _intersect_any_kind = _intersect_prim(ALL)
 
 
 @wp.func
-def closest_hit_brute_force(scene: SceneData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float):
+def closest_hit_brute_force(geometry: GeometryData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float):
     """Reference for ``closest_hit``: every primitive tested, no tree. Same return values."""
-    t_max, hit = closest_plane(scene, o, d, time, t_min, t_max)
+    t_max, hit = closest_plane(geometry, o, d, time, t_min, t_max)
     shear = ray_shear(d)
-    for k in range(scene.prims.shape[0]):
-        prim = scene.prims[k]
-        t = _intersect_any_kind(scene, prim, o, d, shear, time, t_min, t_max)
+    for k in range(geometry.prims.shape[0]):
+        prim = geometry.prims[k]
+        t = _intersect_any_kind(geometry, prim, o, d, shear, time, t_min, t_max)
         if t < t_max:
             t_max = t
             hit = prim
@@ -380,7 +387,7 @@ def closest_hit_brute_force(scene: SceneData, o: wp.vec3, d: wp.vec3, time: floa
 
 
 @wp.func
-def geometric_normal(scene: SceneData, prim: wp.int32, p: wp.vec3, time: float) -> wp.vec3:
+def geometric_normal(geometry: GeometryData, prim: wp.int32, p: wp.vec3, time: float) -> wp.vec3:
     """Unit geometric normal of primitive ``prim`` at surface point ``p`` (world space) at ``time``.
 
     Spheres: outward. Triangles: ``cross(v1 - v0, v2 - v0)`` (the winding normal). Polygons and
@@ -389,19 +396,19 @@ def geometric_normal(scene: SceneData, prim: wp.int32, p: wp.vec3, time: float) 
     kind = prim & 3
     i = prim >> 2
     if kind == TRIANGLE:
-        v0 = scene.tri_verts[3 * i]
-        return wp.normalize(wp.cross(scene.tri_verts[3 * i + 1] - v0, scene.tri_verts[3 * i + 2] - v0))
+        v0 = geometry.tri_verts[3 * i]
+        return wp.normalize(wp.cross(geometry.tri_verts[3 * i + 1] - v0, geometry.tri_verts[3 * i + 2] - v0))
     if kind == SPHERE:
-        return wp.normalize(ray_origin_at(scene, prim, p, time) - scene.sphere_center[i])
+        return wp.normalize(ray_origin_at(geometry, prim, p, time) - geometry.sphere_center[i])
     if kind == POLYGON:
-        return scene.poly_normal[i]
-    return scene.plane_normal[i]
+        return geometry.poly_normal[i]
+    return geometry.plane_normal[i]
 
 
 def _trace_kernels(trace: Traversal, module: str | None):
     @wp.kernel(module=module)
     def trace_closest(
-        scene: SceneData,
+        geometry: GeometryData,
         origins: wp.array(dtype=wp.vec3),
         directions: wp.array(dtype=wp.vec3),
         t_min: float,
@@ -414,15 +421,15 @@ def _trace_kernels(trace: Traversal, module: str | None):
         skips the BVH."""
         i = wp.tid()
         if brute_force != 0:
-            t, prim = closest_hit_brute_force(scene, origins[i], directions[i], 0.0, t_min, t_max)
+            t, prim = closest_hit_brute_force(geometry, origins[i], directions[i], 0.0, t_min, t_max)
         else:
-            t, prim = trace.closest_hit(scene, origins[i], directions[i], 0.0, t_min, t_max)
+            t, prim = trace.closest_hit(geometry, origins[i], directions[i], 0.0, t_min, t_max)
         out_t[i] = t
         out_prim[i] = prim
 
     @wp.kernel(module=module)
     def trace_any(
-        scene: SceneData,
+        geometry: GeometryData,
         origins: wp.array(dtype=wp.vec3),
         directions: wp.array(dtype=wp.vec3),
         t_min: float,
@@ -431,11 +438,11 @@ def _trace_kernels(trace: Traversal, module: str | None):
     ):
         """Any-hit (occlusion) query of a batch of rays at time 0: 1 where something lies in (t_min, t_max)."""
         i = wp.tid()
-        out_hit[i] = wp.where(trace.any_hit(scene, origins[i], directions[i], 0.0, t_min, t_max), 1, 0)
+        out_hit[i] = wp.where(trace.any_hit(geometry, origins[i], directions[i], 0.0, t_min, t_max), 1, 0)
 
     @wp.kernel(module=module)
     def trace_visits(
-        scene: SceneData,
+        geometry: GeometryData,
         origins: wp.array(dtype=wp.vec3),
         directions: wp.array(dtype=wp.vec3),
         times: wp.array(dtype=float),
@@ -444,7 +451,7 @@ def _trace_kernels(trace: Traversal, module: str | None):
         """Replay the closest-hit query of recorded rays (``t`` in ``(0, inf)``), logging the BVH nodes
         each visits: the same traversal code as the render kernels'."""
         i = wp.tid()
-        trace.closest_hit_logged(scene, origins[i], directions[i], times[i], 0.0, wp.inf, log, i)
+        trace.closest_hit_logged(geometry, origins[i], directions[i], times[i], 0.0, wp.inf, log, i)
 
     return trace_closest, trace_any, trace_visits
 

@@ -54,7 +54,7 @@ from .optics import fresnel_dielectric, reflect, refract
 from .record import REFLECTED, REFRACTED, SHADOW_BLOCKED, SHADOW_LIT, STRAIGHT, TOTAL_INTERNAL, RayRecord, record_ray
 from .sampling import Sampler
 from .spawn import hit_error, spawn_origin
-from .traverse import NO_HIT, SceneData, Traversal, geometric_normal, prim_shape, traversal
+from .traverse import NO_HIT, GeometryData, Traversal, geometric_normal, prim_shape, traversal
 
 BRANCHES = 32  # pending branches per camera ray
 MAX_SEGMENTS = wp.constant(4096)  # hard stop per camera ray, whatever happens (deferred branches: heaviest first)
@@ -89,7 +89,7 @@ def make_shadows(trace: Traversal):
 
     @wp.func
     def shadow_transmittance(
-        scene: SceneData,
+        geometry: GeometryData,
         materials: MaterialData,
         settings: IntegratorSettings,
         o: wp.vec3,
@@ -104,19 +104,19 @@ def make_shadows(trace: Traversal):
         straight line, attenuated by Beer-Lambert over the length inside them; anything else blocks.
         """
         if settings.filtered_shadows == 0:
-            if trace.any_hit(scene, o, w, time, 0.0, t_max):
+            if trace.any_hit(geometry, o, w, time, 0.0, t_max):
                 return wp.vec3(0.0)
             return wp.vec3(1.0)
         transmittance = wp.vec3(1.0)
         for _k in range(SHADOW_CROSSINGS):
-            t, prim = trace.closest_hit(scene, o, w, time, 0.0, t_max)
+            t, prim = trace.closest_hit(geometry, o, w, time, 0.0, t_max)
             if prim == NO_HIT:
                 return transmittance
-            m = materials.shape_material[prim_shape(scene, prim)]
+            m = materials.shape_material[prim_shape(geometry, prim)]
             if materials.type[m] != DIELECTRIC:
                 return wp.vec3(0.0)
             p = o + t * w
-            n = geometric_normal(scene, prim, p, time)
+            n = geometric_normal(geometry, prim, p, time)
             if wp.dot(w, n) > 0.0:  # leaving: the segment just travelled was inside
                 transmittance = wp.cw_mul(transmittance, beer_lambert(materials.sigma[m], t))
             o_next = spawn_origin(p, n, hit_error(o, p, t), w)
@@ -126,7 +126,7 @@ def make_shadows(trace: Traversal):
 
     @wp.func
     def shadow_blocker(
-        scene: SceneData,
+        geometry: GeometryData,
         materials: MaterialData,
         settings: IntegratorSettings,
         o: wp.vec3,
@@ -139,13 +139,13 @@ def make_shadows(trace: Traversal):
         dielectric (``NO_HIT`` and ``t_max`` if there is none)."""
         t_total = float(0.0)
         for _k in range(SHADOW_CROSSINGS):
-            t, prim = trace.closest_hit(scene, o, w, time, 0.0, t_max - t_total)
+            t, prim = trace.closest_hit(geometry, o, w, time, 0.0, t_max - t_total)
             if prim == NO_HIT or settings.filtered_shadows == 0:
                 return t_total + t, prim
-            if materials.type[materials.shape_material[prim_shape(scene, prim)]] != DIELECTRIC:
+            if materials.type[materials.shape_material[prim_shape(geometry, prim)]] != DIELECTRIC:
                 return t_total + t, prim
             p = o + t * w
-            o = spawn_origin(p, geometric_normal(scene, prim, p, time), hit_error(o, p, t), w)
+            o = spawn_origin(p, geometric_normal(geometry, prim, p, time), hit_error(o, p, t), w)
             t_total += t
         return t_max, NO_HIT
 
@@ -158,7 +158,7 @@ def make_direct_light(record: bool, trace: Traversal):
 
     @wp.func
     def direct_light(
-        scene: SceneData,
+        geometry: GeometryData,
         materials: MaterialData,
         lights: LightData,
         settings: IntegratorSettings,
@@ -187,13 +187,13 @@ def make_direct_light(record: bool, trace: Traversal):
             cos_theta = wp.dot(n, wi)
             if cos_theta > 0.0 and max_component(irradiance) > 0.0:
                 o_shadow = spawn_origin(p, n, err, wi)
-                visible = shadow_transmittance(scene, materials, settings, o_shadow, wi, dist, time)
+                visible = shadow_transmittance(geometry, materials, settings, o_shadow, wi, dist, time)
                 total += wp.cw_mul(wp.cw_mul(eval_brdf(materials, m, n, wo, wi), irradiance), visible) * cos_theta
                 if wp.static(record):
                     if max_component(visible) > 0.0:
                         record_ray(
                             rec,
-                            scene,
+                            geometry,
                             pixel,
                             sample,
                             SHADOW_LIT,
@@ -207,10 +207,10 @@ def make_direct_light(record: bool, trace: Traversal):
                             parent,
                         )
                     else:
-                        t_block, prim_block = shadow_blocker(scene, materials, settings, o_shadow, wi, dist, time)
+                        t_block, prim_block = shadow_blocker(geometry, materials, settings, o_shadow, wi, dist, time)
                         record_ray(
                             rec,
-                            scene,
+                            geometry,
                             pixel,
                             sample,
                             SHADOW_BLOCKED,
@@ -237,7 +237,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
 
     @wp.func
     def whitted_radiance(
-        scene: SceneData,
+        geometry: GeometryData,
         materials: MaterialData,
         lights: LightData,
         settings: IntegratorSettings,
@@ -283,11 +283,11 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                 pending_parent = BranchInt()
         for _segment in range(MAX_SEGMENTS):
             if not traced:
-                t, prim = trace.closest_hit(scene, o, d, time, t_from, wp.inf)
+                t, prim = trace.closest_hit(geometry, o, d, time, t_from, wp.inf)
                 if wp.static(record):
                     current = record_ray(
                         rec,
-                        scene,
+                        geometry,
                         pixel,
                         sample,
                         segment_kind,
@@ -312,8 +312,8 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                 radiance += wp.cw_mul(throughput, settings.background)
             else:
                 p = o + t * d
-                n = geometric_normal(scene, prim, p, time)
-                shape = prim_shape(scene, prim)
+                n = geometric_normal(geometry, prim, p, time)
+                shape = prim_shape(geometry, prim)
                 m = materials.shape_material[shape]
                 entering = wp.dot(d, n) < 0.0
                 n_facing = n
@@ -328,7 +328,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                     if wp.static(features.lights):
                         if depth < settings.max_depth:
                             local += direct_light(
-                                scene,
+                                geometry,
                                 materials,
                                 lights,
                                 settings,

@@ -181,8 +181,9 @@ def test_wrong_types_and_values(tmp_path, capsys, text, where, problem):
         (["--height", "-3"], "height = -3"),
         (["--width", "1000000"], "width = 1000000"),
         (["--spp", "0"], "spp = 0"),
+        (["--max-depth", "0"], "max_depth = 0"),
     ],
-    ids=["width 0", "negative height", "width 10^6", "spp 0"],
+    ids=["width 0", "negative height", "width 10^6", "spp 0", "max_depth 0"],
 )
 def test_absurd_sizes_on_the_command_line(tmp_path, capsys, args, where):
     run_bad(tmp_path, capsys, GOOD, "command line", where, "must be in", extra_args=args, names_scene=False)

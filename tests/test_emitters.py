@@ -1,4 +1,4 @@
-"""Emitter sampling (kernels/emitters.py, kernels/warps.py) against closed-form irradiance."""
+"""Emitter sampling (kernels/emitters.py, kernels/sample_warps.py) against closed-form irradiance."""
 
 import numpy as np
 import pytest
@@ -6,8 +6,8 @@ import warp as wp
 import wrt.kernels  # noqa: F401
 from wrt.kernels.emitters import emitter_pdf, sample_emitter
 from wrt.kernels.lights import AREA, ENVIRONMENT, SPHERE_LIGHT, LightData
+from wrt.kernels.sample_warps import concentric_disk, cosine_hemisphere, frame, power_heuristic
 from wrt.kernels.sampling import independent_1d as sample_1d
-from wrt.kernels.warps import concentric_disk, cosine_hemisphere, frame, power_heuristic
 
 
 def one_light(kind, position=(0, 0, 0), edge_u=(0, 0, 0), edge_v=(0, 0, 0), radius=0.0, radiance=(1, 1, 1)):

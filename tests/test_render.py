@@ -107,3 +107,15 @@ def test_cli_png_and_cuda_request_without_gpu(tmp_path, capsys):
     if not __import__("warp").is_cuda_available():
         assert main(["render", "examples/spheres.toml", "-o", str(tmp_path / "b.png"), "--device", "cuda"]) == 2
         assert "no CUDA device" in capsys.readouterr().err
+
+
+def test_cli_max_depth_overrides_the_scene(tmp_path):
+    """``--max-depth 1`` renders what the scene renders with ``max_depth = 1``: no mirror bounces."""
+    scene = "examples/whitted/mirrors.toml"
+    size = ["--width", "40", "--height", "30", "--spp", "1"]
+    assert main(["render", scene, "-o", str(tmp_path / "one.exr"), "--max-depth", "1", *size]) == 0
+    assert main(["render", scene, "-o", str(tmp_path / "full.exr"), *size]) == 0
+    one, full = read_image(tmp_path / "one.exr").rgb, read_image(tmp_path / "full.exr").rgb
+    small = wrt.loader.override_render(wrt.load_scene(scene), width=40, height=30, spp=1, max_depth=1)
+    np.testing.assert_array_equal(one, wrt.render(small).rgb)
+    assert not np.array_equal(one, full)

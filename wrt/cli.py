@@ -67,6 +67,11 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
         choices=("independent", "stratified", "sobol"),
         help="random numbers (default: the scene's [render] sampler)",
     )
+    r.add_argument(
+        "--max-depth",
+        type=int,
+        help="ray segments per path, camera ray included (default: the scene's [render] max_depth)",
+    )
     r.add_argument("--width", type=int, help="image width in pixels (default: the scene's)")
     r.add_argument("--height", type=int, help="image height in pixels (default: the scene's)")
     r.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
@@ -120,7 +125,11 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
     )
     rays.add_argument("--samples", type=int, default=1, help="samples per pixel (default 1: the pixel centre)")
     rays.add_argument(
-        "--depth", type=int, help="max_depth: ray segments per path, camera ray included (default: the scene's)"
+        "--max-depth",
+        "--depth",
+        dest="max_depth",
+        type=int,
+        help="ray segments per path, camera ray included (default: the scene's [render] max_depth)",
     )
     shown = rays.add_mutually_exclusive_group(required=True)
     shown.add_argument("-o", "--output", help="render the view off screen to this .png")
@@ -205,6 +214,7 @@ def _render(args) -> int:
         spp=args.spp,
         seed=args.seed,
         sampler=args.sampler,
+        max_depth=args.max_depth,
     )
     pixels = scene.render.width * scene.render.height
 
@@ -281,7 +291,7 @@ def _rays(args) -> int:
         [tuple(p) for p in args.pixel],
         grid=args.grid,
         samples=args.samples,
-        max_depth=args.depth,
+        max_depth=args.max_depth,
         output=args.output,
         interactive=args.interactive,
         export_path=args.export,

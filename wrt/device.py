@@ -35,7 +35,7 @@ from wrt.kernels.materials import (
     MaterialData,
 )
 from wrt.kernels.sampling import INDEPENDENT, SOBOL, STRATIFIED, Sampler
-from wrt.kernels.traverse import SceneData
+from wrt.kernels.traverse import GeometryData
 
 from .errors import WrtError
 from .geometry import Primitives, polygon_projection
@@ -123,8 +123,8 @@ def _float(a: np.ndarray, device) -> wp.array:
     return wp.array(np.asarray(a, dtype=np.float32).reshape(-1), dtype=wp.float32, device=device)
 
 
-def upload_geometry(p: Primitives, device) -> SceneData:
-    """``SceneData`` for primitives already passed through ``wrt.geometry.build`` (whose BVH is
+def upload_geometry(p: Primitives, device) -> GeometryData:
+    """``GeometryData`` for primitives already passed through ``wrt.geometry.build`` (whose BVH is
     on ``device``)."""
     axes, uvs = [], []
     for verts, normal in zip(p.poly_verts, p.poly_normal):
@@ -133,7 +133,7 @@ def upload_geometry(p: Primitives, device) -> SceneData:
         uvs.append(uv)
     poly_count = np.array([len(v) for v in p.poly_verts], dtype=np.int32)
     poly_offset = [float(np.dot(n, v.mean(axis=0))) for v, n in zip(p.poly_verts, p.poly_normal)]
-    s = SceneData()
+    s = GeometryData()
     s.nodes = p.bvh.nodes
     s.prims = _int(p.prims, device)
     s.sphere_center = _vec3(p.sphere_center, device)

@@ -10,13 +10,13 @@ Files are written to a temporary file in the target's folder and moved into plac
 """
 
 import os
-import tempfile
 from dataclasses import dataclass, field
 
 import numpy as np
 import OpenImageIO as oiio
 
-from wrt.errors import WrtError
+from .errors import WrtError
+from .files import atomic_path
 
 AOV_CHANNELS = {
     "depth": ("Z",),
@@ -300,18 +300,12 @@ def _png_spec_and_pixels(rgb, metadata):
 
 
 def _write_atomically(path, ext, spec, pixels):
-    """Write `pixels` to a temporary file beside `path`, then move it over `path`.
-
-    On any failure, KeyboardInterrupt included, the temporary file is removed and `path`
-    is left as it was.
-    """
-    folder, name = os.path.split(os.path.abspath(path))
+    """Write `pixels` to a temporary file beside `path`, then move it over `path`
+    (``wrt.files.atomic_path``): on any failure, KeyboardInterrupt included, `path` is left as it was."""
+    folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
         raise WrtError(f"{path}: folder {folder} does not exist")
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix="." + name + ".", suffix=ext)
-    os.close(fd)
-    try:
-        os.chmod(tmp, 0o666 & ~_umask())
+    with atomic_path(path, suffix=ext) as tmp:
         out = oiio.ImageOutput.create(tmp)
         if out is None:
             raise WrtError(f"{path}: cannot write image: {oiio.geterror()}")
@@ -320,17 +314,6 @@ def _write_atomically(path, ext, spec, pixels):
         ok = out.close() and ok
         if not ok:
             raise WrtError(f"{path}: cannot write image: {error or out.geterror()}")
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
-
-
-def _umask():
-    """Return the process umask (reading it requires setting it, so it is set back at once)."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 def _stacked(path, channels, names):

@@ -200,12 +200,12 @@ def trace_rays(
     dev = resolve_device(device)
     kernel = RECORD_KERNELS[scene.render.integrator]
     wp.load_module(kernel.module, device=dev)
-    frame = prepare(scene, dev)
+    device_scene = prepare(scene, dev)
     rec = RayRecord()
     rec.count = wp.zeros(1, dtype=wp.int32, device=dev)
     rec.segments = wp.zeros(capacity, dtype=Segment, device=dev)
     for x, y in chosen:  # one thread per launch: each pixel's segments stay together, in order
-        frame.launch(kernel, y * w + x, 1, samples, scene.render.seed, rec)
+        device_scene.launch(kernel, y * w + x, 1, samples, scene.render.seed, rec)
     recorded = int(rec.count.numpy()[0])
     seg = rec.segments.numpy()[: min(recorded, capacity)]
     flags = seg["flags"]
@@ -213,11 +213,11 @@ def trace_rays(
         np.zeros((0, 3), dtype=np.float32),
     ) * 2
     if bvh:
-        visit_row, visit_node = bvh_visits(frame, seg, dev)
-        bvh_lo, bvh_hi = node_bounds(frame.geometry.nodes.numpy())
+        visit_row, visit_node = bvh_visits(device_scene, seg, dev)
+        bvh_lo, bvh_hi = node_bounds(device_scene.geometry.nodes.numpy())
     index = np.array([y * w + x for x, y in chosen])
-    rgb = frame.film.rgb.numpy()[index]
-    position = frame.film.position.numpy()[index]
+    rgb = device_scene.film.rgb.numpy()[index]
+    position = device_scene.film.position.numpy()[index]
     return RayTree(
         scene=scene,
         pixels=np.array(chosen, dtype=np.int64).reshape(-1, 2),
@@ -247,11 +247,11 @@ def trace_rays(
     )
 
 
-def bvh_visits(frame, seg: np.ndarray, dev) -> tuple[np.ndarray, np.ndarray]:
+def bvh_visits(device_scene, seg: np.ndarray, dev) -> tuple[np.ndarray, np.ndarray]:
     """``(row, node)`` of every BVH node the closest-hit query of each recorded non-shadow segment
     visits, in order: the segments replayed through ``wrt.kernels.traverse.trace_visits``."""
     rows = np.flatnonzero(~np.isin(seg["kind"], [SHADOW_LIT, SHADOW_BLOCKED]))
-    if len(rows) == 0 or frame.geometry.nodes.shape[0] == 0:
+    if len(rows) == 0 or device_scene.geometry.nodes.shape[0] == 0:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     log = VisitLog()
     log.nodes = wp.zeros((len(rows), MAX_VISITS), dtype=wp.int32, device=dev)
@@ -259,7 +259,7 @@ def bvh_visits(frame, seg: np.ndarray, dev) -> tuple[np.ndarray, np.ndarray]:
     origins = wp.array(np.ascontiguousarray(seg["origin"][rows]), dtype=wp.vec3, device=dev)
     directions = wp.array(np.ascontiguousarray(seg["direction"][rows]), dtype=wp.vec3, device=dev)
     times = wp.array(np.ascontiguousarray(seg["time"][rows]), dtype=float, device=dev)
-    wp.launch(trace_visits, dim=len(rows), inputs=[frame.geometry, origins, directions, times, log], device=dev)
+    wp.launch(trace_visits, dim=len(rows), inputs=[device_scene.geometry, origins, directions, times, log], device=dev)
     count = np.minimum(log.count.numpy(), MAX_VISITS)
     nodes = log.nodes.numpy()
     keep = np.arange(MAX_VISITS)[None, :] < count[:, None]

@@ -104,7 +104,7 @@ class DeviceScene:
     device: wp.context.Device
     width: int
     height: int
-    geometry: object  # wrt.kernels.traverse.SceneData
+    geometry: object  # wrt.kernels.traverse.GeometryData
     materials: object  # wrt.kernels.materials.MaterialData
     lights: object  # wrt.kernels.lights.LightData
     settings: object  # wrt.kernels.integrator.IntegratorSettings
@@ -353,7 +353,7 @@ def render(
     t0 = time.perf_counter()
     wp.load_module(kernel.module, device=dev)
     t1 = time.perf_counter()
-    frame = prepare(scene, dev)
+    device_scene = prepare(scene, dev)
     pool = None if dev.is_cuda else ThreadPoolExecutor(max_workers=threads)
     counts = np.zeros(w * h, dtype=np.int32)  # samples taken by each pixel
     active = None  # adaptive sampling: indices of the pixels still sampled (None: all)
@@ -362,12 +362,14 @@ def render(
         n = w * h if active is None else len(active)
         on_device = None if active is None else wp.array(active, dtype=wp.int32, device=dev)
         if pool is None:
-            frame.launch(kernel, 0, n, spp, seed, None, first_sample, pass_spp, on_device)
+            device_scene.launch(kernel, 0, n, spp, seed, None, first_sample, pass_spp, on_device)
             wp.synchronize_device(dev)
         else:
             tiles = [(first, min(TILE_PIXELS, n - first)) for first in range(0, n, TILE_PIXELS)]
             for future in [
-                pool.submit(frame.launch, kernel, first, count, spp, seed, None, first_sample, pass_spp, on_device)
+                pool.submit(
+                    device_scene.launch, kernel, first, count, spp, seed, None, first_sample, pass_spp, on_device
+                )
                 for first, count in tiles
             ]:
                 future.result()
@@ -375,18 +377,18 @@ def render(
 
     def result(done: int, elapsed: float, copy: bool) -> RenderResult:
         take = np.copy if copy else np.asarray
-        aovs = {name: take(a) for name, a in frame.aovs().items()}
+        aovs = {name: take(a) for name, a in device_scene.aovs().items()}
         if target_error is not None:
             aovs["spp"] = counts.reshape(h, w).copy()
         return RenderResult(
-            rgb=take(frame.film.rgb.numpy().reshape(h, w, 3)),
+            rgb=take(device_scene.film.rgb.numpy().reshape(h, w, 3)),
             aovs=aovs,
             spp=done,
             seed=seed,
             integrator=scene.render.integrator,
             device=str(dev),
             threads=threads,
-            build_time_s=frame.build_time_s,
+            build_time_s=device_scene.build_time_s,
             compile_time_s=t1 - t0,
             render_time_s=elapsed,
         )
@@ -405,7 +407,7 @@ def render(
             if schedule is not None and done < spp:
                 pixels = np.arange(w * h) if active is None else active
                 error = relative_error(
-                    frame.film.rgb_sum.numpy()[pixels], frame.film.luminance_sq_sum.numpy()[pixels], done
+                    device_scene.film.rgb_sum.numpy()[pixels], device_scene.film.luminance_sq_sum.numpy()[pixels], done
                 )
                 active = pixels[error > target_error].astype(np.int32)
             busy += time.perf_counter() - t2

@@ -36,7 +36,7 @@ class Tracer:
     """A scene's primitives and BVH on ``device``, and batch queries against them.
 
     ``prims`` is the host side (``wrt.geometry.Primitives``, leaf order), ``data`` the device
-    side (``wrt.kernels.traverse.SceneData``).
+    side (``wrt.kernels.traverse.GeometryData``).
     """
 
     def __init__(self, scene: Scene, device: str = "cpu", *, specialize: bool = False):
