@@ -12,11 +12,13 @@ Modules, in data-flow order:
 - ``features``      the scene features kernels are specialised on; ``variants``: the variants
 - ``spawn``         the one origin offset for rays leaving a surface
 - ``optics``        reflection, Snell refraction, Fresnel
-- ``materials``     material parameters and BRDFs; ``microfacet``: GGX
+- ``materials``     material parameters and the BSDF interface (flags, eval, pdf, sample); ``microfacet``: GGX
+- ``hit``           the surface hit integrators shade (point, normals, material, error bound)
 - ``lights``        light parameters and delta lights; ``emitters``: sampling lights with area
-- ``media``         nested and overlapping dielectrics along a ray
+- ``media``         nested and overlapping dielectrics along a ray, Beer-Lambert absorption
+- ``shadow``        the shadow ray (opaque or filtered through dielectrics), recorded or not
 - ``film``          the per-pixel outputs and AOVs
-- ``integrator``    the pixel loop every integrator shares; ``record``: ray recording
+- ``integrator``    the pixel loop every integrator shares, tracing a segment; ``record``: ray recording
 - ``raycast``, ``whitted``, ``path``   the integrators
 - ``stress``        kernels of the numerical stress suite
 

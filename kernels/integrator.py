@@ -1,11 +1,16 @@
 """The pixel loop shared by every integrator, and the settings they read.
 
-``make_render_kernel(radiance)`` builds a kernel that, for each pixel of a tile, traces the
+A kernel reads a scene as its geometry, materials, lights, settings and camera (the structs of
+``wrt.renderer.DeviceScene``), and takes the pixels and samples of a launch as a ``RenderPass``.
+They stay separate kernel arguments: bundled into one nested struct, each access copies it, and
+whitted renders took 25% longer (see docs/performance.md). ``make_render_kernel(radiance)``
+builds a kernel that, for each pixel of a tile, traces the
 pixel-centre camera ray at mid-shutter, writes the AOVs (``wrt.kernels.film``), and averages
 ``radiance(...)`` over ``spp`` samples: the centre ray itself when ``spp == 1``; otherwise film
 positions drawn from the pixel filter, lens positions and shutter times, from the sampler.
-``radiance`` receives the camera ray and its first hit already found, so a one-sample render
-traces each primary ray once.
+``radiance`` receives the camera ray and its first hit already found (a ``CameraRay``), so a
+one-sample render traces each primary ray once. ``make_trace_segment`` is the one way every
+integrator traces (and, in recording variants, records) a ray segment.
 
 A launch takes the samples ``first_sample .. first_sample + pass_spp - 1`` of a render of ``spp``
 samples (a progressive render is several launches, or passes). It continues the pixel's running
@@ -35,7 +40,7 @@ from .materials import MaterialData
 from .record import CAMERA, RayRecord, record_ray
 from .sample_warps import concentric_disk
 from .sampling import Sampler, sample_1d, sample_2d
-from .traverse import GeometryData, traversal
+from .traverse import GeometryData, Traversal, traversal
 
 RECORD_MODULE = "wrt.kernels.record_variants"
 
@@ -52,17 +57,88 @@ class IntegratorSettings:
     min_throughput: float
 
 
+@wp.struct
+class RenderPass:
+    """The pixels and samples of one launch: samples ``first_sample .. first_sample + pass_spp - 1``
+    of pixels ``first_pixel + tid``, or of ``active[first_pixel + tid]`` when ``active`` is not empty."""
+
+    first_sample: wp.int32
+    pass_spp: wp.int32
+    first_pixel: wp.int32
+    active: wp.array(dtype=wp.int32)
+
+
+@wp.struct
+class CameraRay:
+    """A camera ray handed to an integrator: unit ray ``o + s d`` at ray ``time``, its first hit
+    ``(t, prim)`` (``NO_HIT`` on a miss), the pixel sample it belongs to (keys the random numbers
+    and the records) and its record index (recording variants; -1 otherwise)."""
+
+    o: wp.vec3
+    d: wp.vec3
+    time: float
+    t: float
+    prim: wp.int32
+    pixel: wp.int32
+    sample: wp.int32
+    record: wp.int32
+
+
+def make_trace_segment(record: bool, trace: Traversal):
+    """``trace_segment``, recording the segment when ``record`` (compiled out otherwise)."""
+
+    @wp.func
+    def trace_segment(
+        geometry: GeometryData,
+        rec: RayRecord,
+        ray: CameraRay,
+        kind: wp.int32,
+        o: wp.vec3,
+        d: wp.vec3,
+        t_from: float,
+        t_last: float,
+        throughput: wp.vec3,
+        depth: wp.int32,
+        parent: wp.int32,
+    ):
+        """Closest hit ``(t, prim)`` of unit ray ``o + s d`` for ``s > t_from``, at the time of camera
+        ray ``ray``, and the record index of the segment from ``o + t_last d`` to it (of ``kind``,
+        carrying ``throughput``, segment ``depth`` of its path, child of record ``parent``; ``parent``
+        itself when not recording)."""
+        t, prim = trace.closest_hit(geometry, o, d, ray.time, t_from, wp.inf)
+        index = parent
+        if wp.static(record):
+            index = record_ray(
+                rec,
+                geometry,
+                ray.pixel,
+                ray.sample,
+                kind,
+                o + t_last * d,
+                d,
+                t - t_last,
+                prim,
+                ray.time,
+                throughput,
+                depth,
+                parent,
+            )
+        return t, prim, index
+
+    return trace_segment
+
+
 def make_render_kernel(radiance, record: bool = False, features: Features = ALL, module: str | None = None):
-    """A render kernel around the ``@wp.func``
-    ``radiance(scene, materials, lights, settings, o, d, t, prim, time, rec, sampler, pixel, sample, parent) -> vec3``.
+    """A render kernel around the ``@wp.func`` ``radiance(geometry: GeometryData, materials: MaterialData,
+    lights: LightData, settings: IntegratorSettings, sampler: Sampler, ray: CameraRay, rec: RayRecord) -> vec3``.
 
-    ``sampler``, ``pixel`` and ``sample`` key the random numbers of integrators that sample
+    ``sampler``, ``ray.pixel`` and ``ray.sample`` key the random numbers of integrators that sample
     (``wrt.kernels.sampling``); the pixel loop uses dimensions 0-1 (position in the pixel), 2-3 (lens)
-    and 4 (time in the shutter interval); ``time`` is the ray time of the camera ray.
+    and 4 (time in the shutter interval).
 
-    ``rec``, ``pixel``, ``sample`` and ``parent`` (the record index of the camera ray) are for
-    recording: with ``record=False`` the kernel passes an empty ``rec`` and ``radiance`` must not
-    touch it (build it with recording compiled out).
+    ``rec`` and ``ray.record`` (the record index of the camera ray) are for recording: with
+    ``record=False`` the kernel passes an empty ``rec`` and ``radiance`` must not touch it (build it
+    with recording compiled out).
 
     ``features``: without ``lens`` the camera is taken to be a pinhole and without ``motion``
     every sample is at mid-shutter (no lens or time sampling); ``module``: the Warp module to put
@@ -70,6 +146,30 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
     """
 
     trace = traversal(features)
+    trace_segment = make_trace_segment(record, trace)
+
+    @wp.func
+    def camera_ray(
+        geometry: GeometryData,
+        rec: RayRecord,
+        pixel: wp.int32,
+        sample: wp.int32,
+        o: wp.vec3,
+        d: wp.vec3,
+        time: float,
+    ) -> CameraRay:
+        """The camera ray of one pixel sample, traced (and recorded)."""
+        ray = CameraRay()
+        ray.o = o
+        ray.d = d
+        ray.time = time
+        ray.pixel = pixel
+        ray.sample = sample
+        t, prim, index = trace_segment(geometry, rec, ray, CAMERA, o, d, 0.0, 0.0, wp.vec3(1.0), 1, -1)
+        ray.t = t
+        ray.prim = prim
+        ray.record = index
+        return ray
 
     @wp.kernel(module=module or (RECORD_MODULE if record else None))
     def render_pixels(
@@ -79,62 +179,46 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
         settings: IntegratorSettings,
         cam: CameraData,
         sampler: Sampler,
-        first_sample: wp.int32,
-        pass_spp: wp.int32,
-        first_pixel: wp.int32,
-        active: wp.array(dtype=wp.int32),
+        launch: RenderPass,
         film: Film,
         rec: RayRecord,
     ):
-        pixel = first_pixel + wp.tid()
-        if active.shape[0] > 0:  # adaptive sampling: only the pixels still sampled
-            pixel = active[first_pixel + wp.tid()]
+        pixel = launch.first_pixel + wp.tid()
+        if launch.active.shape[0] > 0:  # adaptive sampling: only the pixels still sampled
+            pixel = launch.active[launch.first_pixel + wp.tid()]
         x = pixel % cam.width
         y = pixel // cam.width
-        parent = int(-1)
+        mid_shutter = shutter_time(cam, 0.5)
+        centre = camera_ray_direction(cam, x, y, 0.5, 0.5)
+        first = launch.first_sample
         total = wp.vec3(0.0)
         total_sq = float(0.0)
-        time = shutter_time(cam, 0.5)
-        if first_sample == 0:
-            d = camera_ray_direction(cam, x, y, 0.5, 0.5)
-            t, prim = trace.closest_hit(geometry, cam.origin, d, time, 0.0, wp.inf)
-            write_aovs(film, geometry, pixel, cam.origin, d, t, prim, time)
-            if sampler.spp == 1:
-                if wp.static(record):
-                    parent = record_ray(
-                        rec, geometry, pixel, 0, CAMERA, cam.origin, d, t, prim, time, wp.vec3(1.0), 1, -1
-                    )
-                total = radiance(
-                    geometry, materials, lights, settings, cam.origin, d, t, prim, time, rec, sampler, pixel, 0, parent
-                )
-                film.rgb_sum[pixel] = total
-                film.luminance_sq_sum[pixel] = luminance(total) * luminance(total)
-                film.rgb[pixel] = total
-                return
-        else:
+        if first > 0:
             total = film.rgb_sum[pixel]
             total_sq = film.luminance_sq_sum[pixel]
-        for s in range(first_sample, first_sample + pass_spp):
-            uv = film_position(cam, sample_2d(sampler, pixel, s, 0))
-            pinhole = camera_ray_direction(cam, x, y, uv[0], uv[1])
-            o_s = cam.origin
-            ds = pinhole
-            if wp.static(features.lens):
-                lens = sample_2d(sampler, pixel, s, 2)
-                o_s, ds = thin_lens_ray(cam, pinhole, concentric_disk(lens[0], lens[1]))
-            time_s = time
-            if wp.static(features.motion):
-                time_s = shutter_time(cam, sample_1d(sampler, pixel, s, 4))
-            ts, prim_s = trace.closest_hit(geometry, o_s, ds, time_s, 0.0, wp.inf)
-            if wp.static(record):
-                parent = record_ray(rec, geometry, pixel, s, CAMERA, o_s, ds, ts, prim_s, time_s, wp.vec3(1.0), 1, -1)
-            value = radiance(
-                geometry, materials, lights, settings, o_s, ds, ts, prim_s, time_s, rec, sampler, pixel, s, parent
-            )
+        elif sampler.spp > 1:  # the AOVs' pixel-centre ray is not a sample
+            t, prim = trace.closest_hit(geometry, cam.origin, centre, mid_shutter, 0.0, wp.inf)
+            write_aovs(film, geometry, pixel, cam.origin, centre, t, prim, mid_shutter)
+        for s in range(first, first + launch.pass_spp):
+            o = cam.origin
+            d = centre
+            time = mid_shutter
+            if sampler.spp > 1:
+                uv = film_position(cam, sample_2d(sampler, pixel, s, 0))
+                d = camera_ray_direction(cam, x, y, uv[0], uv[1])
+                if wp.static(features.lens):
+                    lens = sample_2d(sampler, pixel, s, 2)
+                    o, d = thin_lens_ray(cam, d, concentric_disk(lens[0], lens[1]))
+                if wp.static(features.motion):
+                    time = shutter_time(cam, sample_1d(sampler, pixel, s, 4))
+            ray = camera_ray(geometry, rec, pixel, s, o, d, time)
+            if sampler.spp == 1:  # the pixel-centre ray is the sample, and gives the AOVs
+                write_aovs(film, geometry, pixel, o, d, ray.t, ray.prim, time)
+            value = radiance(geometry, materials, lights, settings, sampler, ray, rec)
             total += value
             total_sq += luminance(value) * luminance(value)
         film.rgb_sum[pixel] = total
         film.luminance_sq_sum[pixel] = total_sq
-        film.rgb[pixel] = total / float(first_sample + pass_spp)
+        film.rgb[pixel] = total / float(first + launch.pass_spp)
 
     return render_pixels

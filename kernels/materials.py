@@ -1,24 +1,51 @@
-"""Materials on the device: per-shape lookup, parameters per material, and the BRDFs.
+"""Materials on the device: per-shape lookup, parameters, and the one BSDF interface integrators use.
 
 Types (``MaterialData.type``): ``DIFFUSE`` (Lambert, albedo/pi), ``PHONG`` (albedo/pi plus the
 energy-normalised Phong lobe ``specular (n + 2) / (2 pi) cos^n alpha``, alpha between the
-mirror direction of ``wi`` and ``wo``), ``MIRROR`` (perfect specular, ``reflectance``) and
+mirror direction of ``wi`` and ``wo``), ``MIRROR`` (perfect specular, ``reflectance``),
 ``DIELECTRIC`` (smooth glass: ``ior``, Beer-Lambert ``sigma``), ``GLOSSY`` (GGX conductor of
 ``roughness`` alpha with the constant Fresnel factor ``reflectance``, ``wrt.kernels.microfacet``) and
 ``EMITTER`` (the surface of an area or sphere light: reflects nothing). Any type may emit
 ``emission`` (W/(m^2 sr)) from its front side. ``base_color`` is what the raycast integrator shows.
 
+The BSDF interface (pbrt-v4's ``BSDF::f / Sample_f / PDF / Flags``, Mitsuba 3's ``eval / sample /
+pdf / flags``): integrators ask these functions and never test a material's type.
+
+- ``bsdf_flags(materials, m)``: the lobes, a combination of ``BSDF_REFLECTION``,
+  ``BSDF_TRANSMISSION``, ``BSDF_DIFFUSE``, ``BSDF_GLOSSY`` and ``BSDF_SPECULAR`` (a delta lobe); 0 for
+  a surface that scatters nothing (``EMITTER``). ``non_specular(flags)``: the BSDF has lobes that
+  ``bsdf_eval`` sees, so light sampling (next-event estimation) pays there.
+- ``bsdf_eval(materials, m, n, wo, wi)``: f (1/sr) of the non-specular lobes, 0 for delta lobes.
+- ``bsdf_pdf(materials, m, n, wo, wi)``: the solid-angle density with which ``bsdf_sample`` draws
+  ``wi`` from the non-specular lobes.
+- ``bsdf_sample(materials, m, n, wo, eta, uc, u)``: one direction, as a ``BSDFSample`` with
+  ``weight = f |cos| / pdf`` (for a delta lobe: its reflectance or transmittance over the discrete
+  probability of choosing it) and the flags of the lobe chosen; ``pdf == 0`` when the sample is lost.
+- ``specular_lobes(materials, m, n, wo, eta)``: every delta lobe at once, for integrators that split
+  the ray tree deterministically (Whitted): ``SpecularLobes`` with the reflected and transmitted
+  directions and weights.
+
+Conventions: world space; ``n`` is the unit geometric normal on ``wo``'s side (``dot(n, wo) >= 0``);
+``wo`` (toward the viewer) and ``wi`` (toward the light, or the sampled direction) are unit vectors
+pointing away from the surface; ``eta = n1 / n2`` is the ratio of the indices of refraction on
+``wo``'s side and across the surface (``wrt.kernels.media``; 1 for opaque materials). ``uc`` chooses
+a lobe, ``u`` (2D) samples a direction within it; both uniform in [0, 1).
+
+A new material type is one new constant here and one new case in each of ``bsdf_flags``,
+``bsdf_eval``, ``bsdf_pdf``, ``bsdf_sample`` (and ``specular_lobes`` if it has delta lobes).
+
 References
 ----------
 E. Lafortune, Y. Willems, "Using the Modified Phong Reflectance Model for Physically Based
 Rendering", KU Leuven CW 197, 1994 (the (n + 2) / (2 pi) normalisation).
+M. Pharr, W. Jakob, G. Humphreys, pbrt-v4, sec. 9.1 (the BSDF interface and its flags).
 """
 
 import warp as wp
 
-from .microfacet import ggx_eval
-from .optics import reflect
-from .sample_warps import frame
+from .microfacet import ggx_eval, ggx_g1, ggx_pdf, ggx_sample_visible_normal
+from .optics import fresnel_dielectric, reflect, refract
+from .sample_warps import cosine_hemisphere, frame
 
 DIFFUSE = wp.constant(0)
 PHONG = wp.constant(1)
@@ -26,6 +53,13 @@ MIRROR = wp.constant(2)
 DIELECTRIC = wp.constant(3)
 GLOSSY = wp.constant(4)
 EMITTER = wp.constant(5)
+
+BSDF_REFLECTION = wp.constant(1)
+BSDF_TRANSMISSION = wp.constant(2)
+BSDF_DIFFUSE = wp.constant(4)
+BSDF_GLOSSY = wp.constant(8)
+BSDF_SPECULAR = wp.constant(16)
+BSDF_TOTAL_INTERNAL = wp.constant(32)  # a sampled lobe only: specular reflection because refraction is impossible
 
 
 @wp.struct
@@ -44,28 +78,150 @@ class MaterialData:
     emission: wp.array(dtype=wp.vec3)
 
 
+@wp.struct
+class BSDFSample:
+    wi: wp.vec3  # unit direction sampled, away from the surface
+    weight: wp.vec3  # f |cos theta_i| / pdf
+    pdf: float  # solid-angle density (non-specular lobes), or the discrete probability of a delta lobe
+    flags: wp.int32  # the lobe chosen: BSDF_REFLECTION or BSDF_TRANSMISSION, plus its kind
+
+
+@wp.struct
+class SpecularLobes:
+    wr: wp.vec3  # mirror direction
+    reflectance: wp.vec3  # weight of the reflected ray
+    wt: wp.vec3  # refracted direction (valid when ``refracts``)
+    transmittance: wp.vec3  # weight of the refracted ray (0 without transmission)
+    refracts: bool  # the transmitted ray exists
+    total_internal: bool  # a dielectric past the critical angle: all is reflected
+
+
 @wp.func
-def eval_brdf(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
-    """BRDF value (1/sr) of a diffuse, Phong or glossy material for unit ``wo`` (toward the viewer)
-    and ``wi`` (toward the light), both on the side of the unit normal ``n``."""
-    if materials.type[m] == GLOSSY:
+def bsdf_flags(materials: MaterialData, m: wp.int32) -> wp.int32:
+    """The lobes of material ``m``'s BSDF (``BSDF_*`` bits); 0 if it scatters nothing."""
+    kind = materials.type[m]
+    if kind == DIFFUSE:
+        return BSDF_REFLECTION | BSDF_DIFFUSE
+    if kind == PHONG:
+        return BSDF_REFLECTION | BSDF_DIFFUSE | BSDF_GLOSSY
+    if kind == GLOSSY:
+        return BSDF_REFLECTION | BSDF_GLOSSY
+    if kind == MIRROR:
+        return BSDF_REFLECTION | BSDF_SPECULAR
+    if kind == DIELECTRIC:
+        return BSDF_REFLECTION | BSDF_TRANSMISSION | BSDF_SPECULAR
+    return 0
+
+
+@wp.func
+def non_specular(flags: wp.int32) -> bool:
+    """Has lobes that ``bsdf_eval`` sees (diffuse or glossy)."""
+    return (flags & (BSDF_DIFFUSE | BSDF_GLOSSY)) != 0
+
+
+@wp.func
+def bsdf_eval(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+    """f(wo, wi) (1/sr) of the non-specular lobes for ``wi`` on the side of ``n``; 0 for delta lobes."""
+    kind = materials.type[m]
+    if kind == GLOSSY:
         to_local = wp.transpose(frame(n))
         return materials.reflectance[m] * ggx_eval(to_local * wo, to_local * wi, materials.roughness[m])
-    f = materials.albedo[m] / wp.pi
-    if materials.type[m] == PHONG:
+    if kind == DIFFUSE:
+        return materials.albedo[m] / wp.pi
+    if kind == PHONG:
         cos_alpha = wp.max(0.0, wp.dot(reflect(-wi, n), wo))
         e = materials.exponent[m]
-        f += materials.specular[m] * ((e + 2.0) / (2.0 * wp.pi) * wp.pow(cos_alpha, e))
-    return f
+        return materials.albedo[m] / wp.pi + materials.specular[m] * ((e + 2.0) / (2.0 * wp.pi) * wp.pow(cos_alpha, e))
+    return wp.vec3(0.0)
 
 
 @wp.func
-def beer_lambert(sigma: wp.vec3, distance: float) -> wp.vec3:
-    """Fraction of light left after ``distance`` in a medium of absorption coefficient ``sigma``
-    (per unit length): ``exp(-sigma distance)``; a clear medium (sigma 0) transmits 1 even over an
-    infinite distance."""
-    out = wp.vec3(1.0)
-    for k in range(3):
-        if sigma[k] > 0.0:
-            out[k] = wp.exp(-sigma[k] * distance)
-    return out
+def bsdf_pdf(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3) -> float:
+    """Solid-angle density (1/sr) with which ``bsdf_sample`` draws ``wi``; 0 for delta lobes."""
+    kind = materials.type[m]
+    if kind == GLOSSY:
+        to_local = wp.transpose(frame(n))
+        return ggx_pdf(to_local * wo, to_local * wi, materials.roughness[m])
+    if kind == DIFFUSE or kind == PHONG:
+        return wp.max(0.0, wp.dot(n, wi)) / wp.pi
+    return 0.0
+
+
+@wp.func
+def specular_lobes(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float) -> SpecularLobes:
+    """The delta lobes of a mirror (reflectance) or a smooth dielectric (exact Fresnel F reflected,
+    1 - F refracted by Snell's law, all reflected past the critical angle); none for other types."""
+    lobes = SpecularLobes()
+    lobes.wr = reflect(-wo, n)
+    lobes.wt = -wo
+    lobes.reflectance = wp.vec3(0.0)
+    lobes.transmittance = wp.vec3(0.0)
+    lobes.refracts = False
+    lobes.total_internal = False
+    kind = materials.type[m]
+    if kind == MIRROR:
+        lobes.reflectance = materials.reflectance[m]
+    elif kind == DIELECTRIC:
+        fresnel = fresnel_dielectric(wp.dot(wo, n), eta)
+        ok, wt = refract(-wo, n, eta)
+        if not ok:
+            fresnel = 1.0
+        lobes.reflectance = wp.vec3(fresnel)
+        lobes.transmittance = wp.vec3(1.0 - fresnel)
+        lobes.wt = wt
+        lobes.refracts = ok
+        lobes.total_internal = not ok
+    return lobes
+
+
+@wp.func
+def bsdf_sample(
+    materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uc: float, u: wp.vec2
+) -> BSDFSample:
+    """A direction drawn from material ``m``'s BSDF: diffuse and Phong cosine-weighted, glossy by
+    GGX visible normals, a mirror's reflection, a dielectric's reflection with probability F and
+    refraction otherwise (weight 1: F / F)."""
+    s = BSDFSample()
+    s.weight = wp.vec3(0.0)
+    s.pdf = 0.0
+    s.flags = 0
+    kind = materials.type[m]
+    if kind == MIRROR or kind == DIELECTRIC:
+        lobes = specular_lobes(materials, m, n, wo, eta)
+        s.wi = lobes.wr
+        s.flags = BSDF_REFLECTION | BSDF_SPECULAR
+        if kind == MIRROR:
+            s.weight = lobes.reflectance
+            s.pdf = 1.0
+        elif uc < lobes.reflectance[0]:
+            s.weight = wp.vec3(1.0)
+            s.pdf = lobes.reflectance[0]
+            if lobes.total_internal:
+                s.flags = s.flags | BSDF_TOTAL_INTERNAL
+        else:
+            s.wi = lobes.wt
+            s.weight = wp.vec3(1.0)
+            s.pdf = lobes.transmittance[0]
+            s.flags = BSDF_TRANSMISSION | BSDF_SPECULAR
+        return s
+    to_world = frame(n)
+    if kind == GLOSSY:
+        to_local = wp.transpose(to_world)
+        wo_local = to_local * wo
+        alpha = materials.roughness[m]
+        h = ggx_sample_visible_normal(wo_local, alpha, u[0], u[1])
+        wi_local = 2.0 * wp.dot(wo_local, h) * h - wo_local
+        s.wi = to_world * wi_local
+        s.flags = BSDF_REFLECTION | BSDF_GLOSSY
+        if wi_local[2] > 0.0:
+            s.weight = materials.reflectance[m] * ggx_g1(wi_local, alpha)
+            s.pdf = ggx_pdf(wo_local, wi_local, alpha)
+        return s
+    s.wi = to_world * cosine_hemisphere(u[0], u[1])
+    if kind == DIFFUSE or kind == PHONG:
+        s.flags = BSDF_REFLECTION | BSDF_DIFFUSE
+        cos_theta = wp.dot(n, s.wi)
+        if cos_theta > 0.0:
+            s.pdf = cos_theta / wp.pi
+            s.weight = bsdf_eval(materials, m, n, wo, s.wi) * (cos_theta / s.pdf)
+    return s

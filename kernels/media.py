@@ -28,6 +28,18 @@ def max_component(v: wp.vec3) -> float:
 
 
 @wp.func
+def beer_lambert(sigma: wp.vec3, distance: float) -> wp.vec3:
+    """Fraction of light left after ``distance`` in a medium of absorption coefficient ``sigma``
+    (per unit length): ``exp(-sigma distance)``; a clear medium (sigma 0) transmits 1 even over an
+    infinite distance."""
+    out = wp.vec3(1.0)
+    for k in range(3):
+        if sigma[k] > 0.0:
+            out[k] = wp.exp(-sigma[k] * distance)
+    return out
+
+
+@wp.func
 def shape_priority(materials: MaterialData, shape: wp.int32) -> wp.int32:
     return materials.priority[materials.shape_material[shape]]
 
@@ -80,8 +92,8 @@ def dielectric_interface(
     entering: bool,
 ):
     """What the surface of dielectric ``shape`` separates for a ray with media stack ``media``:
-    ``(real, n1, n2, media_t, n_media_t)``: whether it is a real interface, the ior on the
-    incident and on the far side, and the stack of a ray that crosses it. A ray leaving a shape
+    ``(real, eta, media_t, n_media_t)``: whether it is a real interface, ``eta = n1 / n2`` (the
+    ior on the incident over that on the far side), and the stack of a ray that crosses it. A ray leaving a shape
     it never entered (a camera inside glass) refracts from that shape's ior into the current medium.
     """
     m = materials.shape_material[shape]
@@ -110,4 +122,14 @@ def dielectric_interface(
             real = False
         n1 = materials.ior[m]
         n2 = medium_ior(materials, settings, media_t, current_medium(materials, media_t, n_media_t))
-    return real, n1, n2, media_t, n_media_t
+    return real, n1 / n2, media_t, n_media_t
+
+
+@wp.func
+def medium_transmittance(materials: MaterialData, media: Media, n_media: wp.int32, distance: float) -> wp.vec3:
+    """Beer-Lambert transmittance of the medium a ray with stack ``media`` is in, over ``distance``
+    (infinite for a ray that escapes); 1 in the exterior medium."""
+    slot = current_medium(materials, media, n_media)
+    if slot < 0:
+        return wp.vec3(1.0)
+    return beer_lambert(materials.sigma[materials.shape_material[media[slot]]], distance)

@@ -9,13 +9,13 @@ which the shared pixel loop records.
 
 import warp as wp
 
-from .film import facing_normal
-from .integrator import IntegratorSettings, make_render_kernel
+from .hit import surface_hit
+from .integrator import CameraRay, IntegratorSettings, make_render_kernel
 from .lights import LightData
 from .materials import MaterialData
 from .record import RayRecord
 from .sampling import Sampler
-from .traverse import NO_HIT, GeometryData, prim_shape
+from .traverse import NO_HIT, GeometryData
 
 
 @wp.func
@@ -24,23 +24,15 @@ def raycast_radiance(
     materials: MaterialData,
     lights: LightData,
     settings: IntegratorSettings,
-    o: wp.vec3,
-    d: wp.vec3,
-    t: float,
-    prim: wp.int32,
-    time: float,
-    rec: RayRecord,
     sampler: Sampler,
-    pixel: wp.int32,
-    sample: wp.int32,
-    parent: wp.int32,
+    ray: CameraRay,
+    rec: RayRecord,
 ) -> wp.vec3:
-    """``base_color * |dot(n, d)|`` at the hit of unit ray ``o + t d``, black on a miss."""
-    if prim == NO_HIT:
+    """``base_color * |dot(n, d)|`` at the camera ray's hit, black on a miss."""
+    if ray.prim == NO_HIT:
         return wp.vec3(0.0)
-    n = facing_normal(geometry, prim, o + t * d, d, time)
-    color = materials.base_color[materials.shape_material[prim_shape(geometry, prim)]]
-    return color * wp.abs(wp.dot(n, d))
+    hit = surface_hit(geometry, materials, ray.o, ray.d, ray.t, ray.prim, ray.time)
+    return materials.base_color[hit.material] * wp.abs(wp.dot(hit.n, ray.d))
 
 
 raycast = make_render_kernel(raycast_radiance)

@@ -268,8 +268,8 @@ def test_memory_estimate_matches_the_film():
     scene = wrt.parse_scene(
         {"camera": {"origin": [0, 0, 5], "look_at": [0, 0, 0]}, "render": {"width": 8, "height": 4}}
     )
-    frame = wrt.renderer.prepare(scene, wp.get_device("cpu"))
-    film = sum(getattr(frame.film, name).capacity for name in Film.vars)
+    device_scene = wrt.renderer.prepare(scene, wp.get_device("cpu"))
+    film = sum(getattr(device_scene.film, name).capacity for name in Film.vars)
     assert film == 8 * 4 * wrt.renderer.FILM_BYTES_PER_PIXEL
 
 

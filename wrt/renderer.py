@@ -30,6 +30,7 @@ import warp as wp
 
 from wrt.kernels.features import ALL, Features
 from wrt.kernels.film import LUMINANCE_WEIGHTS, Film
+from wrt.kernels.integrator import RenderPass
 from wrt.kernels.record import RayRecord
 from wrt.kernels.variants import render_kernel
 
@@ -99,7 +100,7 @@ class RenderResult:
 
 @dataclass
 class DeviceScene:
-    """Everything an integrator kernel reads, on one device, and the film it writes (W x H pixels)."""
+    """Everything an integrator kernel reads of a scene, on one device, and the film it writes (W x H pixels)."""
 
     device: wp.context.Device
     width: int
@@ -130,22 +131,14 @@ class DeviceScene:
         pixels ``active[first .. first + count - 1]``), samples ``first_sample .. first_sample +
         pass_spp - 1`` (default: all ``spp``) of a render of ``spp`` samples; ``rec`` only for a
         recording variant."""
-        pass_spp = spp - first_sample if pass_spp is None else pass_spp
+        launch = RenderPass()
+        launch.first_sample = first_sample
+        launch.pass_spp = spp - first_sample if pass_spp is None else pass_spp
+        launch.first_pixel = first
+        launch.active = self.no_active if active is None else active
         sampler = sampler_data(self.sampler, spp, seed)
-        inputs = [
-            self.geometry,
-            self.materials,
-            self.lights,
-            self.settings,
-            self.camera,
-            sampler,
-            first_sample,
-            pass_spp,
-            first,
-            self.no_active if active is None else active,
-            self.film,
-            NO_RECORD if rec is None else rec,
-        ]
+        scene = [self.geometry, self.materials, self.lights, self.settings, self.camera]
+        inputs = [*scene, sampler, launch, self.film, NO_RECORD if rec is None else rec]
         wp.launch(kernel, dim=count, inputs=inputs, device=self.device)
 
     def aovs(self) -> dict[str, np.ndarray]:

@@ -1,0 +1,125 @@
+"""Shadow rays: the one routine every integrator uses to ask whether a light is seen, and record it.
+
+``shadow_ray`` returns the fraction of a light's radiance that reaches a point along a direction:
+
+- opaque (``filtered`` False; physical for a ray tracer without caustics, and what the path
+  integrator always asks): 0 if anything is in the way, else 1, from one any-hit query;
+- filtered (the lecture's, whitted's ``dielectric_shadows = "filtered"``): dielectrics let the
+  shadow ray through in a straight line, attenuated by Beer-Lambert over the length inside them
+  (at most ``SHADOW_CROSSINGS`` surfaces); anything else blocks.
+
+In a recording variant each shadow ray is appended to the ``RayRecord``: ``SHADOW_LIT`` up to its
+light, carrying the path throughput times the transmittance, or ``SHADOW_BLOCKED`` ending at the
+surface that stopped it (for an opaque shadow ray one extra closest-hit query: the any-hit query
+that decides visibility does not say where the blocker is).
+"""
+
+import warp as wp
+
+from .materials import BSDF_TRANSMISSION, MaterialData, bsdf_flags
+from .media import beer_lambert, max_component
+from .record import SHADOW_BLOCKED, SHADOW_LIT, RayRecord, record_ray
+from .spawn import hit_error, spawn_origin
+from .traverse import NO_HIT, GeometryData, Traversal, geometric_normal, prim_shape
+
+SHADOW_CROSSINGS = wp.constant(16)  # dielectric surfaces a filtered shadow ray may pass
+
+
+def make_shadow_ray(record: bool, trace: Traversal):
+    """``shadow_ray`` over the traversal ``trace``, recording when ``record`` (compiled out otherwise)."""
+
+    @wp.func
+    def passes(geometry: GeometryData, materials: MaterialData, prim: wp.int32) -> bool:
+        """A filtered shadow ray goes on through ``prim``: its material transmits (a dielectric)."""
+        return (bsdf_flags(materials, materials.shape_material[prim_shape(geometry, prim)]) & BSDF_TRANSMISSION) != 0
+
+    @wp.func
+    def filtered(geometry: GeometryData, materials: MaterialData, o: wp.vec3, w: wp.vec3, t_max: float, time: float):
+        """Follow a filtered shadow ray ``o + s w`` through the dielectrics on its way:
+        ``(transmittance, t, prim)``, with ``(t, prim)`` the surface that stopped it (``NO_HIT``
+        when it reached ``t_max``)."""
+        out = wp.vec3(1.0)
+        t_total = float(0.0)
+        for _k in range(SHADOW_CROSSINGS):
+            t, prim = trace.closest_hit(geometry, o, w, time, 0.0, t_max)
+            if prim == NO_HIT:
+                return out, t_total + t, prim
+            if not passes(geometry, materials, prim):
+                return wp.vec3(0.0), t_total + t, prim
+            p = o + t * w
+            n = geometric_normal(geometry, prim, p, time)
+            if wp.dot(w, n) > 0.0:  # leaving: the segment just travelled was inside
+                m = materials.shape_material[prim_shape(geometry, prim)]
+                out = wp.cw_mul(out, beer_lambert(materials.sigma[m], t))
+            o_next = spawn_origin(p, n, hit_error(o, p, t), w)
+            t_max = t_max - t
+            t_total += t
+            o = o_next
+        return wp.vec3(0.0), t_total + t_max, NO_HIT
+
+    @wp.func
+    def shadow_ray(
+        geometry: GeometryData,
+        materials: MaterialData,
+        is_filtered: bool,
+        o: wp.vec3,
+        w: wp.vec3,
+        t_max: float,
+        time: float,
+        rec: RayRecord,
+        pixel: wp.int32,
+        sample: wp.int32,
+        depth: wp.int32,
+        parent: wp.int32,
+        throughput: wp.vec3,
+    ) -> wp.vec3:
+        """Transmittance of the shadow ray ``o + s w``, ``0 < s < t_max``, toward a light (unit
+        ``w``), passing dielectrics when ``is_filtered``.
+
+        Recording: the ray is segment ``depth`` of its path, child of record ``parent``, carrying
+        ``throughput`` times its transmittance."""
+        visible = wp.vec3(0.0)
+        t_stop = float(t_max)
+        prim_stop = int(NO_HIT)
+        if is_filtered:
+            visible, t_stop, prim_stop = filtered(geometry, materials, o, w, t_max, time)
+        elif not trace.any_hit(geometry, o, w, time, 0.0, t_max):
+            visible = wp.vec3(1.0)
+        if wp.static(record):
+            if max_component(visible) > 0.0:
+                record_ray(
+                    rec,
+                    geometry,
+                    pixel,
+                    sample,
+                    SHADOW_LIT,
+                    o,
+                    w,
+                    t_max,
+                    NO_HIT,
+                    time,
+                    wp.cw_mul(throughput, visible),
+                    depth,
+                    parent,
+                )
+            else:
+                if not is_filtered:  # the any-hit query does not say where the blocker is
+                    t_stop, prim_stop = trace.closest_hit(geometry, o, w, time, 0.0, t_max)
+                record_ray(
+                    rec,
+                    geometry,
+                    pixel,
+                    sample,
+                    SHADOW_BLOCKED,
+                    o,
+                    w,
+                    t_stop,
+                    prim_stop,
+                    time,
+                    wp.vec3(0.0),
+                    depth,
+                    parent,
+                )
+        return visible
+
+    return shadow_ray
