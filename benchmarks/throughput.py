@@ -202,7 +202,7 @@ class WrtEngine:
     def __init__(self, vertices: np.ndarray, faces: np.ndarray, dev):
         self.dev = dev
         t0 = time.perf_counter()
-        self.tracer = Tracer(_mesh_scene(vertices, faces), dev, specialize=True)
+        self.tracer = Tracer(_mesh_scene(vertices, faces), device=dev, specialize=True)
         wp.synchronize_device(dev)
         seconds = time.perf_counter() - t0
         self.data, self.closest_kernel, self.any_kernel, self.visits_kernel = (

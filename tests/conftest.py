@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import warp as wp
 import wrt.kernels  # noqa: F401  (configures Warp)
 
 from wrt.device import init_warp
@@ -25,9 +26,27 @@ def make_scene(shapes, render=None, camera=None, materials=None, lights=None, sc
     return parse_scene(doc, file="<test>", scene_dir=scene_dir)
 
 
+# Every Warp device the tests can run on, as Warp's own suite does: CUDA is skipped where absent.
+DEVICES = [
+    pytest.param("cpu", id="cpu"),
+    pytest.param("cuda:0", id="cuda", marks=pytest.mark.skipif(not wp.is_cuda_available(), reason="no CUDA device")),
+]
+
+
+@pytest.fixture(params=DEVICES)
+def device(request):
+    """Each available Warp device in turn, made the default (``wp.ScopedDevice``) for the test."""
+    with wp.ScopedDevice(request.param):
+        yield request.param
+
+
 class Tracer(PrimitiveTracer):
-    """``wrt.trace.Tracer`` (closest-hit and any-hit ray batches through the real kernels), with
-    closest hits reported by shape: ``(t, shape id)``, ``t = t_max`` and -1 on a miss."""
+    """``wrt.trace.Tracer`` (closest-hit and any-hit ray batches through the real kernels) on the
+    current default Warp device, with closest hits reported by shape: ``(t, shape id)``,
+    ``t = t_max`` and -1 on a miss."""
+
+    def __init__(self, scene, **kwargs):
+        super().__init__(scene, **{"device": wp.get_device(), **kwargs})
 
     def closest(self, origins, directions, t_min=0.0, t_max=np.inf, brute_force=False):
         t, prim = super().closest(origins, directions, t_min, t_max, brute_force)

@@ -3,6 +3,7 @@ against brute force, the tree's invariants, and its quality against the binned-S
 
 import numpy as np
 import pytest
+import warp as wp
 from conftest import Tracer, make_scene
 from wrt.kernels.bvh import MAX_LEAF, STACK_SIZE
 from wrt.kernels.bvh_build import INTERSECTION_COST, TRAVERSAL_COST
@@ -11,6 +12,8 @@ from wrt_benchmarks.binned_sah import sah_cost
 
 from wrt.bvh import build_bvh, lane_bounds
 from wrt.geometry import round_outward
+
+pytestmark = pytest.mark.usefixtures("device")  # every test on every available device
 
 
 def random_boxes(rng, n):
@@ -67,14 +70,14 @@ def check_tree(bvh, lo, hi):
 @pytest.mark.parametrize("n", [1, 2, 3, 5, 17, 1000, 20000])
 def test_build_invariants(rng, n):
     lo, hi = random_boxes(rng, n)
-    bvh = build_bvh(lo, hi, "cpu")
+    bvh = build_bvh(lo, hi, wp.get_device())
     assert bvh.stats.builder == "ploc"
     check_tree(bvh, lo, hi)
 
 
 def test_build_is_deterministic(rng):
     lo, hi = random_boxes(rng, 5000)
-    a, b = build_bvh(lo, hi, "cpu"), build_bvh(lo, hi, "cpu")
+    a, b = build_bvh(lo, hi, wp.get_device()), build_bvh(lo, hi, wp.get_device())
     assert np.array_equal(a.order.numpy(), b.order.numpy())
     assert a.nodes.numpy().tobytes() == b.nodes.numpy().tobytes()
 
@@ -83,7 +86,7 @@ def test_identical_boxes_still_cluster():
     """Ties of the nearest-neighbour search (equal union areas everywhere) still pair clusters up in
     many places at once, so the build ends in about log n iterations, not n."""
     lo = np.zeros((1000, 3), dtype=np.float32)
-    bvh = build_bvh(lo, lo + 1.0, "cpu")
+    bvh = build_bvh(lo, lo + 1.0, wp.get_device())
     sizes = check_tree(bvh, lo, lo + 1.0)
     assert sizes.max() <= MAX_LEAF
     assert bvh.stats.ploc_iterations < 40
@@ -98,7 +101,7 @@ def test_deep_tree_falls_back_to_the_balanced_tree():
         np.stack([x, np.zeros_like(x), np.zeros_like(x)], axis=1),
         np.stack([x + 0.5, np.ones_like(x), np.ones_like(x)], axis=1),
     )
-    bvh = build_bvh(lo, hi, "cpu")
+    bvh = build_bvh(lo, hi, wp.get_device())
     assert bvh.stats.builder == "balanced"
     check_tree(bvh, lo, hi)
 
@@ -112,7 +115,7 @@ def test_sah_cost_is_close_to_the_binned_sah_reference():
     v, f = torus_mesh(20000)
     tri = v.astype(np.float32)[f]
     lo, hi = tri.min(axis=1), tri.max(axis=1)
-    bvh = build_bvh(lo, hi, "cpu")
+    bvh = build_bvh(lo, hi, wp.get_device())
     sizes = check_tree(bvh, lo, hi)
     reference = sah_cost(
         build_binned_sah(lo.astype(np.float64), hi.astype(np.float64)), float(TRAVERSAL_COST), float(INTERSECTION_COST)

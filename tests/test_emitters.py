@@ -9,6 +9,8 @@ from wrt.kernels.lights import AREA, ENVIRONMENT, SPHERE_LIGHT, LightData
 from wrt.kernels.sample_warps import concentric_disk, cosine_hemisphere, frame, power_heuristic
 from wrt.kernels.sampling import independent_1d as sample_1d
 
+pytestmark = pytest.mark.usefixtures("device")  # every test on every available device
+
 
 def one_light(kind, position=(0, 0, 0), edge_u=(0, 0, 0), edge_v=(0, 0, 0), radius=0.0, radiance=(1, 1, 1)):
     lights = LightData()

@@ -4,6 +4,8 @@ import numpy as np
 import pytest
 from conftest import Tracer, make_scene
 
+pytestmark = pytest.mark.usefixtures("device")  # every test on every available device
+
 INF = np.inf
 
 

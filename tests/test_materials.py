@@ -36,15 +36,15 @@ INDEX = {name: k for k, name in enumerate(MATERIALS)}
 N = wp.vec3(0.0, 0.0, 1.0)
 
 
-@pytest.fixture(scope="module")
-def materials() -> MaterialData:
+@pytest.fixture
+def materials(device) -> MaterialData:
     scene = wrt.parse_scene(
         {
             "camera": {"origin": [0, 0, 5], "look_at": [0, 0, 0]},
             "material": [{"name": name, **params} for name, params in MATERIALS.items()],
         }
     )
-    return upload_materials(scene, "cpu")
+    return upload_materials(scene, device)
 
 
 def direction(theta_deg: float) -> wp.vec3:

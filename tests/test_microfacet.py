@@ -7,6 +7,8 @@ import wrt.kernels  # noqa: F401
 from wrt.kernels.microfacet import ggx_d, ggx_eval, ggx_pdf, ggx_sample_visible_normal
 from wrt.kernels.sampling import independent_1d as sample_1d
 
+pytestmark = pytest.mark.usefixtures("device")  # every test on every available device
+
 
 @wp.kernel
 def sample_and_weigh(wo: wp.vec3, alpha: float, out_w: wp.array(dtype=float)):

@@ -6,6 +6,8 @@ import warp as wp
 import wrt.kernels  # noqa: F401
 from wrt.kernels.optics import fresnel_dielectric, reflect, refract
 
+pytestmark = pytest.mark.usefixtures("device")  # every test on every available device
+
 
 @wp.kernel
 def optics_batch(
@@ -39,7 +41,7 @@ def run(d, n, eta):
         wp.zeros(k, dtype=wp.vec3),
         wp.zeros(k, dtype=float),
     ]
-    wp.launch(optics_batch, dim=k, inputs=arrays + outs, device="cpu")
+    wp.launch(optics_batch, dim=k, inputs=arrays + outs)
     r, ok, t, f = (a.numpy() for a in outs)
     return r, ok.astype(bool), t, f
 

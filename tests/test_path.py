@@ -9,25 +9,28 @@ import wrt
 ENV = {"type": "environment", "radiance": [0.5, 0.5, 0.5]}
 
 
-def path(shapes, materials, lights, camera=None, size=(32, 24), spp=64, **render):
+def path(shapes, materials, lights, camera=None, size=(32, 24), spp=64, device="cpu", **render):
     settings = {"width": size[0], "height": size[1], "integrator": "path", "spp": spp, **render}
-    return wrt.render(make_scene(shapes, materials=materials, lights=lights, camera=camera, render=settings))
+    return wrt.render(
+        make_scene(shapes, materials=materials, lights=lights, camera=camera, render=settings), device=device
+    )
 
 
-def test_white_furnace():
+def test_white_furnace(device):
     """A diffuse sphere of albedo 1 in a uniform environment renders exactly the environment."""
     r = path(
         [{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "white"}],
         [{"name": "white", "albedo": [1, 1, 1]}],
         [ENV],
         max_depth=64,
+        device=device,
     )
     values = r.rgb[..., 0].astype(np.float64)
     assert values.mean() == pytest.approx(0.5, abs=4 * values.std() / np.sqrt(values.size) + 1e-4)
     assert values.max() < 0.6 and values.min() > 0.4  # per pixel, 64 spp
 
 
-def test_diffuse_plane_under_uniform_sky_returns_albedo_times_radiance():
+def test_diffuse_plane_under_uniform_sky_returns_albedo_times_radiance(device):
     """An infinite floor hides the lower hemisphere: one bounce of albedo a under radiance L gives a L."""
     r = path(
         [{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "floor"}],
@@ -35,6 +38,7 @@ def test_diffuse_plane_under_uniform_sky_returns_albedo_times_radiance():
         [ENV],
         camera={"origin": [0, 2, 0.001], "look_at": [0, 0, 0], "fov": 30},
         max_depth=2,
+        device=device,
     )
     mean = r.rgb.reshape(-1, 3).mean(axis=0)
     np.testing.assert_allclose(mean, [0.1, 0.25, 0.4], rtol=0.01)

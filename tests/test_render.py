@@ -32,6 +32,14 @@ def test_bit_identical_for_any_thread_count_and_tiling(monkeypatch):
             assert np.array_equal(one.aovs[name], other.aovs[name])
 
 
+def test_same_scene_seed_and_spp_give_the_same_image(device):
+    scene = busy_scene(spp=4)
+    a, b = wrt.render(scene, device=device), wrt.render(scene, device=device)
+    assert np.array_equal(a.rgb, b.rgb)
+    for name in a.aovs:
+        assert np.array_equal(a.aovs[name], b.aovs[name])
+
+
 def test_seed_changes_samples_but_not_aovs():
     scene = busy_scene(spp=4)
     a, b = wrt.render(scene, seed=1), wrt.render(scene, seed=2)
@@ -42,7 +50,7 @@ def test_seed_changes_samples_but_not_aovs():
         assert np.array_equal(a.aovs[name], single.aovs[name])
 
 
-def test_flat_shading_is_albedo_times_cosine():
+def test_flat_shading_is_albedo_times_cosine(device):
     """A plane facing the camera: radiance = albedo * |cos| of the angle between ray and normal."""
     scene = make_scene(
         [{"type": "plane", "point": [0, 0, -3], "normal": [0, 0, 1], "material": "m"}],
@@ -50,7 +58,7 @@ def test_flat_shading_is_albedo_times_cosine():
         camera={"origin": [0, 0, 0], "look_at": [0, 0, -1], "fov": 60},
         render={"width": 40, "height": 30},
     )
-    r = wrt.render(scene)
+    r = wrt.render(scene, device=device)
     d = r.aovs["position"] / r.aovs["depth"][..., None]
     cos = np.abs(d[..., 2])
     np.testing.assert_allclose(r.rgb, cos[..., None] * np.array([0.2, 0.4, 0.6]), rtol=1e-6)

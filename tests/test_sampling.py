@@ -19,6 +19,8 @@ from wrt.kernels.sampling import Sampler, sample_1d, sample_2d
 
 from wrt.device import SAMPLER_CODES, sampler_data
 
+pytestmark = pytest.mark.usefixtures("device")  # every test on every available device
+
 
 @wp.kernel
 def draw(
@@ -35,11 +37,9 @@ def draw(
 
 def samples(kind: str, pixels: int, spp: int, dim: int = 2, seed: int = 3, first_pixel: int = 0):
     """(pixels, spp, 2) points of a 2D dimension pair and (pixels, spp) values of a 1D dimension."""
-    out2 = wp.zeros((pixels, spp), dtype=wp.vec2, device="cpu")
-    out1 = wp.zeros((pixels, spp), dtype=float, device="cpu")
-    wp.launch(
-        draw, dim=(pixels, spp), inputs=[sampler_data(kind, spp, seed), first_pixel, dim, out2, out1], device="cpu"
-    )
+    out2 = wp.zeros((pixels, spp), dtype=wp.vec2)
+    out1 = wp.zeros((pixels, spp), dtype=float)
+    wp.launch(draw, dim=(pixels, spp), inputs=[sampler_data(kind, spp, seed), first_pixel, dim, out2, out1])
     return out2.numpy(), out1.numpy()
 
 
@@ -130,8 +130,8 @@ def offsets(kind: wp.int32, u: wp.array(dtype=float), out: wp.array(dtype=float)
 
 def filter_samples(kind: int, n: int = 200_000) -> np.ndarray:
     u = (np.arange(n) + 0.5) / n  # stratified inputs: the output is the quantile function
-    out = wp.zeros(n, dtype=float, device="cpu")
-    wp.launch(offsets, dim=n, inputs=[kind, wp.array(u.astype(np.float32), device="cpu"), out], device="cpu")
+    out = wp.zeros(n, dtype=float)
+    wp.launch(offsets, dim=n, inputs=[kind, wp.array(u.astype(np.float32)), out])
     return out.numpy().astype(np.float64)
 
 

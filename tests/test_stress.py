@@ -17,7 +17,7 @@ N = 20_000  # rays per ray-batch case (`wrt stress` uses 10^6)
 
 
 def run(group, rays=N):
-    rows = stress.run_suite(rays, seed=1, only={group})
+    rows = stress.run_suite(rays=rays, seed=1, only={group})
     assert rows, group
     return {row.case: row for row in rows}
 
@@ -101,7 +101,7 @@ def test_high_ior_furnace_air_bubble():
 
 
 def test_results_are_deterministic():
-    a, b = (stress.run_suite(2_000, seed=5, only={"sphere-precision"})[0] for _ in range(2))
+    a, b = (stress.run_suite(rays=2_000, seed=5, only={"sphere-precision"})[0] for _ in range(2))
     assert (a.failures, a.worst, a.detail) == (b.failures, b.worst, b.detail)
 
 

@@ -9,9 +9,10 @@ import wrt
 TOP = {"origin": [0, 3, 4], "look_at": [0, 0, 0], "fov": 60}
 
 
-def whitted(shapes, materials, lights=(), camera=TOP, size=(64, 48), **render):
+def whitted(shapes, materials, lights=(), camera=TOP, size=(64, 48), device="cpu", **render):
     settings = {"width": size[0], "height": size[1], "integrator": "whitted", **render}
-    return wrt.render(make_scene(shapes, materials=materials, lights=list(lights), camera=camera, render=settings))
+    scene = make_scene(shapes, materials=materials, lights=list(lights), camera=camera, render=settings)
+    return wrt.render(scene, device=device)
 
 
 def diffuse(name, albedo):
@@ -26,12 +27,13 @@ def lambert_point(P, normal, albedo, light_pos, intensity):
     return np.asarray(albedo) / np.pi * np.asarray(intensity) * (cos / d2)[..., None]
 
 
-def test_point_light_on_diffuse_plane_is_exact():
+def test_point_light_on_diffuse_plane_is_exact(device):
     albedo, intensity, L = [0.5, 0.6, 0.7], [10.0, 20.0, 5.0], [0.3, 2.0, 0.5]
     r = whitted(
         [{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "m"}],
         [diffuse("m", albedo)],
         [{"type": "point", "position": L, "intensity": intensity}],
+        device=device,
     )
     hit = r.aovs["object_id"] == 0
     expected = lambert_point(r.aovs["position"], np.array([0, 1.0, 0]), albedo, L, intensity)
@@ -93,7 +95,7 @@ def test_phong_lobe_closed_form():
     np.testing.assert_allclose(r.rgb[hit], expected[hit], rtol=2e-4)
 
 
-def test_mirror_returns_reflectance_times_the_wall_radiance():
+def test_mirror_returns_reflectance_times_the_wall_radiance(device):
     """A mirror (plane z = 0) facing a lit diffuse wall (plane z = 6): each mirror pixel equals
     reflectance x the wall's closed-form radiance at the reflected point."""
     rho, albedo, L, intensity = (
@@ -111,6 +113,7 @@ def test_mirror_returns_reflectance_times_the_wall_radiance():
         [{"name": "mirror", "type": "mirror", "reflectance": rho.tolist()}, diffuse("wall", albedo)],
         [{"type": "point", "position": L.tolist(), "intensity": intensity}],
         camera=cam,
+        device=device,
     )
     on_mirror = r.aovs["object_id"] == 0
     P = r.aovs["position"].astype(np.float64)

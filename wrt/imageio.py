@@ -127,7 +127,7 @@ def tonemap_srgb(rgb):
     return np.rint(255.0 * srgb_encode(rgb)).astype(np.uint8)
 
 
-def write_image(path, rgb, aovs=None, metadata=None, half=False):
+def write_image(path, rgb, *, aovs=None, metadata=None, half=False):
     """Write an image atomically; the format follows the extension.
 
     Parameters

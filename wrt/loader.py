@@ -358,7 +358,7 @@ def _light(file: str, index: int, data):
     return light
 
 
-def parse_scene(doc: Mapping, file: str = "<memory>", scene_dir: str = ".") -> Scene:
+def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -> Scene:
     """Validate an already-parsed TOML document (a dict) into a ``Scene``.
 
     Mesh paths are relative to ``scene_dir``. Raises ``SceneError`` on any problem.
@@ -397,7 +397,7 @@ def parse_scene(doc: Mapping, file: str = "<memory>", scene_dir: str = ".") -> S
     )
 
 
-def load_scene(path: str | os.PathLike, strict: bool = False) -> Scene:
+def load_scene(path: str | os.PathLike, *, strict: bool = False) -> Scene:
     """Read and validate a scene file: TOML, or Mitsuba 3 XML (``.xml``, the subset of
     ``wrt.mitsuba_xml``; unsupported elements are warned about on stderr, or with ``strict`` are
     errors).
@@ -427,7 +427,7 @@ def load_scene(path: str | os.PathLike, strict: bool = False) -> Scene:
     return parse_scene(doc, file=path, scene_dir=os.path.dirname(os.path.abspath(path)))
 
 
-def override_render(scene: Scene, source: str = "command line", **changes) -> Scene:
+def override_render(scene: Scene, *, source: str = "command line", **changes) -> Scene:
     """A copy of ``scene`` with ``[render]`` keys replaced (None values are ignored).
 
     The new values are validated exactly like the file's, errors naming ``source``.

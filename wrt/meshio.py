@@ -66,7 +66,7 @@ def load_mesh(path):
     return _triangles(_read_with_vtk(path), path)
 
 
-def transform_matrix(translate=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0), rotate=(0.0, 0.0, 0.0)):
+def transform_matrix(*, translate=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0), rotate=(0.0, 0.0, 0.0)):
     """Build the object-to-world matrix of the scene format.
 
     Parameters
@@ -105,7 +105,7 @@ def transform_matrix(translate=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0), rotate=(0
     return matrix
 
 
-def apply_transform(vertices, translate=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0), rotate=(0.0, 0.0, 0.0)):
+def apply_transform(vertices, *, translate=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0), rotate=(0.0, 0.0, 0.0)):
     """Map object-space vertices to world space: ``p' = T + Rz Ry Rx (S p)``.
 
     Parameters
@@ -130,7 +130,7 @@ def apply_transform(vertices, translate=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0), 
     points = np.asarray(vertices, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"vertices must have shape (V, 3), got {points.shape}")
-    matrix = transform_matrix(translate, scale, rotate)
+    matrix = transform_matrix(translate=translate, scale=scale, rotate=rotate)
     return points @ matrix[:3, :3].T + matrix[:3, 3]
 
 

@@ -163,7 +163,7 @@ class _Element:
         return f"<{self.tag}{' ' + shown if shown else ''}>"
 
 
-def load_mitsuba(path, strict: bool = False, params: dict | None = None) -> tuple[dict, list[str]]:
+def load_mitsuba(path, *, strict: bool = False, params: dict | None = None) -> tuple[dict, list[str]]:
     """Convert a Mitsuba 3 scene XML file into a wrt scene document.
 
     Parameters

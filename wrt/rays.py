@@ -154,6 +154,7 @@ def grid_pixels(width: int, height: int, nx: int, ny: int) -> list[tuple[int, in
 def trace_rays(
     scene: Scene,
     pixels,
+    *,
     samples: int = 1,
     max_depth: int | None = None,
     device: str | None = "cpu",

@@ -403,6 +403,7 @@ def export(tree: RayTree, path: str) -> None:
 def run(
     scene_file: str,
     pixels: list[tuple[int, int]],
+    *,
     grid: tuple[int, int] | None = None,
     samples: int = 1,
     max_depth: int | None = None,

@@ -45,6 +45,7 @@ from .device import (
 )
 from .errors import WrtError
 from .geometry import build
+from .loader import override_render
 from .scene import AreaLight, Mesh, Polygon, Scene, Sphere, SphereLight, Triangle
 
 TILE_PIXELS = 4096  # pixels per CPU launch: small enough to balance two threads, large enough to amortise a launch
@@ -276,6 +277,7 @@ def relative_error(rgb_sum: np.ndarray, luminance_sq_sum: np.ndarray, n: int) ->
 
 def render(
     scene: Scene,
+    *,
     spp: int | None = None,
     seed: int | None = None,
     device: str | None = "cpu",
@@ -292,7 +294,8 @@ def render(
     scene : Scene
         From ``wrt.load_scene``.
     spp, seed : int, optional
-        Override ``[render] spp`` and ``seed``.
+        Override ``[render] spp`` and ``seed``, as ``wrt.loader.override_render`` does (the one way
+        to change ``[render]`` settings: validated like the file's, errors naming "wrt.render").
     device : str
         Warp device: "cpu" or "cuda" (or "cuda:N").
     threads : int, optional
@@ -327,10 +330,8 @@ def render(
     centre; with ``spp > 1`` every sample, the first pass's included, is uniform over the pixel.
     An adaptive render is deterministic too: a pixel's stopping depends only on its own samples.
     """
-    spp = scene.render.spp if spp is None else int(spp)
-    seed = scene.render.seed if seed is None else int(seed)
-    if spp < 1:
-        raise WrtError(f"spp must be >= 1, got {spp}")
+    scene = override_render(scene, source="wrt.render", spp=spp, seed=seed)
+    spp, seed = scene.render.spp, scene.render.seed
     if progress_every is not None and progress_every < 1:
         raise WrtError(f"progress_every must be >= 1, got {progress_every}")
     if target_error is not None and not target_error > 0.0:

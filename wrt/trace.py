@@ -39,7 +39,7 @@ class Tracer:
     side (``wrt.kernels.traverse.GeometryData``).
     """
 
-    def __init__(self, scene: Scene, device: str = "cpu", *, specialize: bool = False):
+    def __init__(self, scene: Scene, *, device: str = "cpu", specialize: bool = False):
         self.device = resolve_device(device)
         self.prims = build(scene, self.device)
         self.data = upload_geometry(self.prims, self.device)

@@ -49,7 +49,7 @@ CASES = [
 ]
 
 
-def run_suite(rays: int = DEFAULT_RAYS, seed: int = 0, only=None, progress=None) -> list[CaseResult]:
+def run_suite(*, rays: int = DEFAULT_RAYS, seed: int = 0, only=None, progress=None) -> list[CaseResult]:
     """Run every case group (or those named in ``only``) with ``rays`` rays per ray-batch case.
 
     ``progress(result)`` is called after each row. Each group draws from its own random stream
@@ -77,8 +77,8 @@ def command(rays: int, seed: int, report: str | None) -> int:
     """``wrt stress``: run the suite, print the table (and write the report); 0 if all pass, else 1."""
     start = time.perf_counter()
     results = run_suite(
-        rays,
-        seed,
+        rays=rays,
+        seed=seed,
         progress=lambda r: print(
             f"  {'pass' if r.passed else 'FAIL'}  {r.case} ({r.seconds:.1f} s)", file=sys.stderr, flush=True
         ),
