@@ -41,7 +41,6 @@ import io
 import json
 import math
 import os
-import platform
 import sys
 import time
 from collections.abc import Callable
@@ -54,13 +53,15 @@ from wrt_harness.references import REFERENCE_SEED
 from wrt_harness.score import convergence_slope, rmse, ssim
 
 import wrt
-from wrt.device import cpu_model, resolve_device
+from wrt.device import resolve_device
 from wrt.errors import WrtError
 from wrt.files import write_atomic, write_json
+from wrt.host import machine_info
 from wrt.imageio import read_image, write_image
 from wrt.loader import load_scene, override_render, parse_scene
 from wrt.mitsuba_xml import load_mitsuba
 from wrt.scene import Mesh, Scene
+from wrt.tables import text_table
 
 from . import targets, wholeprocess
 from .throughput import build_scaling, format_table, run_throughput
@@ -74,7 +75,7 @@ MIN_POINTS = 3  # a curve has at least this many points, whatever the budget
 REPEATS = 2  # renders per point (same seed: the same image); the fastest time counts (the machine may be shared)
 DEFAULT_BUDGET_S = 6.0  # render seconds per curve in the full run
 QUICK_BUDGET_S = 0.5
-FULL_TRIANGLES, FULL_RAYS = 1_000_000, 1 << 20  # the ray-throughput part (harness.throughput)
+FULL_TRIANGLES, FULL_RAYS = 1_000_000, 1 << 20  # the ray-throughput part (wrt_benchmarks.throughput)
 QUICK_TRIANGLES, QUICK_RAYS = 20_000, 8192
 BUILD_SIZES = (100_000, 1_000_000, 4_000_000)  # build time against size, on the CPU
 PATH_SPP, QUICK_PATH_SPP = 256, 16  # the whole-process path-tracing comparison (harness.wholeprocess)
@@ -456,13 +457,7 @@ def run(
         peer, mitsuba_why = None, f"wrt runs on {device}: the comparison is CPU against CPU, run it with --device cpu"
     started = time.time()
     results = {
-        "machine": {
-            "cpu": cpu_model(),
-            "cores": os.cpu_count(),
-            "system": f"{platform.system()} {platform.release()}",
-            "python": platform.python_version(),
-            "load_average_start": list(os.getloadavg()),
-        },
+        "machine": {**machine_info(), "load_average_start": list(os.getloadavg())},
         "device": device,
         "wrt_version": wrt.__version__,
         "date": time.strftime("%Y-%m-%d %H:%M:%S %Z", time.localtime(started)),
@@ -689,8 +684,7 @@ def table(results: dict) -> str:
             f"{s['all_features_s']:.3f} s at {s['spp']} spp: {s['speedup']:.2f}x (target >= {s['target']})"
         )
     lines.append(f"Mitsuba 3: {results['mitsuba']}")
-    widths = [max(len(r[k]) for r in rows) for k in range(len(rows[0]))]
-    return "\n".join(["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows] + [""] + lines)
+    return "\n".join([text_table(rows), "", *lines])
 
 
 def peers(out_dir: str, speed: dict, triangles: int, device: str, quick: bool) -> dict:
@@ -738,7 +732,7 @@ def command(
     paths: list[str], budget_s: float | None, out_dir: str, device: str, quick: bool, triangles: int | None = None
 ) -> int:
     """``wrt bench``: run, print the tables, write the files; 0 on success. ``triangles``: size of
-    the ray-throughput mesh (``harness.throughput``; default 1M, 20k with ``quick``; 0 skips it)."""
+    the ray-throughput mesh (``wrt_benchmarks.throughput``; default 1M, 20k with ``quick``; 0 skips it)."""
     if budget_s is not None and not (budget_s > 0 and math.isfinite(budget_s)):
         raise WrtError(f"--budget {budget_s}: must be a positive number of seconds")
     triangles = (QUICK_TRIANGLES if quick else FULL_TRIANGLES) if triangles is None else triangles

@@ -1,6 +1,6 @@
 """Speed-up of kernels specialised on a scene's features over the all-features kernel.
 
-    python benchmarks/specialize.py [-o benchmarks/results/specialize.json] [--repeats R]
+    python -m wrt_benchmarks.specialize [-o benchmarks/results/specialize.json] [--repeats R]
 
 For each scene: the features it needs (``wrt.renderer.scene_features``), then the median wall
 time of the render passes (BVH build and kernel compilation excluded, done once before timing)
@@ -12,15 +12,14 @@ identical (specialisation only removes code the scene cannot reach).
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import statistics
 
 import numpy as np
 
 import wrt
-from wrt.device import cpu_model, init_warp
+from wrt.device import init_warp
 from wrt.files import write_json
+from wrt.host import machine_info
 from wrt.loader import override_render
 from wrt.renderer import scene_features
 
@@ -72,8 +71,7 @@ def main() -> None:
             f"x{row['speedup']:.2f}  identical={row['identical']}"
         )
     if args.output:
-        machine = {"cpu": cpu_model(), "cores": os.cpu_count(), "platform": platform.platform()}
-        out = {"machine": machine, "threads": 1, "repeats": args.repeats, "scenes": rows}
+        out = {"machine": machine_info(), "threads": 1, "repeats": args.repeats, "scenes": rows}
         write_json(args.output, out)
 
 

@@ -13,13 +13,15 @@ whole process: PLY, build, 1024^2 primary rays, EXR    Mitsuba 3 s / wrt s      
 path tracing, Cornell box XML, 256 spp, independent    MC efficiency wrt / Mitsuba 1.0
 =====================================================  ==========================  ==========
 
-Throughput rows come from ``harness.throughput``, build times from its ``build_scaling`` (the
+Throughput rows come from ``wrt_benchmarks.throughput``, build times from its ``build_scaling`` (the
 size of the throughput mesh where it was measured, else the largest), the whole processes from
 ``harness.wholeprocess``. Ratios above 1 mean wrt is ahead. A row whose
 inputs were not measured (no Embree, no Mitsuba, throughput skipped) reads "-".
 """
 
 from __future__ import annotations
+
+from wrt.tables import text_table
 
 TARGETS = {
     "closest coherent vs Embree": 0.6,
@@ -128,8 +130,7 @@ def format_rows(table: list[dict], path: dict | None = None) -> str:
         lines.append(
             [r["row"], num(r["wrt"]), num(r["peer"]), r["unit"], num(r["ratio"]), f">= {r['target']}", met, r["note"]]
         )
-    widths = [max(len(row[k]) for row in lines) for k in range(len(lines[0]))]
-    text = ["  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in lines]
+    text = text_table(lines).split("\n")
     if path:
         for name, entry in path.items():
             if isinstance(entry, dict) and name.startswith("wrt ") and "efficiency_ratio" in entry:

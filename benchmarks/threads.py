@@ -9,18 +9,16 @@ done once before timing) and checks that the images are bit-identical.
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import statistics
 import time
 
 import numpy as np
 
 import wrt
-from wrt.device import cpu_model, init_warp
+from wrt.device import init_warp
 from wrt.files import write_json
+from wrt.host import default_threads, machine_line
 from wrt.loader import override_render
-from wrt.renderer import default_threads
 
 
 def main() -> None:
@@ -55,7 +53,7 @@ def main() -> None:
         "height": args.height,
         "spp": args.spp,
         "primary_rays_per_image": args.width * args.height * (args.spp + 1),
-        "machine": f"{cpu_model()}, {os.cpu_count()} cores, {platform.system()}",
+        "machine": machine_line(),
         "date": time.strftime("%Y-%m-%d"),
         "wrt": wrt.__version__,
         "bit_identical": identical,

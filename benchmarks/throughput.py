@@ -1,6 +1,6 @@
 """Ray throughput of the project's BVH against Warp's ``wp.Mesh`` and Embree, on one large mesh.
 
-    python -m harness.throughput [--triangles N] [--rays N] [--repeats R] [--device cpu] [-o results.json]
+    python -m wrt_benchmarks.throughput [--triangles N] [--rays N] [--repeats R] [--device cpu] [-o results.json]
 
 One procedural closed triangle mesh (a displaced torus, ``torus_mesh``), two ray sets traced by
 every engine (``coherent``: pinhole camera rays over an image grid; ``incoherent``: uniform random
@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import statistics
 import sys
 import time
@@ -53,12 +52,14 @@ import wrt.kernels  # noqa: F401  (configures Warp)
 from wrt.kernels.traverse import VisitLog
 
 from wrt.bvh import PLOC_RADIUS, build_bvh
-from wrt.device import cpu_model, init_warp, resolve_device
+from wrt.device import init_warp, resolve_device
 from wrt.errors import WrtError
 from wrt.files import write_json
 from wrt.geometry import build, flatten
-from wrt.renderer import TILE_PIXELS, default_threads
+from wrt.host import default_threads, machine_info
+from wrt.renderer import TILE_PIXELS
 from wrt.scene import Camera, Material, Mesh, RenderSettings, Scene
+from wrt.tables import text_table
 from wrt.trace import Tracer
 
 T_MAX = 1.0e30  # finite in float32 for every engine; a miss reports t = T_MAX
@@ -362,16 +363,7 @@ class EmbreeEngine:
 
 
 def _machine() -> dict:
-    return {
-        "cpu": cpu_model(),
-        "cores": os.cpu_count(),
-        "threads_available": default_threads(),
-        "system": f"{platform.system()} {platform.release()}",
-        "python": platform.python_version(),
-        "warp": wp.__version__,
-        "numpy": np.__version__,
-        "embree": embree_version(),
-    }
+    return {**machine_info(), "embree": embree_version()}
 
 
 def _tiles(n: int) -> list[tuple[int, int]]:
@@ -589,7 +581,7 @@ def run_throughput(
         "t_max": T_MAX,
         "t_rtol": T_RTOL,
         "mesh": {
-            "kind": "displaced torus (harness.throughput.torus_mesh), closed",
+            "kind": "displaced torus (wrt_benchmarks.throughput.torus_mesh), closed",
             "triangles": len(faces),
             "vertices": len(vertices),
             "lo": lo.tolist(),
@@ -697,7 +689,7 @@ def format_table(results: dict) -> str:
                 busy = [per_engine[e][label]["other_busy_cores"] for e in engines if label in per_engine[e]]
                 row.append("-" if None in busy else f"{max(busy):.2f}")
                 rows.append(row)
-    lines += _columns(rows)
+    lines += text_table(rows).split("\n")
     lines.append(
         "other busy cores: the most cores other processes kept busy during one of the row's measurements (0 = a "
         "quiet machine)"
@@ -710,7 +702,7 @@ def format_table(results: dict) -> str:
                 [ray_set, query]
                 + [f"{per_engine[e]['scaling']:.2f}x" if "scaling" in per_engine[e] else "-" for e in engines]
             )
-    lines += _columns(scale)
+    lines += text_table(scale).split("\n")
     lines += ["", "build and memory:"]
     mib = 2.0**20
     build = [["engine", "build s", "build threads", "kernel load s", "BVH MiB (device)", "triangles MiB (device)"]]
@@ -732,7 +724,7 @@ def format_table(results: dict) -> str:
                 f"{b['triangles_device_bytes'] / mib:.1f}" if "triangles_device_bytes" in b else "-",
             ]
         )
-    lines += _columns(build)
+    lines += text_table(build).split("\n")
     w = results["build"]["wrt"]
     lines += [
         "",
@@ -767,18 +759,15 @@ def format_table(results: dict) -> str:
                     if e != "wrt"
                 ]
             )
-    lines += _columns(agree)
+    lines += text_table(agree).split("\n")
     return "\n".join(lines)
-
-
-def _columns(rows: list[list[str]]) -> list[str]:
-    widths = [max(len(r[k]) for r in rows) for k in range(len(rows[0]))]
-    return ["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows]
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m harness.throughput", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        prog="python -m wrt_benchmarks.throughput",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument(
         "--triangles", type=int, default=1_000_000, help="triangles in the mesh (about; default 1,000,000)"
@@ -809,7 +798,7 @@ def main(argv=None) -> int:
         )
     except (ValueError, WrtError) as e:
         parser.error(str(e))
-    results["command"] = " ".join(["python -m harness.throughput", *(sys.argv[1:] if argv is None else argv)])
+    results["command"] = " ".join(["python -m wrt_benchmarks.throughput", *(sys.argv[1:] if argv is None else argv)])
     print(format_table(results))
     if args.output:
         write_json(args.output, results)

@@ -7,7 +7,7 @@ on a machine that has rendered before; Mitsuba compiles its LLVM kernels in ever
 reports the median wall time of ``repeats`` runs: process start, imports, scene parsing, mesh
 reading, BVH build, rendering and writing the EXR, everything.
 
-- ``mesh``: a binary PLY of ``triangles`` triangles (``harness.throughput.torus_mesh``, float32
+- ``mesh``: a binary PLY of ``triangles`` triangles (``wrt_benchmarks.throughput.torus_mesh``, float32
   vertices) seen by a 1024 x 1024 pinhole camera, one primary ray per pixel: ``wrt render`` with
   the raycast integrator, against ``mitsuba -m VARIANT`` with the ``depth`` integrator at one
   sample per pixel (one camera ray per pixel; its distance is the image).

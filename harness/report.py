@@ -11,14 +11,13 @@ from __future__ import annotations
 import datetime
 import html
 import os
-import platform
 import shutil
 import tempfile
 
 import numpy as np
 
 import wrt
-from wrt.device import cpu_model
+from wrt.host import machine_line
 from wrt.imageio import srgb_encode, write_image
 
 from .matrix import load_feature_scene
@@ -116,8 +115,7 @@ def write_report(results: list[FeatureResult], folder: str, device: str) -> str:
         failed = sum(not r.passed for r in results)
         header = (
             f"wrt {html.escape(wrt.__version__)} &middot; device {html.escape(device)} &middot; "
-            f"{html.escape(cpu_model())}, "
-            f"{os.cpu_count()} cores, {html.escape(platform.system())} &middot; "
+            f"{html.escape(machine_line())} &middot; "
             f"{datetime.datetime.now().isoformat(timespec='seconds')}"
         )
         page = f"""<!DOCTYPE html>

@@ -1,4 +1,4 @@
-"""Smoke test of the run-time-against-error benchmark (harness/bench.py, ``wrt bench``).
+"""Smoke test of the run-time-against-error benchmark (benchmarks/bench.py, ``wrt bench``).
 
 It checks that the benchmark runs and that its numbers are sane (finite, error falling with spp,
 slopes computed, files written); never a timing threshold.

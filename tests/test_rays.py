@@ -1,4 +1,4 @@
-"""Ray recording (kernels/record.py, wrt/rays.py) against closed forms, and `wrt rays` (harness/rayview.py)."""
+"""Ray recording (kernels/record.py, wrt/rays.py) against closed forms, and `wrt rays` (wrt/rayview.py)."""
 
 import os
 import subprocess

@@ -1,4 +1,4 @@
-"""Smoke test of the ray-throughput benchmark (``harness.throughput``) on a small mesh.
+"""Smoke test of the ray-throughput benchmark (``wrt_benchmarks.throughput``) on a small mesh.
 
 It checks that the benchmark runs end to end through its command line and that its numbers are
 sane: finite positive rates for every engine, ray set, query and thread setting, builds timed,

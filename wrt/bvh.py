@@ -18,7 +18,6 @@ two levels: ``3 * ceil(log2(n) / 2) <= 48`` entries for any ``n < 2^31``.
 
 from __future__ import annotations
 
-import os
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -38,6 +37,8 @@ from wrt.kernels.bvh_build import (
     ploc_merge,
     ploc_nearest,
 )
+
+from .host import default_threads
 
 PLOC_RADIUS = 8  # clusters searched on either side
 CHUNK = 1 << 16  # threads per CPU launch of the build's larger kernels
@@ -75,9 +76,7 @@ class DeviceBvh:
 
 
 def _threads(device) -> int:
-    if device.is_cuda:
-        return 1
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return 1 if device.is_cuda else default_threads()
 
 
 def _last(a: wp.array, m: int) -> int:

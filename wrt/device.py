@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import math
 import os
-import platform
 import tempfile
 
 import numpy as np
@@ -81,18 +80,6 @@ def init_warp() -> str:
             os.close(saved)
         capture.seek(0)
         return capture.read().decode(errors="replace")
-
-
-def cpu_model() -> str:
-    """The host CPU's model name (from /proc/cpuinfo on Linux), else the machine type; for reports."""
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.machine()
 
 
 def resolve_device(name: str | wp.Device | None) -> wp.Device:

@@ -18,7 +18,6 @@ variants over chosen pixels.
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -45,6 +44,7 @@ from .device import (
 )
 from .errors import WrtError
 from .geometry import build
+from .host import default_threads
 from .loader import override_render
 from .scene import AreaLight, Mesh, Polygon, Scene, Sphere, SphereLight, Triangle
 
@@ -181,11 +181,6 @@ def prepare(scene: Scene, dev: wp.context.Device) -> DeviceScene:
             sampler=scene.render.sampler,
             no_active=wp.empty(0, dtype=wp.int32, device=dev),
         )
-
-
-def default_threads() -> int:
-    """CPU threads available to this process."""
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
 # Memory per pixel, measured (peak RSS of `wrt render` at 2048^2 and 3072^2, EXR with all AOVs

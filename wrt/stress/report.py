@@ -10,6 +10,7 @@ import os
 from dataclasses import dataclass, field
 
 from ..files import write_atomic
+from ..tables import text_table
 
 
 @dataclass
@@ -68,13 +69,7 @@ def table_rows(results: list[CaseResult]) -> list[list[str]]:
 def format_table(results: list[CaseResult]) -> str:
     """The plain-text table ``wrt stress`` prints."""
     rows = table_rows(results)
-    widths = [max(len(row[k]) for row in rows) for k in range(len(rows[0]))]
-    lines = [
-        "  ".join(cell.ljust(w) if k == 0 else cell.rjust(w) for k, (cell, w) in enumerate(zip(row, widths)))
-        for row in rows
-    ]
-    lines.insert(1, "  ".join("-" * w for w in widths))
-    return "\n".join(lines)
+    return text_table(rows, right=set(range(1, len(rows[0]))), rule=True)
 
 
 def format_markdown(results: list[CaseResult], rays: int, seed: int) -> str:
