@@ -59,7 +59,7 @@ from wrt.files import write_atomic, write_json
 from wrt.host import machine_info
 from wrt.imageio import read_image, write_image
 from wrt.loader import load_scene, override_render, parse_scene
-from wrt.mitsuba_xml import load_mitsuba
+from wrt.mitsuba import load_mitsuba
 from wrt.scene import Mesh, Scene
 from wrt.tables import text_table
 

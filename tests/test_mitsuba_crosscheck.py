@@ -1,5 +1,5 @@
 """The path integrator against Mitsuba 3 (an independent renderer) on the same scenes, imported
-from Mitsuba XML (wrt/mitsuba_xml.py). Skipped, with the reason, where Mitsuba cannot be loaded."""
+from Mitsuba XML (wrt/mitsuba/). Skipped, with the reason, where Mitsuba cannot be loaded."""
 
 from pathlib import Path
 

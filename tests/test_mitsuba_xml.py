@@ -1,4 +1,4 @@
-"""Mitsuba 3 XML import (wrt/mitsuba_xml.py): conversions checked against hand computations and
+"""Mitsuba 3 XML import (wrt/mitsuba/): conversions checked against hand computations and
 numpy, and, where Mitsuba 3 is installed, against Mitsuba's own reading of the same files."""
 
 import math
@@ -10,7 +10,7 @@ import pytest
 from wrt_harness.mitsuba_peer import mitsuba_available, render_mitsuba
 
 from wrt.errors import WrtError
-from wrt.mitsuba_xml import (
+from wrt.mitsuba import (
     IOR_TABLE,
     MAX_DEPTH,
     load_mitsuba,

@@ -399,7 +399,7 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
 
 def load_scene(path: str | os.PathLike, *, strict: bool = False) -> Scene:
     """Read and validate a scene file: TOML, or Mitsuba 3 XML (``.xml``, the subset of
-    ``wrt.mitsuba_xml``; unsupported elements are warned about on stderr, or with ``strict`` are
+    ``wrt.mitsuba``; unsupported elements are warned about on stderr, or with ``strict`` are
     errors).
 
     Raises
@@ -411,7 +411,7 @@ def load_scene(path: str | os.PathLike, *, strict: bool = False) -> Scene:
     """
     path = os.fspath(path)
     if path.lower().endswith(".xml"):
-        from .mitsuba_xml import load_mitsuba
+        from .mitsuba import load_mitsuba
 
         doc, warnings = load_mitsuba(path, strict=strict)
         for warning in warnings:

@@ -1,0 +1,64 @@
+"""Converting Mitsuba's emitters into wrt lights: ``point``, ``spot``, ``directional`` and
+``constant`` on their own, ``area`` attached to a shape."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .transforms import as_list
+from .xml import Document, Element, Plugin
+
+
+def emitter(doc: Document, element: Element) -> dict | None:
+    """The ``[[light]]`` table of a free-standing emitter; None (with a warning) if unsupported."""
+    p = Plugin(doc, element)
+    matrix, _ = p.transform("to_world")
+    if p.type == "point":
+        position = p.vector("position", matrix[:3, 3])
+        light = {"type": "point", "position": as_list(position), "intensity": p.color("intensity", 1.0)}
+    elif p.type == "spot":
+        cutoff = p.number("cutoff_angle", 20.0)
+        light = {
+            "type": "spot",
+            "position": as_list(matrix[:3, 3]),
+            "direction": as_list(matrix[:3, 2]),
+            "intensity": p.color("intensity", 1.0),
+            "cutoff_angle": cutoff,
+            "beam_width": p.number("beam_width", 0.75 * cutoff),
+        }
+    elif p.type == "directional":
+        direction = p.vector("direction", matrix[:3, 2])
+        light = {"type": "directional", "direction": as_list(direction), "irradiance": p.color("irradiance", 1.0)}
+    elif p.type == "constant":
+        light = {"type": "environment", "radiance": p.color("radiance", 1.0)}
+    else:
+        doc.warn(element, "emitter type not supported: ignored")
+        return None
+    p.finish()
+    return light
+
+
+def area_radiance(doc: Document, element: Element) -> list[float]:
+    """The radiance of an emitter attached to a shape (an ``area`` emitter)."""
+    p = Plugin(doc, element)
+    if p.type != "area":
+        doc.warn(element, "only area emitters can be attached to shapes: converted as area")
+    radiance = p.color("radiance", 1.0)
+    p.finish()
+    return radiance
+
+
+def surface_light(geometry: dict, radiance: list[float]) -> dict:
+    """An area light from a converted rectangle polygon (its winding already gives Mitsuba's
+    front side) or a sphere light from a sphere."""
+    if geometry["type"] == "sphere":
+        return {"type": "sphere", "center": geometry["center"], "radius": geometry["radius"], "radiance": radiance}
+    v = np.array(geometry["vertices"])
+    edge_u, edge_v = v[1] - v[0], v[3] - v[0]
+    return {
+        "type": "area",
+        "corner": as_list(v[0]),
+        "edge_u": as_list(edge_u),
+        "edge_v": as_list(edge_v),
+        "radiance": radiance,
+    }

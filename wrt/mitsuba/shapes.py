@@ -1,0 +1,134 @@
+"""Converting Mitsuba's shapes into wrt shapes: ``sphere``, ``rectangle`` and ``cube`` (as
+polygons), ``obj`` and ``ply`` meshes, with their BSDF and, for an area emitter on a rectangle or
+sphere, the area or sphere light it becomes."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from .bsdfs import DEFAULT_BSDF, Materials
+from .emitters import area_radiance, surface_light
+from .transforms import as_list, transform_point
+from .xml import Document, Element, Plugin
+
+RECTANGLE = np.array([(-1.0, -1.0, 0.0), (1.0, -1.0, 0.0), (1.0, 1.0, 0.0), (-1.0, 1.0, 0.0)])
+
+
+def cube_faces() -> list[np.ndarray]:
+    """The six faces of [-1, 1]^3 as 4-vertex loops wound counter-clockwise seen from outside."""
+    square = [(-1, -1), (1, -1), (1, 1), (-1, 1)]
+    faces = []
+    for axis in range(3):
+        b, c = (axis + 1) % 3, (axis + 2) % 3  # e_b x e_c = e_axis
+        for sign in (1.0, -1.0):
+            face = np.zeros((4, 3))
+            face[:, axis] = sign
+            face[:, b], face[:, c] = zip(*square)
+            faces.append(face if sign > 0 else face[::-1])
+    return faces
+
+
+def shape(doc: Document, materials: Materials, element: Element, shapes: list, lights: list) -> None:
+    """Append the ``[[shape]]`` tables of a shape element to ``shapes`` (or its light to ``lights``)."""
+    p = Plugin(doc, element)
+    matrix, _ = p.transform("to_world")
+    bsdfs, emitters = p.children("bsdf"), p.children("emitter")
+    for extra in bsdfs[1:] + emitters[1:]:
+        doc.warn(extra, "a shape takes one BSDF and one emitter: ignored")
+    front = -1.0 if p.boolean("flip_normals", False) else 1.0
+    mirrored = np.linalg.det(matrix[:3, :3]) * front < 0  # winding must be reversed to keep Mitsuba's front
+
+    if p.type == "sphere":
+        placed = matrix @ np.diag([*(p.number("radius", 1.0),) * 3, 1.0])
+        placed[:3, 3] = transform_point(matrix, p.vector("center", (0.0, 0.0, 0.0)))
+        scales = np.linalg.svd(placed[:3, :3], compute_uv=False)
+        if scales.max() - scales.min() > 1e-6 * scales.max():
+            doc.warn(element, "non-uniform scale: the radius is the to_world x axis scale (as in Mitsuba)")
+        if front < 0:
+            doc.warn(p.params["flip_normals"], "flip_normals on a sphere is not supported: normals point outward")
+        tables = [{"type": "sphere", "center": as_list(placed[:3, 3]), "radius": float(np.linalg.norm(placed[:3, 0]))}]
+    elif p.type in ("rectangle", "cube"):
+        loops = [RECTANGLE] if p.type == "rectangle" else cube_faces()
+        loops = [loop[::-1] if mirrored else loop for loop in loops]
+        tables = [
+            {"type": "polygon", "vertices": [as_list(transform_point(matrix, v)) for v in loop]} for loop in loops
+        ]
+    elif p.type in ("obj", "ply"):
+        tables = [mesh(doc, p, matrix)]
+    else:
+        doc.warn(element, "shape type not supported: ignored")
+        return
+    material = materials.of(bsdfs[0]) if bsdfs else DEFAULT_BSDF
+
+    if emitters:
+        radiance = area_radiance(doc, emitters[0])
+        if p.type in ("rectangle", "sphere"):
+            if material.reflects():
+                doc.warn(
+                    bsdfs[0] if bsdfs else element,
+                    "wrt's area lights reflect no light, but this emitter's "
+                    "BSDF reflects in Mitsuba (set its reflectance to 0 to compare)",
+                )
+            lights.append(surface_light(tables[0], radiance))
+            p.finish()
+            return
+        doc.warn(emitters[0], "an area emitter on this shape becomes emission of its material (front side only)")
+        base = bsdfs[0].attrs.get("id", material.table["type"]) if bsdfs else "default"
+        name = materials.add(f"{base}+emission@{emitters[0].line}", {**material.table, "emission": radiance})
+    else:
+        if p.type in ("rectangle", "obj", "ply") and not material.two_sided:
+            doc.warn(
+                bsdfs[0] if bsdfs else element,
+                "one-sided BSDF on an open surface: Mitsuba renders its back black, "
+                "wrt shades both sides (wrap it in a twosided BSDF to compare)",
+            )
+        name = materials.name(bsdfs[0]) if bsdfs else None
+    for table in tables:
+        shapes.append({**table, "material": name} if name else table)
+    p.finish()
+
+
+def mesh(doc: Document, p: Plugin, matrix: np.ndarray) -> dict:
+    """The ``mesh`` shape table of an ``obj`` or ``ply`` shape: its file, relative to the XML
+    file, and its ``to_world`` as a transform matrix."""
+    filename = p.string("filename", None)
+    if filename is None:
+        raise doc.error(p.element, "a mesh needs a filename")
+    if p.boolean("flip_normals", False):
+        doc.warn(p.params["flip_normals"], "flip_normals on a mesh is not supported: the file's winding is kept")
+    if np.linalg.det(matrix[:3, :3]) < 0:
+        doc.warn(
+            p.element,
+            "the to_world transform mirrors the mesh: wrt's front side follows the mirrored winding, "
+            "Mitsuba's shading normals do not",
+        )
+    face_normals = p.boolean("face_normals", False)
+    if not face_normals and has_vertex_normals(os.path.join(os.path.dirname(doc.path), filename)):
+        doc.warn(
+            p.element,
+            "Mitsuba interpolates this file's vertex normals, wrt shades with face normals "
+            "(set face_normals = true to compare)",
+        )
+    table = {"type": "mesh", "file": filename}
+    if not np.array_equal(matrix, np.eye(4)):
+        table["transform"] = {"matrix": [as_list(row) for row in matrix]}
+    return table
+
+
+def has_vertex_normals(path: str) -> bool:
+    """Whether an OBJ (``vn`` lines) or PLY (``nx`` vertex property) file stores vertex normals;
+    False for a file that cannot be read (the scene loader reports it)."""
+    try:
+        with open(path, "rb") as f:
+            if path.lower().endswith(".obj"):
+                return any(line.startswith(b"vn ") for line in f)
+            for line in f:
+                if line.strip() == b"end_header":
+                    return False
+                if line.startswith(b"property") and line.split()[-1] == b"nx":
+                    return True
+    except OSError:
+        pass
+    return False
