@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import warp as wp
@@ -13,6 +15,8 @@ from wrt.trace import Tracer as PrimitiveTracer
 
 init_warp()
 
+ROOT = Path(__file__).resolve().parent.parent  # the source checkout
+EXAMPLES = ROOT / "examples"
 CAMERA = {"origin": [0.0, 0.0, 5.0], "look_at": [0.0, 0.0, 0.0]}
 
 

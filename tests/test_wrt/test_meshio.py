@@ -5,11 +5,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import pyvista as pv
+from conftest import EXAMPLES
 
 from wrt.errors import MeshFileError
 from wrt.meshio import apply_transform, load_mesh, transform_matrix
 
-MESHES = Path(__file__).resolve().parents[1] / "examples" / "meshes"
+MESHES = EXAMPLES / "meshes"
 KNOT = MESHES / "torus_knot.ply"
 
 

@@ -3,10 +3,10 @@ numpy, and, where Mitsuba 3 is installed, against Mitsuba's own reading of the s
 
 import math
 import textwrap
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import EXAMPLES
 from wrt_harness.mitsuba_peer import mitsuba_available, render_mitsuba
 
 from wrt.errors import WrtError
@@ -19,8 +19,8 @@ from wrt.mitsuba import (
 )
 from wrt.scene import Camera
 
-EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "mitsuba"
-EXAMPLE_FILES = sorted(EXAMPLES.glob("*.xml"))
+MITSUBA_EXAMPLES = EXAMPLES / "mitsuba"
+EXAMPLE_FILES = sorted(MITSUBA_EXAMPLES.glob("*.xml"))
 MITSUBA, MITSUBA_REASON = mitsuba_available()
 needs_mitsuba = pytest.mark.skipif(not MITSUBA, reason=MITSUBA_REASON)
 
@@ -525,6 +525,6 @@ def test_polygon_fronts_match_mitsubas_shading_normals(tmp_path, transform):
 
 @needs_mitsuba
 def test_render_mitsuba_small_cornell_box():
-    image = render_mitsuba(EXAMPLES / "cornell_box.xml", spp=4, res=32)
+    image = render_mitsuba(MITSUBA_EXAMPLES / "cornell_box.xml", spp=4, res=32)
     assert image.shape == (32, 32, 3) and image.dtype == np.float32
     assert np.isfinite(image).all() and 0.05 < image.mean() < 1.0

@@ -10,10 +10,10 @@ import math
 import os
 import shutil
 import tempfile
-from pathlib import Path
 
 import pytest
 import warp as wp
+from conftest import EXAMPLES
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from wrt.kernels.film import Film
@@ -24,7 +24,7 @@ from wrt.cli import main
 from wrt.errors import WrtError
 from wrt.loader import load_scene, parse_scene
 
-MESHES = Path(__file__).resolve().parents[1] / "examples" / "meshes"
+MESHES = EXAMPLES / "meshes"
 
 GOOD = """\
 [render]
@@ -411,11 +411,7 @@ def test_fuzz_mutated_scene_documents(doc):
         assert all(math.isfinite(c) for c in (*scene.camera.origin, *scene.camera.look_at, scene.camera.fov))
 
 
-GOOD_TEXT = (
-    (Path(__file__).resolve().parents[1] / "examples" / "showcase.toml")
-    .read_text()
-    .replace("torus_knot.ply", "tetra.obj")
-)
+GOOD_TEXT = (EXAMPLES / "showcase.toml").read_text().replace("torus_knot.ply", "tetra.obj")
 
 
 @st.composite

@@ -1,13 +1,12 @@
 """Ray recording (kernels/record.py, wrt/rays.py) against closed forms, and `wrt rays` (wrt/rayview.py)."""
 
-import os
 import subprocess
 import sys
 
 import numpy as np
 import pytest
 import pyvista as pv
-from conftest import make_scene
+from conftest import EXAMPLES, make_scene
 from skimage.io import imread
 from wrt.kernels.record import (
     CAMERA,
@@ -262,7 +261,7 @@ def test_export_reopens_with_pyvista(tmp_path):
 def test_view_png_off_screen_is_not_blank(tmp_path):
     """`wrt rays -o` in a child process (a missing GL library crashes VTK rather than raising)."""
     out = tmp_path / "view.png"
-    scene = os.path.join(os.path.dirname(__file__), "..", "examples", "spheres.toml")
+    scene = str(EXAMPLES / "spheres.toml")
     proc = subprocess.run(
         [sys.executable, "-m", "wrt.cli", "rays", scene, "--grid", "3", "2", "--depth", "3", "-o", str(out)],
         capture_output=True,
@@ -330,7 +329,7 @@ def test_show_bvh_logs_the_nodes_the_traversal_visits(tmp_path):
     from wrt.device import resolve_device
     from wrt.geometry import build
 
-    showcase = os.path.join(os.path.dirname(__file__), "..", "examples", "showcase.toml")
+    showcase = str(EXAMPLES / "showcase.toml")
     scene = wrt.load_scene(showcase)
     tree = trace_rays(scene, [(330, 150), (450, 200), (5, 5)], bvh=True)
     nodes = build(scene, resolve_device("cpu")).bvh.nodes.numpy()  # the same deterministic build the recording used

@@ -12,11 +12,10 @@ import subprocess
 import sys
 import termios
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import make_scene
+from conftest import ROOT, make_scene
 
 import wrt
 import wrt.imageio
@@ -25,8 +24,6 @@ from wrt.cli import main
 from wrt.imageio import read_image
 from wrt.loader import override_render
 from wrt.renderer import pass_size
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def path_scene(spp=13, width=24, height=16):

@@ -13,6 +13,7 @@ import os
 
 import numpy as np
 import pytest
+from conftest import EXAMPLES
 from wrt_benchmarks import bench
 from wrt_benchmarks.targets import TARGETS
 
@@ -114,7 +115,7 @@ def test_bad_input_is_one_line_exit_2(argv, named, capsys, tmp_path):
 
 def test_command_line_runs_both_parts(tmp_path, capsys):
     """`wrt bench SCENE --quick --triangles N`: the error curves and the ray-throughput table."""
-    scene = os.path.join(os.path.dirname(__file__), "..", "examples", "path", "soft_shadows.toml")
+    scene = str(EXAMPLES / "path" / "soft_shadows.toml")
     assert main(["bench", scene, "--quick", "--budget", "0.2", "--triangles", "2000", "-o", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "Ray throughput" in out and "wrt/wp.Mesh" in out

@@ -1,17 +1,16 @@
 """The path integrator against Mitsuba 3 (an independent renderer) on the same scenes, imported
 from Mitsuba XML (wrt/mitsuba/). Skipped, with the reason, where Mitsuba cannot be loaded."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
+from conftest import EXAMPLES
 from wrt_harness.mitsuba_peer import mitsuba_available, render_mitsuba
 from wrt_harness.score import ssim
 
 import wrt
 from wrt.loader import override_render
 
-EXAMPLES = Path(__file__).resolve().parent.parent / "examples" / "mitsuba"
+MITSUBA_EXAMPLES = EXAMPLES / "mitsuba"
 AVAILABLE, REASON = mitsuba_available()
 CASES = {  # scene: (width, height, spp), each renderer ~3-10 s on 2 cores
     "cornell_box": (32, 32, 4096),
@@ -33,7 +32,7 @@ def test_path_integrator_agrees_with_mitsuba(name):
     tone-mapped images above 0.98 at full resolution (measured 0.988-0.996). wrt renders with
     its Sobol sampler, Mitsuba with its independent one: samplers change the noise only."""
     width, height, spp = CASES[name]
-    path = EXAMPLES / f"{name}.xml"
+    path = MITSUBA_EXAMPLES / f"{name}.xml"
     scene = override_render(wrt.load_scene(path), width=width, height=height, sampler="sobol")
     ours = wrt.render(scene, spp=spp).rgb.astype(np.float64)
     theirs = render_mitsuba(str(path), spp=spp, **size_params(name, width, height)).astype(np.float64)

@@ -1,14 +1,12 @@
 """Every bundled example scene (examples/**/*.toml) loads and renders a sane tiny image."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
+from conftest import EXAMPLES
 
 import wrt
 from wrt.loader import override_render
 
-EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 SCENES = sorted(EXAMPLES.rglob("*.toml"))
 
 
