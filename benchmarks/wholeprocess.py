@@ -15,7 +15,7 @@ reading, BVH build, rendering and writing the EXR, everything.
   with the file's independent sampler: ``wrt render scene.xml --spp N --seed k`` against
   ``mitsuba -Dspp=N -Dseed=k`` (a copy of the file whose sampler takes a ``$seed``), run ``k``
   using seed ``k``. Each image's mean squared error (linear RGB) against the scene's converged
-  reference (``harness.bench.reference_image``) gives the Monte Carlo efficiency
+  reference (``wrt_benchmarks.bench.reference_image``) gives the Monte Carlo efficiency
   ``1 / (MSE x wall seconds)``, the MSE averaged over the runs' seeds; the ratio wrt / Mitsuba is
   above 1 when wrt reaches a given error sooner. wrt's other samplers are timed the same way
   (``wrt render --sampler``) and reported beside it.

@@ -142,7 +142,7 @@ def test_bit_identical_for_any_thread_count(sampler, filter):
 
 def test_error_falls_as_one_over_sqrt_spp():
     """With independent samples the error of a path-traced image falls as 1/sqrt(spp) (the default
-    sobol sampler falls faster on this smooth scene: tests/test_sampling.py measures its rates)."""
+    sobol sampler falls faster on this smooth scene: test_sampling.py measures its rates)."""
     lights = [
         {"type": "area", "corner": [-0.5, 2, -0.5], "edge_u": [1, 0, 0], "edge_v": [0, 0, 1], "radiance": [5, 5, 5]}
     ]

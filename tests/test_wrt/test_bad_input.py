@@ -1,4 +1,4 @@
-"""Bad input beyond tests/test_loader.py and tests/test_meshio.py: malformed files, wrong types,
+"""Bad input beyond test_loader.py and test_meshio.py: malformed files, wrong types,
 bad meshes through the command line, absurd sizes, memory limits, and a fuzz test of the loader.
 
 Every case: one line ``wrt: error: ...`` naming the file, the key and the value, exit code 2, and
