@@ -3,7 +3,8 @@
 ``wrt`` finds them through the ``wrt.commands`` entry points of this package (pyproject.toml):
 each entry point (``matrix_verb`` ...) adds its subparser to ``wrt``'s and returns the function
 that runs it, so ``wrt`` never imports the harness, and this module imports nothing heavy: the
-work is in ``wrt_harness.commands``, imported when a verb runs.
+work is in ``wrt_harness.commands``, imported when a verb runs. The harness's own command,
+``wrt-harness VERB`` (or ``python -m wrt_harness VERB``), runs the same verbs without ``wrt``.
 """
 
 from __future__ import annotations
@@ -94,3 +95,16 @@ def compare_verb(verbs) -> Run:
         return compare(args.a, args.b, args.threshold)
 
     return run
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``wrt-harness matrix|refs|compare ...``: the harness's verbs as a command of its own."""
+    from wrt.cli import run_verb
+
+    parser = argparse.ArgumentParser(
+        prog="wrt-harness", description="wrt's visual regression harness (the same verbs as wrt matrix, refs, compare)"
+    )
+    verbs = parser.add_subparsers(dest="verb", required=True, metavar="VERB")
+    runs = {"matrix": matrix_verb(verbs), "refs": refs_verb(verbs), "compare": compare_verb(verbs)}
+    args = parser.parse_args(argv)
+    return run_verb(runs[args.verb], args, prog="wrt-harness")

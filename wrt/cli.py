@@ -313,22 +313,29 @@ def _stress(args) -> int:
 LIBRARY_VERBS = ("render", "rays", "stress")
 
 
-def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    parser, runs = _parser(plugins=not (argv and argv[0] in LIBRARY_VERBS))
-    args = parser.parse_args(argv)
+def run_verb(run, args: argparse.Namespace, prog: str = "wrt") -> int:
+    """Run a verb's function: its exit code; a ``WrtError`` is one line on stderr and exit code 2,
+    an interruption exit code 130. Warp is initialised first (``render`` does it itself, to show
+    its messages only for CUDA)."""
     try:
         if args.verb != "render":
             from .device import init_warp
 
             init_warp()
-        return runs[args.verb](args)
+        return run(args)
     except WrtError as e:
-        print(f"wrt: error: {e}", file=sys.stderr)
+        print(f"{prog}: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("wrt: interrupted", file=sys.stderr)
+        print(f"{prog}: interrupted", file=sys.stderr)
         return 130
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    parser, runs = _parser(plugins=not (argv and argv[0] in LIBRARY_VERBS))
+    args = parser.parse_args(argv)
+    return run_verb(runs[args.verb], args)
 
 
 if __name__ == "__main__":

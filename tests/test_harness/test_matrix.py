@@ -7,6 +7,7 @@ import os
 import re
 import shutil
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -134,6 +135,21 @@ def test_compare(tmp_path, capsys):
     assert "SSIM 1.000000" in capsys.readouterr().out
     assert main(["compare", str(tmp_path / "a.exr"), str(tmp_path / "b.exr"), "--threshold", "0.99"]) == 1
     assert main(["compare", str(tmp_path / "a.exr"), str(tmp_path / "missing.exr")]) == 2
+
+
+def test_the_harness_has_a_command_of_its_own(tmp_path):
+    """``python -m wrt_harness`` (``wrt-harness``) runs the same verbs without ``wrt``."""
+    write_image(str(tmp_path / "a.exr"), np.full((8, 8, 3), 0.5, np.float32))
+    same = subprocess.run(
+        [sys.executable, "-m", "wrt_harness", "compare", str(tmp_path / "a.exr"), str(tmp_path / "a.exr")],
+        capture_output=True,
+        text=True,
+    )
+    assert same.returncode == 0 and "SSIM 1.000000" in same.stdout
+    bad = subprocess.run(
+        [sys.executable, "-m", "wrt_harness", "matrix", "no_such_feature"], capture_output=True, text=True
+    )
+    assert bad.returncode == 2 and bad.stderr.startswith("wrt-harness: error:") and "no_such_feature" in bad.stderr
 
 
 def find_chromium():
