@@ -11,7 +11,7 @@ import warp as wp
 
 from .intersect import intersect_sphere
 from .lights import AREA, ENVIRONMENT, SPHERE_LIGHT, LightData
-from .sample_warps import frame, uniform_cone, uniform_sphere
+from .sample_warps import cone_one_minus_cos, frame, uniform_cone, uniform_sphere
 
 
 @wp.func
@@ -28,7 +28,8 @@ def sample_emitter(lights: LightData, i: wp.int32, p: wp.vec3, u1: float, u2: fl
 
     Parallelogram: a uniform point on it (density 1/area converted to solid angle, ``d^2 /
     (area cos)``), zero where its back faces ``p``. Sphere: uniform in the cone it subtends
-    (``1 / (2 pi (1 - cos_max))``), zero from inside. Environment: uniform on the sphere
+    (``1 / (2 pi (1 - cos_max))``, with ``1 - cos_max`` from ``r^2 / d^2`` without cancellation,
+    so a sphere of 1e-7 of its distance keeps its irradiance), zero from inside. Environment: uniform on the sphere
     (``1 / (4 pi)``), infinitely far.
     """
     kind = lights.type[i]
@@ -49,13 +50,13 @@ def sample_emitter(lights: LightData, i: wp.int32, p: wp.vec3, u1: float, u2: fl
         r = lights.radius[i]
         if dist2 <= r * r:
             return wp.vec3(0.0, 0.0, 1.0), 0.0, wp.vec3(0.0), 0.0
-        cos_max = wp.sqrt(wp.max(0.0, 1.0 - r * r / dist2))
-        wi = frame(to_c / wp.sqrt(dist2)) * uniform_cone(u1, u2, cos_max)
+        one_minus_cos = cone_one_minus_cos(r * r / dist2)
+        wi = frame(to_c / wp.sqrt(dist2)) * uniform_cone(u1, u2, one_minus_cos)
         tangent = wp.sqrt(wp.max(0.0, dist2 - r * r))
         dist = intersect_sphere(p, wi, lights.position[i], r, 0.0, tangent * 2.0)
         if dist >= tangent * 2.0:  # grazing the silhouette: rounding missed it
             dist = tangent
-        return wi, dist, lights.power[i], 1.0 / (2.0 * wp.pi * (1.0 - cos_max))
+        return wi, dist, lights.power[i], 1.0 / (2.0 * wp.pi * one_minus_cos)
     return uniform_sphere(u1, u2), wp.inf, lights.power[i], 1.0 / (4.0 * wp.pi)
 
 
@@ -76,8 +77,7 @@ def emitter_pdf(lights: LightData, i: wp.int32, p: wp.vec3, wi: wp.vec3, dist: f
         r = lights.radius[i]
         if dist2 <= r * r:
             return 0.0
-        cos_max = wp.sqrt(wp.max(0.0, 1.0 - r * r / dist2))
-        return 1.0 / (2.0 * wp.pi * (1.0 - cos_max))
+        return 1.0 / (2.0 * wp.pi * cone_one_minus_cos(r * r / dist2))
     if kind == ENVIRONMENT:
         return 1.0 / (4.0 * wp.pi)
     return 0.0

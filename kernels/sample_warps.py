@@ -60,13 +60,24 @@ def uniform_sphere(u1: float, u2: float) -> wp.vec3:
 
 
 @wp.func
-def uniform_cone(u1: float, u2: float, cos_max: float) -> wp.vec3:
-    """Local direction (z = axis) uniform in the cone of half-angle acos(cos_max),
-    density 1 / (2 pi (1 - cos_max))."""
-    z = 1.0 - u1 * (1.0 - cos_max)
-    r = wp.sqrt(wp.max(0.0, 1.0 - z * z))
+def cone_one_minus_cos(sin2_max: float) -> float:
+    """``1 - cos(theta_max)`` of a cone given ``sin^2(theta_max)`` (for a sphere of radius r seen
+    from distance d: ``r^2 / d^2``), without cancellation: ``s / (1 + sqrt(1 - s))``. Exact to a
+    few ulps however small the cone (``1 - sqrt(1 - s)`` loses everything below s ~ 1e-7)."""
+    s = wp.clamp(sin2_max, 0.0, 1.0)
+    return s / (1.0 + wp.sqrt(1.0 - s))
+
+
+@wp.func
+def uniform_cone(u1: float, u2: float, one_minus_cos_max: float) -> wp.vec3:
+    """Local direction (z = axis) uniform in the cone with ``1 - cos(theta_max) =
+    one_minus_cos_max``, density ``1 / (2 pi one_minus_cos_max)``. Sampled through ``w = 1 -
+    cos(theta)`` and ``sin(theta) = sqrt(w (2 - w))``, so a cone of 1e-7 radians still gets
+    directions spread over it (``cos(theta)`` alone would round to 1)."""
+    w = u1 * one_minus_cos_max
+    r = wp.sqrt(wp.max(0.0, w * (2.0 - w)))
     phi = 2.0 * wp.pi * u2
-    return wp.vec3(r * wp.cos(phi), r * wp.sin(phi), z)
+    return wp.vec3(r * wp.cos(phi), r * wp.sin(phi), 1.0 - w)
 
 
 @wp.func

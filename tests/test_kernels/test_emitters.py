@@ -72,6 +72,17 @@ def test_sphere_light_irradiance_is_pi_l_sin2():
     assert pdf_err < 1e-4
 
 
+@pytest.mark.parametrize("ratio", [1e-3, 3e-4, 1e-4, 1e-5, 1e-7])
+def test_tiny_sphere_lights_keep_their_irradiance(ratio):
+    """r/d down to 1e-7: the cone's 1 - cos(theta_max) without cancellation, so the irradiance
+    pi L (r/d)^2 holds to 1e-5 (it was 5% high at 1e-3, 34% at 3e-4, and 0 from 1e-4 down)."""
+    radiance = 1.0 / ratio**2  # irradiance about pi whatever the ratio
+    lights = one_light(SPHERE_LIGHT, position=(0, 0, 1.0), radius=ratio, radiance=(radiance,) * 3)
+    mean, err, pdf_err = estimate(lights, (0, 0, 0), (0, 0, 1), count=20_000)
+    assert mean == pytest.approx(np.pi, rel=1e-5)
+    assert pdf_err < 1e-5
+
+
 def test_environment_irradiance_is_pi_l():
     lights = one_light(ENVIRONMENT, radiance=(0.7,) * 3)
     mean, err, _ = estimate(lights, (0, 0, 0), (0, 0, 1))

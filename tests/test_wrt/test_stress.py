@@ -36,6 +36,7 @@ def assert_all_pass(rows):
         "ulps",
         "grazing",
         "degenerate",
+        "small-lights",
         "zero-radius",
         "coincident",
         "zero-components",

@@ -16,6 +16,7 @@ from .degenerate import (
     case_zero_components,
     case_zero_radius_sphere,
 )
+from .lights import case_small_lights
 from .offsets import case_self_intersection
 from .precision import case_sphere_precision, case_ulps
 from .refraction import (
@@ -46,6 +47,7 @@ CASES = [
     ("high-ior", case_high_ior_furnace),
     ("camera-inside", case_camera_inside),
     ("not-finite", case_not_finite),
+    ("small-lights", case_small_lights),
 ]
 
 
