@@ -10,7 +10,8 @@ References
 ----------
 E. Haines, J. Guenther, T. Akenine-Moller, "Precision Improvements for Ray/Sphere
 Intersection", Ray Tracing Gems, ch. 7, 2019.
-S. Woop, C. Benthin, I. Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1), 2013.
+S. Woop, C. Benthin, I. Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1), 2013 (also
+the frame of the polygon test).
 M. Pharr, W. Jakob, G. Humphreys, pbrt-v4, sec. 6.1.2 (conservative slab test).
 """
 
@@ -189,57 +190,61 @@ def intersect_triangle(
 
 
 @wp.func
-def point_in_polygon(uv: wp.array(dtype=wp.vec2), start: wp.int32, count: wp.int32, p: wp.vec2) -> bool:
-    """Even-odd crossing test of 2D point ``p`` against the polygon ``uv[start:start+count]``.
+def ray_in_polygon(verts: wp.array(dtype=wp.vec3), start: wp.int32, count: wp.int32, o: wp.vec3, ray: RayShear) -> bool:
+    """Whether the ray from ``o`` with shear ``ray`` passes inside the polygon
+    ``verts[start:start+count]`` (convex or not; even-odd rule), judged in the ray's sheared
+    frame, where the ray is the origin of the xy-plane (as the watertight triangle test does).
 
-    Casts a ray from ``p`` along +u and counts the edges it crosses (half-open in v, so a vertex
-    on the ray is counted once). Works for convex and non-convex polygons.
+    A +x half-line from the origin counts the edges it crosses. An edge crosses y = 0 when its
+    ends are on different sides, with y = 0 counted below (half-open), and the crossing is on
+    the +x side when its x, ``E(a, b) / (b.y - a.y)`` with ``E`` the exact-sign ``edge_function``,
+    is > 0; a crossing exactly at 0 (the ray through the edge) is not counted. Both rules read the
+    same whichever way an edge is walked, and vertices are sheared identically for every polygon
+    that holds them, so polygons that share an edge or a vertex judge a ray through it as one:
+    it lies in exactly one of them when they are on opposite sides (a closed box from inside,
+    coplanar neighbours), never in none and never in both (a consistent perturbation of the ray
+    to +x, then +y).
     """
     inside = bool(False)
-    j = int(start + count - 1)
-    for i in range(start, start + count):
-        a = uv[i]
-        b = uv[j]
-        if (a[1] > p[1]) != (b[1] > p[1]):
-            u_cross = a[0] + (b[0] - a[0]) * (p[1] - a[1]) / (b[1] - a[1])
-            if p[0] < u_cross:
+    zero = wp.float64(0.0)
+    a = shear(verts[start + count - 1] - o, ray.kx, ray.ky, ray.kz, ray.sx, ray.sy)
+    for k in range(start, start + count):
+        b = shear(verts[k] - o, ray.kx, ray.ky, ray.kz, ray.sx, ray.sy)
+        if (a[1] > 0.0) != (b[1] > 0.0):
+            e = edge_function(a, b)
+            if (b[1] > 0.0 and e > zero) or (a[1] > 0.0 and e < zero):
                 inside = not inside
-        j = i
+        a = b
     return inside
 
 
 @wp.func
-def intersect_polygon(
+def intersect_polygon_sheared(
     o: wp.vec3,
     d: wp.vec3,
+    ray: RayShear,
     normal: wp.vec3,
     offset: float,
-    axis: wp.int32,
-    uv: wp.array(dtype=wp.vec2),
+    verts: wp.array(dtype=wp.vec3),
     start: wp.int32,
     count: wp.int32,
     t_min: float,
     t_max: float,
 ) -> float:
-    """Planar polygon ``dot(normal, x) = offset``: plane hit, then the 2D point-in-polygon test.
-
-    The polygon's vertices are stored projected along the dominant axis ``axis`` of its normal
-    (dropping that coordinate keeps the projection well conditioned): ``uv`` holds the two
-    remaining coordinates in x, y, z order.
-    """
-    denom = wp.dot(normal, d)
-    if denom == 0.0:
+    """Planar polygon ``verts[start:start+count]`` on the plane ``dot(normal, x) = offset``, both
+    sides, watertight (``ray_in_polygon``); ``ray`` is ``ray_shear(d)``. ``t`` is the float64
+    distance to the plane, rounded once."""
+    if d[ray.kz] == 0.0:
         return t_max
-    t = (offset - wp.dot(normal, o)) / denom
+    n64 = wp.vec3d(wp.float64(normal[0]), wp.float64(normal[1]), wp.float64(normal[2]))
+    denom = wp.dot(n64, wp.vec3d(wp.float64(d[0]), wp.float64(d[1]), wp.float64(d[2])))
+    if denom == wp.float64(0.0):
+        return t_max
+    o64 = wp.vec3d(wp.float64(o[0]), wp.float64(o[1]), wp.float64(o[2]))
+    t = wp.float32((wp.float64(offset) - wp.dot(n64, o64)) / denom)
     if t <= t_min or t >= t_max:
         return t_max
-    p = o + t * d
-    p2 = wp.vec2(p[1], p[2])
-    if axis == 1:
-        p2 = wp.vec2(p[0], p[2])
-    elif axis == 2:
-        p2 = wp.vec2(p[0], p[1])
-    if point_in_polygon(uv, start, count, p2):
+    if ray_in_polygon(verts, start, count, o, ray):
         return t
     return t_max
 

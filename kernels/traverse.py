@@ -26,7 +26,7 @@ from .intersect import (
     INV_ZERO,
     RayShear,
     intersect_plane,
-    intersect_polygon,
+    intersect_polygon_sheared,
     intersect_sphere,
     intersect_triangle_sheared,
     ray_shear,
@@ -55,10 +55,9 @@ class GeometryData:
     tri_shape: wp.array(dtype=wp.int32)
     poly_normal: wp.array(dtype=wp.vec3)  # unit
     poly_offset: wp.array(dtype=float)  # dot(normal, x) = offset on the polygon's plane
-    poly_axis: wp.array(dtype=wp.int32)  # dominant axis of the normal, dropped in projection
     poly_start: wp.array(dtype=wp.int32)
     poly_count: wp.array(dtype=wp.int32)
-    poly_uv: wp.array(dtype=wp.vec2)  # projected vertices of all polygons
+    poly_verts: wp.array(dtype=wp.vec3)  # vertices of all polygons, poly_start[i] .. + poly_count[i]
     poly_shape: wp.array(dtype=wp.int32)
     plane_point: wp.array(dtype=wp.vec3)
     plane_normal: wp.array(dtype=wp.vec3)  # unit
@@ -185,13 +184,13 @@ def _intersect_prim(features: Features):
             if wp.static(single) or kind == SPHERE:
                 return intersect_sphere(o_rel, d, geometry.sphere_center[i], geometry.sphere_radius[i], t_min, t_max)
         if wp.static(features.polygons):
-            return intersect_polygon(
+            return intersect_polygon_sheared(
                 o_rel,
                 d,
+                shear,
                 geometry.poly_normal[i],
                 geometry.poly_offset[i],
-                geometry.poly_axis[i],
-                geometry.poly_uv,
+                geometry.poly_verts,
                 geometry.poly_start[i],
                 geometry.poly_count[i],
                 t_min,

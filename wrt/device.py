@@ -37,7 +37,7 @@ from wrt.kernels.sampling import INDEPENDENT, SOBOL, STRATIFIED, Sampler
 from wrt.kernels.traverse import GeometryData
 
 from .errors import WrtError
-from .geometry import Primitives, polygon_projection
+from .geometry import Primitives
 from .scene import (
     SURFACE_LIGHTS,
     AreaLight,
@@ -113,11 +113,6 @@ def _float(a: np.ndarray, device) -> wp.array:
 def upload_geometry(p: Primitives, device) -> GeometryData:
     """``GeometryData`` for primitives already passed through ``wrt.geometry.build`` (whose BVH is
     on ``device``)."""
-    axes, uvs = [], []
-    for verts, normal in zip(p.poly_verts, p.poly_normal):
-        axis, uv = polygon_projection(verts, normal)
-        axes.append(axis)
-        uvs.append(uv)
     poly_count = np.array([len(v) for v in p.poly_verts], dtype=np.int32)
     poly_offset = [float(np.dot(n, v.mean(axis=0))) for v, n in zip(p.poly_verts, p.poly_normal)]
     s = GeometryData()
@@ -130,10 +125,9 @@ def upload_geometry(p: Primitives, device) -> GeometryData:
     s.tri_shape = _int(p.tri_shape, device)
     s.poly_normal = _vec3(p.poly_normal, device)
     s.poly_offset = _float(poly_offset, device)
-    s.poly_axis = _int(axes, device)
     s.poly_start = _int(np.concatenate(([0], np.cumsum(poly_count)[:-1])), device)
     s.poly_count = _int(poly_count, device)
-    s.poly_uv = wp.array(np.concatenate(uvs or [np.zeros((0, 2))]).astype(np.float32), dtype=wp.vec2, device=device)
+    s.poly_verts = _vec3(np.concatenate(p.poly_verts or [np.zeros((0, 3))]), device)
     s.poly_shape = _int(p.poly_shape, device)
     s.plane_point = _vec3(p.plane_point, device)
     s.plane_normal = _vec3(p.plane_normal, device)

@@ -186,10 +186,3 @@ def build(scene: Scene, device) -> Primitives:
         p.poly_verts, p.poly_normal, p.poly_shape = [p.poly_verts[k] for k in g], p.poly_normal[g], p.poly_shape[g]
     p.bvh, p.prims = bvh, new_ids
     return p
-
-
-def polygon_projection(vertices: np.ndarray, normal: np.ndarray) -> tuple[int, np.ndarray]:
-    """Dominant axis of ``normal`` and the polygon's vertices with that coordinate dropped (n, 2)."""
-    axis = int(np.argmax(np.abs(normal)))
-    keep = [k for k in range(3) if k != axis]
-    return axis, vertices[:, keep]

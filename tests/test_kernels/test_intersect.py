@@ -119,6 +119,39 @@ def test_non_convex_polygon_point_in_polygon():
     assert (s[4:] == -1).all()
 
 
+def test_polygons_sharing_an_edge_take_every_ray_through_it_exactly_once(rng):
+    """Two quads of a tilted plane share a slanted edge, and a closed box of six walls shares
+    twelve: a ray aimed exactly at a shared edge or corner hits exactly one polygon of each
+    pair/box (issue 13: the old per-polygon projection let rays leak and double-hit)."""
+    frame = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    left = np.array([[-1.0, -1.0, 0], [0.3, -1.0, 0], [-0.2, 1.0, 0], [-1.0, 1.0, 0]]) @ frame.T
+    right = np.array([[0.3, -1.0, 0], [1.0, -1.0, 0], [1.0, 1.0, 0], [-0.2, 1.0, 0]]) @ frame.T
+    quads = [one({"type": "polygon", "vertices": q.tolist()}) for q in (left, right)]
+    n = 4000
+    target = left[1] + rng.random((n, 1)) * (left[2] - left[1])
+    origin = target + rng.uniform(0.5, 3.0, (n, 1)) * (
+        frame[:, 2] * np.where(rng.random((n, 1)) < 0.5, -1, 1) + 0.7 * rng.normal(size=(n, 3))
+    )
+    d = target - origin
+    hits = sum((q.closest(origin, d)[1] != -1).astype(int) for q in quads)
+    assert np.count_nonzero(hits != 1) == 0
+
+    walls = []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            wall = np.zeros((4, 3))
+            wall[:, axis] = sign
+            wall[:, (axis + 1) % 3], wall[:, (axis + 2) % 3] = [-1, 1, 1, -1], [-1, -1, 1, 1]
+            walls.append(one({"type": "polygon", "vertices": wall.tolist()}))
+    corner = np.where(rng.random((n, 3)) < 0.5, -1.0, 1.0)
+    on_edge = corner.copy()
+    on_edge[np.arange(n), rng.integers(0, 3, n)] = rng.uniform(-1, 1, n)  # a point of an edge
+    origin = rng.uniform(-0.5, 0.5, (n, 3))
+    d = np.where(rng.random((n, 1)) < 0.2, corner, on_edge) - origin
+    hits = sum((w.closest(origin, d)[1] != -1).astype(int) for w in walls)
+    assert np.count_nonzero(hits != 1) == 0
+
+
 def test_closest_of_several_and_t_window():
     shapes = [
         {"type": "sphere", "center": [0, 0, -3], "radius": 1.0},

@@ -31,6 +31,7 @@ def assert_all_pass(rows):
     "group",
     [
         "watertight",
+        "watertight-polygons",
         "self-intersection",
         "sphere-precision",
         "ulps",

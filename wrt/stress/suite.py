@@ -27,13 +27,14 @@ from .refraction import (
     case_not_finite,
 )
 from .report import CaseResult, format_table, write_report
-from .watertight import case_watertight
+from .watertight import case_watertight, case_watertight_polygons
 
 DEFAULT_RAYS = 10**6
 
 
 CASES = [
     ("watertight", case_watertight),
+    ("watertight-polygons", case_watertight_polygons),
     ("self-intersection", case_self_intersection),
     ("sphere-precision", case_sphere_precision),
     ("ulps", case_ulps),
