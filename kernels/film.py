@@ -13,7 +13,7 @@ AOVs (arbitrary output variables) describe the primary ray through the pixel CEN
 
 import warp as wp
 
-from .traverse import NO_HIT, GeometryData, geometric_normal, prim_shape
+from .traverse import NO_HIT, GeometryData, prim_shape, surface_point
 
 LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)  # Y of linear Rec. 709 RGB (host code reads them too)
 
@@ -40,15 +40,6 @@ class Film:
 
 
 @wp.func
-def facing_normal(geometry: GeometryData, prim: wp.int32, p: wp.vec3, d: wp.vec3, time: float) -> wp.vec3:
-    """Unit geometric normal at ``p`` flipped to the side the ray direction ``d`` comes from."""
-    n = geometric_normal(geometry, prim, p, time)
-    if wp.dot(n, d) > 0.0:
-        return -n
-    return n
-
-
-@wp.func
 def write_aovs(
     film: Film, geometry: GeometryData, pixel: wp.int32, o: wp.vec3, d: wp.vec3, t: float, prim: wp.int32, time: float
 ):
@@ -60,9 +51,9 @@ def write_aovs(
         film.object_id[pixel] = -1
         film.position[pixel] = wp.vec3(0.0)
     else:
-        p = o + t * d
+        p, n, _err = surface_point(geometry, prim, o, d, t, time)
         film.depth[pixel] = t
-        film.normal[pixel] = facing_normal(geometry, prim, p, d, time)
+        film.normal[pixel] = wp.where(wp.dot(n, d) > 0.0, -n, n)  # facing the camera
         surface = prim_shape(geometry, prim)
         if surface >= geometry.num_shapes:  # the surface of light k is not a shape: -2 - k
             surface = geometry.num_shapes - 2 - surface

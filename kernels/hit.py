@@ -1,6 +1,7 @@
 """A surface hit as the integrators see it: one struct, built by one function.
 
-``surface_hit`` turns a traversal's ``(t, prim)`` for the unit ray ``o + s d`` into the hit point,
+``surface_hit`` turns a traversal's ``(t, prim)`` for the unit ray ``o + s d`` into the hit point
+(recomputed on the primitive's surface),
 its unit geometric normal (outward for spheres and closed meshes, the winding normal for
 triangles, the given normal for planes and polygons), that normal flipped to the side the ray
 comes from, the shape and material, and the bound on the point's rounding error that offsets
@@ -10,13 +11,12 @@ rays leaving it (``wrt.kernels.spawn``).
 import warp as wp
 
 from .materials import MaterialData
-from .spawn import hit_error
-from .traverse import GeometryData, geometric_normal, prim_shape
+from .traverse import GeometryData, prim_shape, surface_point
 
 
 @wp.struct
 class Hit:
-    p: wp.vec3  # the hit point o + t d
+    p: wp.vec3  # the hit point, on the primitive's surface (surface_point)
     n: wp.vec3  # unit geometric normal, not flipped
     n_facing: wp.vec3  # n flipped to face the incoming ray: dot(n_facing, wo) >= 0
     wo: wp.vec3  # unit direction back along the ray, -d
@@ -32,14 +32,15 @@ def surface_hit(
 ) -> Hit:
     """The hit of unit ray ``o + s d`` (at ray time ``time``) at ``t`` on primitive ``prim`` (not ``NO_HIT``)."""
     hit = Hit()
-    hit.p = o + t * d
-    hit.n = geometric_normal(geometry, prim, hit.p, time)
+    p, n, err = surface_point(geometry, prim, o, d, t, time)
+    hit.p = p
+    hit.n = n
+    hit.err = err
     hit.wo = -d
     hit.entering = wp.dot(d, hit.n) < 0.0
     hit.n_facing = hit.n
     if not hit.entering:
         hit.n_facing = -hit.n
-    hit.err = hit_error(o, hit.p, t)
     hit.shape = prim_shape(geometry, prim)
     hit.material = materials.shape_material[hit.shape]
     return hit

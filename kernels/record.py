@@ -44,7 +44,7 @@ are dropped (a truncated recording), and their children still name them as paren
 
 import warp as wp
 
-from .traverse import NO_HIT, GeometryData, geometric_normal, prim_shape
+from .traverse import NO_HIT, GeometryData, prim_shape, surface_point
 
 CAMERA = wp.constant(0)
 SHADOW_LIT = wp.constant(1)
@@ -132,8 +132,9 @@ def record_ray(
         s.shape = -1
         s.normal = wp.vec3(0.0)
         if prim != NO_HIT:
-            s.end = o + t * d
-            s.normal = geometric_normal(geometry, prim, s.end, time)
+            end, normal, _err = surface_point(geometry, prim, o, d, t, time)
+            s.end = end
+            s.normal = normal
             s.shape = prim_shape(geometry, prim)
             s.flags = HIT
             if wp.dot(d, s.normal) < 0.0:

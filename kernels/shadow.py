@@ -19,8 +19,8 @@ import warp as wp
 from .materials import BSDF_TRANSMISSION, MaterialData, bsdf_flags
 from .media import beer_lambert, max_component
 from .record import SHADOW_BLOCKED, SHADOW_LIT, RayRecord, record_ray
-from .spawn import hit_error, spawn_origin
-from .traverse import NO_HIT, GeometryData, Traversal, geometric_normal, prim_shape
+from .spawn import spawn_origin
+from .traverse import NO_HIT, GeometryData, Traversal, prim_shape, surface_point
 
 SHADOW_CROSSINGS = wp.constant(16)  # dielectric surfaces a filtered shadow ray may pass
 
@@ -46,12 +46,11 @@ def make_shadow_ray(record: bool, trace: Traversal):
                 return out, t_total + t, prim
             if not passes(geometry, materials, prim):
                 return wp.vec3(0.0), t_total + t, prim
-            p = o + t * w
-            n = geometric_normal(geometry, prim, p, time)
+            p, n, err = surface_point(geometry, prim, o, w, t, time)
             if wp.dot(w, n) > 0.0:  # leaving: the segment just travelled was inside
                 m = materials.shape_material[prim_shape(geometry, prim)]
                 out = wp.cw_mul(out, beer_lambert(materials.sigma[m], t))
-            o_next = spawn_origin(p, n, hit_error(o, p, t), w)
+            o_next = spawn_origin(p, n, err, w)
             t_max = t_max - t
             t_total += t
             o = o_next

@@ -1,15 +1,17 @@
 """Spawning secondary rays without self-intersection: the one origin offset used everywhere.
 
-A hit point computed in float32 is off the true surface by rounding in the ray origin, the
-intersection's ``t`` and ``o + t d``: at most a few ulps of the magnitudes involved. The origin of
-a ray leaving the surface is pushed along the geometric normal, to the side the new ray goes,
-by a bound on that error: ``SPAWN_ULPS * 2^-24 * (max|o| + max|p| + t)``, not a fixed epsilon, so
-it holds at any scale and distance from the world origin.
+A hit point is recomputed on its primitive's surface (``wrt.kernels.traverse.surface_point``),
+so what separates it from the float32 surface is the rounding of that recomputation: a few ulps
+of the point and of the primitive's own coordinates, not of where the ray came from. The origin
+of a ray leaving the surface is pushed along the geometric normal, to the side the new ray goes,
+by a bound on that error: ``SPAWN_ULPS * 2^-24 * (2 max|p| + extent)`` (``extent``: the largest
+coordinate of the primitive's anchor, a vertex, centre plus radius or plane point), not a fixed
+epsilon, so it holds at any scale, any distance from the world origin and any camera distance.
 """
 
 import warp as wp
 
-# error bound in float32 ulps (2^-24 relative) of the magnitudes that make up a hit point
+# error bound in float32 ulps (2^-24 relative) of the magnitudes that make up a surface point
 SPAWN_ULPS = wp.constant(16.0)
 FLOAT32_HALF_ULP = wp.constant(5.9604645e-08)
 
@@ -20,9 +22,10 @@ def max_abs(v: wp.vec3) -> float:
 
 
 @wp.func
-def hit_error(o: wp.vec3, p: wp.vec3, t: float) -> float:
-    """Bound on the distance of the computed hit ``p = o + t d`` (unit ``d``) from the true surface."""
-    return SPAWN_ULPS * FLOAT32_HALF_ULP * (max_abs(o) + max_abs(p) + t)
+def point_error(p: wp.vec3, extent: float) -> float:
+    """Bound on the distance of a recomputed surface point ``p`` from the float32 surface of a
+    primitive whose coordinates are at most ``max|p| + extent`` in magnitude (``surface_point``)."""
+    return SPAWN_ULPS * FLOAT32_HALF_ULP * (max_abs(p) + extent)
 
 
 @wp.func

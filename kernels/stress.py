@@ -10,8 +10,8 @@ import warp as wp
 
 from .optics import reflect, refract
 from .sample_warps import frame
-from .spawn import hit_error, spawn_origin
-from .traverse import NO_HIT, GeometryData, any_hit, closest_hit, geometric_normal
+from .spawn import spawn_origin
+from .traverse import NO_HIT, GeometryData, any_hit, closest_hit, surface_point
 
 NOT_TRACED = wp.constant(-2)  # a secondary ray that does not exist (no first hit, or total internal reflection)
 
@@ -46,7 +46,7 @@ def trace_spawned(
     The shadow ray's direction is ``shadow_local[i]`` (unit, z >= 0) in a frame whose z axis is the
     normal on the side the ray arrived from, so z near 0 makes it graze the surface; the
     refracted ray enters (or leaves) a dielectric of index ``ior`` in vacuum. ``offset_scale``
-    multiplies the spawn offset ``hit_error`` (1 = the renderer's; smaller values measure how
+    multiplies the spawn offset (``surface_point``'s ``err``) (1 = the renderer's; smaller values measure how
     much of it is needed). Secondary rays that do not exist get prim ``NOT_TRACED``.
     """
     i = wp.tid()
@@ -60,18 +60,17 @@ def trace_spawned(
     refract_prim[i] = NOT_TRACED
     if prim == NO_HIT:
         return
-    p = o + t * d
-    n = geometric_normal(geometry, prim, p, 0.0)
+    p, n, err = surface_point(geometry, prim, o, d, t, 0.0)
     entering = wp.dot(d, n) < 0.0
     n_facing = n
     eta = 1.0 / ior
     if not entering:
         n_facing = -n
         eta = ior
-    err = hit_error(o, p, t) * offset_scale
     hit_point[i] = p
     hit_normal[i] = n
-    hit_err[i] = err
+    hit_err[i] = err  # the renderer's offset; rays below are spawned with offset_scale of it
+    err = err * offset_scale
     wi = frame(n_facing) * shadow_local[i]
     o_shadow = spawn_origin(p, n_facing, err, wi)
     shadow_origin[i] = o_shadow

@@ -32,6 +32,7 @@ from .intersect import (
     ray_shear,
     safe_inverse,
 )
+from .spawn import max_abs, point_error
 
 SPHERE = wp.constant(0)
 TRIANGLE = wp.constant(1)
@@ -386,22 +387,54 @@ def closest_hit_brute_force(geometry: GeometryData, o: wp.vec3, d: wp.vec3, time
 
 
 @wp.func
-def geometric_normal(geometry: GeometryData, prim: wp.int32, p: wp.vec3, time: float) -> wp.vec3:
-    """Unit geometric normal of primitive ``prim`` at surface point ``p`` (world space) at ``time``.
+def surface_point(geometry: GeometryData, prim: wp.int32, o: wp.vec3, d: wp.vec3, t: float, time: float):
+    """The hit of unit ray ``o + s d`` at ``t`` on primitive ``prim`` (at ray time ``time``):
+    ``(p, n, err)``, the point recomputed on the primitive's surface, its unit geometric normal
+    and a bound on the distance of ``p`` from the float32 surface (``wrt.kernels.spawn``).
 
-    Spheres: outward. Triangles: ``cross(v1 - v0, v2 - v0)`` (the winding normal). Polygons and
-    planes: the normal given in the scene (polygons: by Newell's method from the winding).
+    ``o + t d`` carries the rounding of wherever the ray started (1e4 units away, several
+    hundredths of a unit), so it is only the first guess: spheres reproject it onto the sphere,
+    ``c + r (q - c) / |q - c|``; triangles, polygons and planes project it onto their plane,
+    ``q - (n . (q - a)) n`` (pbrt-v4 and Mitsuba 3 do the same). What is left is the rounding of
+    that recomputation, a few ulps of the point and of the primitive's own coordinates, however
+    far the ray came from.
+
+    Normals: spheres outward; triangles ``cross(v1 - v0, v2 - v0)`` (the winding normal);
+    polygons and planes the normal given in the scene (polygons: by Newell's method from the
+    winding).
     """
     kind = prim & 3
     i = prim >> 2
-    if kind == TRIANGLE:
-        v0 = geometry.tri_verts[3 * i]
-        return wp.normalize(wp.cross(geometry.tri_verts[3 * i + 1] - v0, geometry.tri_verts[3 * i + 2] - v0))
+    shift = wp.vec3(0.0)
+    if geometry.moving != 0:  # work in the primitive's frame at ``time``
+        shift = time * geometry.surface_velocity[prim_shape(geometry, prim)]
+    q = (o - shift) + t * d
+    n = wp.vec3(0.0)
+    extent = float(0.0)
     if kind == SPHERE:
-        return wp.normalize(ray_origin_at(geometry, prim, p, time) - geometry.sphere_center[i])
-    if kind == POLYGON:
-        return geometry.poly_normal[i]
-    return geometry.plane_normal[i]
+        c = geometry.sphere_center[i]
+        r = geometry.sphere_radius[i]
+        n = wp.normalize(q - c)
+        q = c + r * n
+        extent = max_abs(c) + r
+    else:
+        if kind == TRIANGLE:
+            a = geometry.tri_verts[3 * i]
+            n = wp.normalize(wp.cross(geometry.tri_verts[3 * i + 1] - a, geometry.tri_verts[3 * i + 2] - a))
+            q = q - wp.dot(n, q - a) * n
+            extent = max_abs(a)
+        elif kind == POLYGON:
+            n = geometry.poly_normal[i]
+            offset = geometry.poly_offset[i]
+            q = q - (wp.dot(n, q) - offset) * n
+            extent = wp.abs(offset)
+        else:
+            a = geometry.plane_point[i]
+            n = geometry.plane_normal[i]
+            q = q - wp.dot(n, q - a) * n
+            extent = max_abs(a)
+    p = q + shift
+    return p, n, point_error(p, max_abs(q) + extent)
 
 
 def _trace_kernels(trace: Traversal, module: str | None):

@@ -302,10 +302,9 @@ def test_path_recording_follows_the_bsdf_and_samples_the_light():
     assert len(scattered) > 20
     parents = tree.parent[scattered]
     offset = np.linalg.norm(tree.origin[scattered] - tree.end[parents], axis=1)
-    o, p = tree.origin[parents], tree.end[parents]
-    bound = (
-        16 * 2.0**-24 * (np.abs(o).max(axis=1) + np.abs(p).max(axis=1) + np.linalg.norm(p - o, axis=1))
-    )  # wrt.kernels.spawn
+    p = tree.end[parents]
+    extent = 1.0  # the primitive's coordinates: the plane's point 0, the sphere's |centre| + radius 1
+    bound = 16 * 2.0**-24 * (2 * np.abs(p).max(axis=1) + extent)  # wrt.kernels.spawn
     assert np.all(offset <= 1.01 * bound + 1e-7)
     facing = np.where(
         (np.sum((tree.end[parents] - tree.origin[parents]) * tree.normal[parents], axis=1) < 0)[:, None],

@@ -33,6 +33,7 @@ def assert_all_pass(rows):
         "watertight",
         "watertight-polygons",
         "self-intersection",
+        "contact-shadows",
         "sphere-precision",
         "ulps",
         "grazing",

@@ -9,12 +9,12 @@ import math
 import numpy as np
 import warp as wp
 
+from .. import renderer
 from ..kernels import spawn
 from ..kernels.stress import trace_spawned
 from ..kernels.traverse import NO_HIT
 from ..trace import Tracer, vec3_array
 from .common import (
-    EPS32,
     f32,
     make_scene,
     random_directions,
@@ -24,7 +24,7 @@ from .common import (
 )
 from .report import CaseResult
 
-SPAWN_ULPS = float(spawn.SPAWN_ULPS)  # the offset is SPAWN_ULPS * EPS32 * (max|o| + max|p| + t)
+SPAWN_ULPS = float(spawn.SPAWN_ULPS)  # the offset is SPAWN_ULPS * EPS32 * (2 max|p| + extent)
 SELF_HIT_SHAPES = ("sphere", "uv sphere mesh", "split cube mesh", "quad 2000 sizes wide")
 # (object scale, distance of its centre from the world origin): every scale at the origin and as far
 # as float32 still resolves the object to 1e-5 of its size with ulps of the distance (D <= 1e5 scale)
@@ -129,14 +129,12 @@ def self_hit_check(kind, tracer, center, scale, out, plane_id=None):
     through the neighbouring face; counted as ``edge_exits``, not judged).
     A first hit farther from the surface than the offset's bound (``SPAWN_ULPS``) counts as a
     false self-hit too. Returns (secondary rays judged, false self-hits, escapes, edge exits,
-    worst hit-point error in units of EPS32 (max|o| + max|p| + t)).
+    worst hit-point error in units of EPS32 (2 max|p| + extent), the offset's unit).
     """
     hit = out["hit_prim"] != NO_HIT
     p = out["hit_point"][hit].astype(np.float64)
     n_out = out["hit_normal"][hit].astype(np.float64)
-    t = out["hit_t"][hit].astype(np.float64)
-    o = out["origins"][hit]
-    err_unit = EPS32 * (np.abs(o).max(axis=1) + np.abs(p).max(axis=1) + t)
+    err_unit = out["err_unit"][hit].astype(np.float64)
     if kind == "sphere":
         c, r = f32(center), float(np.float32(scale))
         distance = np.linalg.norm(p - c, axis=1) - r
@@ -197,7 +195,7 @@ def self_intersection(kind, rays, rng, offset_scales=(1.0,)):
         for s in offset_scales:
             m = n if s == 1.0 else max(n // 8, 2)  # the smaller offsets are probed with 1/8 of the rays
             out = trace_spawned_batch(tracer, origins[:m], directions[:m], shadow_local[:m], ior=1.5, offset_scale=s)
-            out["origins"] = f32(origins[:m])
+            out["err_unit"] = out["hit_err"] / SPAWN_ULPS
             *counts, point_error = self_hit_check(kind, tracer, center, scale, out, plane_id)
             totals[s] = [a + b for a, b in zip(totals[s], counts)]
             worst = max(worst, point_error)
@@ -211,7 +209,7 @@ OFFSET_SWEEP = (1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125, 0.0)
 def case_self_intersection(rays, rng):
     """One row per shape: failures are false self-hits and escapes with the renderer's offset;
     ``worst`` is the worst distance of a computed hit point from the float32 surface, in the units
-    of the offset (EPS32 (max|o| + max|p| + t)), against the offset's SPAWN_ULPS."""
+    of the offset (EPS32 (2 max|p| + extent)), against the offset's SPAWN_ULPS."""
     results = []
     for kind in SELF_HIT_SHAPES:
         totals, worst = self_intersection(kind, rays, rng, OFFSET_SWEEP)
@@ -231,3 +229,85 @@ def case_self_intersection(rays, rng):
             CaseResult(f"self-intersection: {kind}", judged, false_hits + escapes, worst, SPAWN_ULPS, "ulps", detail)
         )
     return results
+
+
+CAMERA_DISTANCES = (1.0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6)
+CONTACT_GAPS = (1e-2, 1e-3, 1e-4)
+CONTACT_FLOORS = ("plane", "polygon", "triangles")
+CONTACT_MARGIN = 0.05  # floor points this close to the shadow's float64 outline are not judged
+
+
+def _contact_scene(floor, gap, distance, size):
+    """A unit square sheet ``gap`` above a floor, under a directional light grazing at slope
+    ``2 gap`` along +x (so the sheet's shadow falls 0.5 beyond it, where the camera sees it), and
+    a camera ``distance`` from the scene, framing the same 3 x 3 units whatever the distance."""
+    sheet = np.array([[-0.5, gap, -0.5], [-0.5, gap, 0.5], [0.5, gap, 0.5], [0.5, gap, -0.5]])
+    ground = np.array([[-2.0, 0.0, -2.0], [-2.0, 0.0, 2.0], [2.0, 0.0, 2.0], [2.0, 0.0, -2.0]])
+    shapes, meshes = [], []
+    if floor == "plane":
+        shapes.append({"type": "plane", "point": [0.0, 0.0, 0.0], "normal": [0.0, 1.0, 0.0], "material": "floor"})
+    elif floor == "polygon":
+        shapes.append({"type": "polygon", "vertices": ground.tolist(), "material": "floor"})
+    else:
+        meshes.append((ground, [[0, 1, 2], [0, 2, 3]], "floor"))
+    if floor == "triangles":
+        meshes.append((sheet, [[0, 1, 2], [0, 2, 3]], "sheet"))
+    else:
+        shapes.append({"type": "polygon", "vertices": sheet.tolist(), "material": "sheet"})
+    slope = 2.0 * gap
+    target = np.array([0.5, 0.0, 0.0])
+    eye = target + distance * unit([0.3, 1.0, 0.5])
+    return make_scene(
+        shapes=shapes,
+        meshes=meshes,
+        materials=[{"name": "floor", "albedo": [0.8, 0.8, 0.8]}, {"name": "sheet", "albedo": [0.2, 0.2, 0.2]}],
+        lights=[{"type": "directional", "direction": [1.0, -slope, 0.0], "irradiance": [1.0 / slope] * 3}],
+        camera={
+            "origin": eye.tolist(),
+            "look_at": target.tolist(),
+            "fov": float(np.degrees(2 * np.arctan(1.5 / distance))),
+        },
+        render={"integrator": "whitted", "width": size, "height": size, "spp": 1, "max_depth": 2},
+    )
+
+
+def contact_shadow_case(floor, rays) -> CaseResult:
+    """Contact shadows seen from afar: a sheet 1e-2, 1e-3 and 1e-4 above a ``floor`` (an infinite
+    plane, a polygon, two triangles; the sheet a polygon, or two triangles over triangles) under a
+    grazing light, rendered (whitted, pixel centres) from 1 to 1e6 units away with the same framing.
+
+    A floor point ``(x, 0, z)`` is in the sheet's shadow when ``|x - 0.5| < 0.5`` and ``|z| < 0.5``
+    (float64, from its ``position``); points within ``CONTACT_MARGIN`` of that outline are not
+    judged. A lit point that renders black is a false shadow, a shadowed point that does not is a
+    lost contact shadow (the spawn offset lifted the shadow ray over the sheet). Both count as
+    failures. ``detail`` gives per distance the smallest gap whose shadow survived everywhere."""
+    size = max(int(np.sqrt(rays / (len(CAMERA_DISTANCES) * len(CONTACT_GAPS) * len(CONTACT_FLOORS)))), 24)
+    lost, false, judged, smallest = 0, 0, 0, {}
+    for distance in CAMERA_DISTANCES:
+        kept = []
+        for gap in CONTACT_GAPS:
+            result = renderer.render(_contact_scene(floor, gap, distance, size))
+            on_floor = result.aovs["object_id"] == 0  # the floor is the first surface
+            p = result.aovs["position"][on_floor].astype(np.float64)
+            dark = ~(result.rgb[on_floor][:, 0] > 0.0)
+            x, z = np.abs(p[:, 0] - 0.5), np.abs(p[:, 2])
+            shadow = (x < 0.5 - CONTACT_MARGIN) & (z < 0.5 - CONTACT_MARGIN)
+            lit = (x > 0.5 + CONTACT_MARGIN) | (z > 0.5 + CONTACT_MARGIN)
+            lost_here = int(np.count_nonzero(shadow & ~dark))
+            lost += lost_here
+            false += int(np.count_nonzero(lit & dark))
+            judged += int(np.count_nonzero(shadow | lit))
+            if lost_here == 0 and np.count_nonzero(shadow) > 0:
+                kept.append(gap)
+        smallest[f"{distance:g}"] = min(kept) if kept else None
+    return CaseResult(
+        f"contact shadows, camera 1..1e6 away: {floor} floor",
+        judged,
+        lost + false,
+        unit="lost or false shadow pixels",
+        detail={"lost_contact_shadow": lost, "false_shadow": false, "smallest_gap_kept_by_distance": smallest},
+    )
+
+
+def case_contact_shadows(rays, rng):
+    return [contact_shadow_case(floor, rays) for floor in CONTACT_FLOORS]

@@ -17,7 +17,7 @@ from .degenerate import (
     case_zero_radius_sphere,
 )
 from .lights import case_small_lights
-from .offsets import case_self_intersection
+from .offsets import case_contact_shadows, case_self_intersection
 from .precision import case_sphere_precision, case_ulps
 from .refraction import (
     case_camera_inside,
@@ -36,6 +36,7 @@ CASES = [
     ("watertight", case_watertight),
     ("watertight-polygons", case_watertight_polygons),
     ("self-intersection", case_self_intersection),
+    ("contact-shadows", case_contact_shadows),
     ("sphere-precision", case_sphere_precision),
     ("ulps", case_ulps),
     ("grazing", case_plane_grazing),
