@@ -150,7 +150,13 @@ def bsdf_pdf(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: 
 @wp.func
 def specular_lobes(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float) -> SpecularLobes:
     """The delta lobes of a mirror (reflectance) or a smooth dielectric (exact Fresnel F reflected,
-    1 - F refracted by Snell's law, all reflected past the critical angle); none for other types."""
+    1 - F refracted by Snell's law, all reflected past the critical angle); none for other types.
+
+    Refracted radiance is scaled by ``eta^2`` (radiance transport, as pbrt-v4's and Mitsuba 3's
+    dielectrics in radiance mode): the solid angle of a beam is compressed by ``(n1 / n2)^2`` as
+    it crosses into the denser medium, so radiance ``L / n^2`` is what is conserved. A path that
+    enters and leaves the same glass multiplies ``eta^2`` and ``1 / eta^2`` and is unchanged; a
+    camera or a light inside water or glass is not."""
     lobes = SpecularLobes()
     lobes.wr = reflect(-wo, n)
     lobes.wt = -wo
@@ -167,7 +173,7 @@ def specular_lobes(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3
         if not ok:
             fresnel = 1.0
         lobes.reflectance = wp.vec3(fresnel)
-        lobes.transmittance = wp.vec3(1.0 - fresnel)
+        lobes.transmittance = wp.vec3((1.0 - fresnel) * eta * eta)
         lobes.wt = wt
         lobes.refracts = ok
         lobes.total_internal = not ok
@@ -179,8 +185,8 @@ def bsdf_sample(
     materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uc: float, u: wp.vec2
 ) -> BSDFSample:
     """A direction drawn from material ``m``'s BSDF: diffuse and Phong cosine-weighted, glossy by
-    GGX visible normals, a mirror's reflection, a dielectric's reflection with probability F and
-    refraction otherwise (weight 1: F / F)."""
+    GGX visible normals, a mirror's reflection, a dielectric's reflection with probability F
+    (weight F / F = 1) and refraction otherwise (weight ``eta^2``, ``specular_lobes``)."""
     s = BSDFSample()
     s.weight = wp.vec3(0.0)
     s.pdf = 0.0
@@ -200,8 +206,8 @@ def bsdf_sample(
                 s.flags = s.flags | BSDF_TOTAL_INTERNAL
         else:
             s.wi = lobes.wt
-            s.weight = wp.vec3(1.0)
-            s.pdf = lobes.transmittance[0]
+            s.pdf = 1.0 - lobes.reflectance[0]
+            s.weight = lobes.transmittance / s.pdf
             s.flags = BSDF_TRANSMISSION | BSDF_SPECULAR
         return s
     to_world = frame(n)

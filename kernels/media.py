@@ -126,10 +126,17 @@ def dielectric_interface(
 
 
 @wp.func
+def medium_sigma(materials: MaterialData, media: Media, n_media: wp.int32) -> wp.vec3:
+    """Absorption coefficient (per unit length) of the medium a ray with stack ``media`` is in; 0
+    in the exterior medium."""
+    slot = current_medium(materials, media, n_media)
+    if slot < 0:
+        return wp.vec3(0.0)
+    return materials.sigma[materials.shape_material[media[slot]]]
+
+
+@wp.func
 def medium_transmittance(materials: MaterialData, media: Media, n_media: wp.int32, distance: float) -> wp.vec3:
     """Beer-Lambert transmittance of the medium a ray with stack ``media`` is in, over ``distance``
     (infinite for a ray that escapes); 1 in the exterior medium."""
-    slot = current_medium(materials, media, n_media)
-    if slot < 0:
-        return wp.vec3(1.0)
-    return beer_lambert(materials.sigma[materials.shape_material[media[slot]]], distance)
+    return beer_lambert(medium_sigma(materials, media, n_media), distance)

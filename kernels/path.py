@@ -15,7 +15,9 @@ Per camera sample one path is traced:
   (emissive materials of shapes are found by BSDF sampling only); paths leaving the scene see the
   environment lights, MIS-weighted likewise;
 - after ``RR_DEPTH`` segments, Russian roulette continues a path with probability
-  min(0.95, largest channel of its throughput) and divides by it (unbiased; Mitsuba's rr_depth 5).
+  min(0.95, largest channel of its throughput) and divides by it (unbiased; Mitsuba's rr_depth 5);
+  the throughput it judges leaves out the ``eta^2`` radiance scaling of refractions (pbrt-v4's
+  ``etaScale``), so paths inside glass are not killed more often for it.
 
 ``max_depth`` counts segments (camera ray = 1; a shadow ray of a hit on segment k is segment
 k + 1), as Mitsuba 3's. Random numbers come from the render's sampler (``wrt.kernels.sampling``):
@@ -42,7 +44,7 @@ from .materials import (
     bsdf_sample,
     non_specular,
 )
-from .media import Media, dielectric_interface, max_component, medium_transmittance
+from .media import Media, dielectric_interface, max_component, medium_sigma, medium_transmittance
 from .record import (
     REFLECTED,
     REFRACTED,
@@ -84,12 +86,14 @@ def make_next_event(record: bool, trace: Traversal):
         sampler: Sampler,
         ray: CameraRay,
         depth: wp.int32,
+        sigma: wp.vec3,
         rec: RayRecord,
         parent: wp.int32,
         beta: wp.vec3,
     ) -> wp.vec3:
         """Light reflected toward ``hit.wo`` from one sample of every light, MIS-weighted for lights
-        with area (W/(m^2 sr), before the path's throughput ``beta``).
+        with area (W/(m^2 sr), before the path's throughput ``beta``); ``sigma`` is the absorption
+        of the medium ``hit`` lies in, applied along the shadow rays as along BSDF-sampled paths.
 
         Recording: each shadow ray is a segment of ``depth + 1`` segments whose parent is record
         ``parent``, carrying ``beta`` when it reaches its light and 0 when blocked (then ending at
@@ -127,6 +131,7 @@ def make_next_event(record: bool, trace: Traversal):
                     wi,
                     t_max,
                     ray.time,
+                    sigma,
                     rec,
                     ray.pixel,
                     ray.sample,
@@ -179,6 +184,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
         prim = ray.prim
         radiance = wp.vec3(0.0)
         beta = wp.vec3(1.0)
+        eta_scale = float(1.0)  # product of 1 / eta^2 over refractions: roulette ignores radiance scaling
         depth = int(1)
         media = Media(-1, -1, -1, -1)
         n_media = int(0)
@@ -218,10 +224,11 @@ def make_path_radiance(record: bool, features: Features = ALL):
                     mis = power_heuristic(prev_pdf, emitter_pdf(lights, light, prev_p, d, wp.length(hit.p - prev_p)))
                 radiance += wp.cw_mul(beta, emission) * mis
             flags = bsdf_flags(materials, hit.material)
-            if flags == 0 or depth >= settings.max_depth:
+            if flags == 0:
                 break
 
-            # The media on either side; a false interface lets the ray go straight on
+            # The media on either side; a false interface lets the ray go straight on (not a
+            # segment of its own: max_depth does not end the path there)
             eta = float(1.0)
             media_t = media
             n_media_t = n_media
@@ -234,16 +241,25 @@ def make_path_radiance(record: bool, features: Features = ALL):
                     if not real:
                         media = media_t
                         n_media = n_media_t
-                        t_from = t + hit.err
+                        t_from = t + hit.t_err
                         t_last = t
                         segment_kind = STRAIGHT
+                        # a shadow ray stops at this surface, so next-event estimation never finds
+                        # what lies beyond it: light found there takes the BSDF sample's full weight
+                        specular = True
                         continue
+            if depth >= settings.max_depth:
+                break
 
             # Next-event estimation at non-specular surfaces
             if wp.static(features.lights):
                 if non_specular(flags):
+                    sigma = wp.vec3(0.0)
+                    if wp.static(features.dielectric):
+                        sigma = medium_sigma(materials, media, n_media)
                     radiance += wp.cw_mul(
-                        beta, next_event(geometry, materials, lights, hit, sampler, ray, depth, rec, current, beta)
+                        beta,
+                        next_event(geometry, materials, lights, hit, sampler, ray, depth, sigma, rec, current, beta),
                     )
 
             # Sample the BSDF for the next direction
@@ -267,6 +283,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
                 if (bs.flags & BSDF_TRANSMISSION) != 0:
                     media = media_t
                     n_media = n_media_t
+                    eta_scale = eta_scale / (eta * eta)
                     straight = eta == 1.0  # index-matched: straight on
                     segment_kind = wp.where(straight, STRAIGHT, REFRACTED)
             else:
@@ -277,14 +294,14 @@ def make_path_radiance(record: bool, features: Features = ALL):
 
             # Spawn the next segment; Russian roulette past RR_DEPTH
             if straight:
-                t_from = t + hit.err
+                t_from = t + hit.t_err
                 t_last = t
             else:
                 o = spawn_origin(hit.p, hit.n, hit.err, d)
                 t_from = 0.0
                 t_last = 0.0
                 if depth > RR_DEPTH:
-                    q = wp.min(max_component(beta), 0.95)
+                    q = wp.min(max_component(beta) * eta_scale, 0.95)
                     if sample_1d(sampler, ray.pixel, ray.sample, bounce_dim(depth, 3)) >= q:
                         break
                     beta = beta / q

@@ -3,10 +3,15 @@
 ``shadow_ray`` returns the fraction of a light's radiance that reaches a point along a direction:
 
 - opaque (``filtered`` False; physical for a ray tracer without caustics, and what the path
-  integrator always asks): 0 if anything is in the way, else 1, from one any-hit query;
+  integrator always asks): 0 if anything is in the way, else the Beer-Lambert transmittance of
+  the medium the ray starts in over its length (a light in the same tinted glass or murky water
+  as the point it lights, as a path reaching it by BSDF sampling is attenuated), from one any-hit
+  query;
 - filtered (the lecture's, whitted's ``dielectric_shadows = "filtered"``): dielectrics let the
-  shadow ray through in a straight line, attenuated by Beer-Lambert over the length inside them
-  (at most ``SHADOW_CROSSINGS`` surfaces); anything else blocks.
+  shadow ray through in a straight line, attenuated by Beer-Lambert over the length inside them:
+  up to the first surface in the medium it starts in, between an entering and a leaving surface
+  in that dielectric, after an entering one in it (at most ``SHADOW_CROSSINGS`` surfaces);
+  anything else blocks.
 
 In a recording variant each shadow ray is appended to the ``RayRecord``: ``SHADOW_LIT`` up to its
 light, carrying the path throughput times the transmittance, or ``SHADOW_BLOCKED`` ending at the
@@ -34,22 +39,35 @@ def make_shadow_ray(record: bool, trace: Traversal):
         return (bsdf_flags(materials, materials.shape_material[prim_shape(geometry, prim)]) & BSDF_TRANSMISSION) != 0
 
     @wp.func
-    def filtered(geometry: GeometryData, materials: MaterialData, o: wp.vec3, w: wp.vec3, t_max: float, time: float):
-        """Follow a filtered shadow ray ``o + s w`` through the dielectrics on its way:
-        ``(transmittance, t, prim)``, with ``(t, prim)`` the surface that stopped it (``NO_HIT``
-        when it reached ``t_max``)."""
+    def filtered(
+        geometry: GeometryData,
+        materials: MaterialData,
+        o: wp.vec3,
+        w: wp.vec3,
+        t_max: float,
+        time: float,
+        sigma: wp.vec3,
+    ):
+        """Follow a filtered shadow ray ``o + s w``, starting in a medium of absorption ``sigma``,
+        through the dielectrics on its way: ``(transmittance, t, prim)``, with ``(t, prim)`` the
+        surface that stopped it (``NO_HIT`` when it reached ``t_max``)."""
         out = wp.vec3(1.0)
         t_total = float(0.0)
+        sigma_now = sigma
         for _k in range(SHADOW_CROSSINGS):
             t, prim = trace.closest_hit(geometry, o, w, time, 0.0, t_max)
             if prim == NO_HIT:
-                return out, t_total + t, prim
+                return wp.cw_mul(out, beer_lambert(sigma_now, t)), t_total + t, prim
             if not passes(geometry, materials, prim):
                 return wp.vec3(0.0), t_total + t, prim
             p, n, err = surface_point(geometry, prim, o, w, t, time)
-            if wp.dot(w, n) > 0.0:  # leaving: the segment just travelled was inside
-                m = materials.shape_material[prim_shape(geometry, prim)]
+            m = materials.shape_material[prim_shape(geometry, prim)]
+            if wp.dot(w, n) > 0.0:  # leaving: the segment just travelled was inside this dielectric
                 out = wp.cw_mul(out, beer_lambert(materials.sigma[m], t))
+                sigma_now = wp.vec3(0.0)  # beyond it: taken as clear (shadow rays keep no media stack)
+            else:  # entering: the segment just travelled was in the current medium
+                out = wp.cw_mul(out, beer_lambert(sigma_now, t))
+                sigma_now = materials.sigma[m]
             o_next = spawn_origin(p, n, err, w)
             t_max = t_max - t
             t_total += t
@@ -65,6 +83,7 @@ def make_shadow_ray(record: bool, trace: Traversal):
         w: wp.vec3,
         t_max: float,
         time: float,
+        sigma: wp.vec3,
         rec: RayRecord,
         pixel: wp.int32,
         sample: wp.int32,
@@ -73,7 +92,8 @@ def make_shadow_ray(record: bool, trace: Traversal):
         throughput: wp.vec3,
     ) -> wp.vec3:
         """Transmittance of the shadow ray ``o + s w``, ``0 < s < t_max``, toward a light (unit
-        ``w``), passing dielectrics when ``is_filtered``.
+        ``w``), starting in a medium of absorption coefficient ``sigma`` (``medium_sigma``),
+        passing dielectrics when ``is_filtered``.
 
         Recording: the ray is segment ``depth`` of its path, child of record ``parent``, carrying
         ``throughput`` times its transmittance."""
@@ -81,9 +101,9 @@ def make_shadow_ray(record: bool, trace: Traversal):
         t_stop = float(t_max)
         prim_stop = int(NO_HIT)
         if is_filtered:
-            visible, t_stop, prim_stop = filtered(geometry, materials, o, w, t_max, time)
+            visible, t_stop, prim_stop = filtered(geometry, materials, o, w, t_max, time, sigma)
         elif not trace.any_hit(geometry, o, w, time, 0.0, t_max):
-            visible = wp.vec3(1.0)
+            visible = beer_lambert(sigma, t_max)
         if wp.static(record):
             if max_component(visible) > 0.0:
                 record_ray(

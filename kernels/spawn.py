@@ -29,6 +29,15 @@ def point_error(p: wp.vec3, extent: float) -> float:
 
 
 @wp.func
+def ray_error(o: wp.vec3, p: wp.vec3, t: float) -> float:
+    """Bound on the error of a hit's distance ``t`` along the unit ray from ``o`` (``p`` the hit):
+    a ray that goes straight on through the surface (a false or index-matched interface) resumes
+    past ``t + ray_error``, on its own line, so the margin is charged with the rounding of
+    ``o + t d`` and of the intersection, not only of the surface point."""
+    return SPAWN_ULPS * FLOAT32_HALF_ULP * (max_abs(o) + max_abs(p) + t)
+
+
+@wp.func
 def spawn_origin(p: wp.vec3, n: wp.vec3, err: float, w: wp.vec3) -> wp.vec3:
     """Origin for a ray leaving ``p`` in direction ``w``: offset by ``err`` along ``n`` toward ``w``'s side."""
     if wp.dot(w, n) < 0.0:

@@ -60,7 +60,7 @@ from .materials import (
     non_specular,
     specular_lobes,
 )
-from .media import MEDIA, Media, dielectric_interface, max_component, medium_transmittance
+from .media import MEDIA, Media, dielectric_interface, max_component, medium_sigma, medium_transmittance
 from .record import REFLECTED, REFRACTED, STRAIGHT, TOTAL_INTERNAL, RayRecord
 from .sampling import Sampler
 from .shadow import make_shadow_ray
@@ -106,13 +106,15 @@ def make_direct_light(record: bool, trace: Traversal):
         settings: IntegratorSettings,
         hit: Hit,
         ray: CameraRay,
+        sigma: wp.vec3,
         rec: RayRecord,
         parent: wp.int32,
         depth: wp.int32,
         throughput: wp.vec3,
     ) -> wp.vec3:
         """Reflected radiance (W/(m^2 sr)) toward ``hit.wo`` from all delta lights: sum of
-        BSDF * irradiance * cos * shadow transmittance.
+        BSDF * irradiance * cos * shadow transmittance (``sigma``: the absorption of the medium
+        ``hit`` lies in).
 
         Recording: each shadow ray is a segment of ``depth`` (the segment count it brings the path
         to) whose parent is record ``parent``, carrying ``throughput`` times its transmittance.
@@ -131,6 +133,7 @@ def make_direct_light(record: bool, trace: Traversal):
                     wi,
                     dist,
                     ray.time,
+                    sigma,
                     rec,
                     ray.pixel,
                     ray.sample,
@@ -221,6 +224,9 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                     local = wp.cw_mul(settings.ambient, materials.albedo[hit.material])
                     if wp.static(features.lights):
                         if depth < settings.max_depth:
+                            sigma = wp.vec3(0.0)
+                            if wp.static(features.dielectric):
+                                sigma = medium_sigma(materials, media, n_media)
                             local += direct_light(
                                 geometry,
                                 materials,
@@ -228,6 +234,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                                 settings,
                                 hit,
                                 ray,
+                                sigma,
                                 rec,
                                 current,
                                 depth + 1,
@@ -248,7 +255,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                                     materials, settings, media, n_media, hit.shape, hit.entering
                                 )
                         if not real:  # a false interface: straight on
-                            t_from = t + hit.err
+                            t_from = t + hit.t_err
                             t_last = t
                             media = media_t
                             n_media = n_media_t
@@ -301,7 +308,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                                 media = media_t
                                 n_media = n_media_t
                             if keep_t and eta == 1.0:  # index-matched: straight on (refract returned d)
-                                t_from = t + hit.err
+                                t_from = t + hit.t_err
                                 t_last = t
                             elif keep_r or keep_t:
                                 o = spawn_origin(hit.p, hit.n, hit.err, d)

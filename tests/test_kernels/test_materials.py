@@ -179,12 +179,13 @@ def fresnel_float64(cos_i, eta):
 
 def test_dielectric_lobes_split_by_fresnel_and_snell(materials):
     """Entering glass (eta = 1/1.5): F from the float64 Fresnel equations, 1 - F transmitted along
-    Snell's direction; leaving it (eta = 1.5) past the critical angle 41.8 deg: all reflected."""
+    Snell's direction, radiance scaled by eta^2 (issue 13: radiance transport, as pbrt-v4 and
+    Mitsuba 3); leaving it (eta = 1.5) past the critical angle 41.8 deg: all reflected."""
     thetas = np.array([0.0, 20.0, 45.0, 70.0, 89.0])
     r, t, wt, tir = glass_lobes(materials, thetas, 1 / 1.5)
     f = fresnel_float64(np.cos(np.radians(thetas)), 1 / 1.5)
     np.testing.assert_allclose(r[:, 0], f, rtol=1e-5, atol=1e-7)
-    np.testing.assert_allclose(r + t, 1.0, rtol=1e-6)
+    np.testing.assert_allclose(t[:, 0], (1.0 - f) / 1.5**2, rtol=1e-5)
     sin_t = np.sin(np.radians(thetas)) / 1.5
     np.testing.assert_allclose(-wt[:, 0], sin_t, atol=1e-6)  # bends toward the normal, across the surface
     assert np.all(wt[:, 2] < 0) and not tir.any()
@@ -195,14 +196,17 @@ def test_dielectric_lobes_split_by_fresnel_and_snell(materials):
 
 
 def test_dielectric_sampling_chooses_reflection_with_probability_f(materials):
-    """Weight 1 either way (F / F, (1 - F) / (1 - F)); the share of reflections is F."""
+    """Reflection has weight F / F = 1, refraction (1 - F) eta^2 / (1 - F) = eta^2; the share of
+    reflections is F."""
     wo = direction(70.0)
     wi, weight, pdf, flags, _, _ = sample(materials, "glass", wo, eta=1 / 1.5)
     f = fresnel_float64(np.cos(np.radians(70.0)), 1 / 1.5)
     reflected = (flags & BSDF_TRANSMISSION) == 0
     assert reflected.mean() == pytest.approx(f, abs=4 * np.sqrt(f * (1 - f) / len(flags)))
-    np.testing.assert_array_equal(weight, 1.0)
+    np.testing.assert_array_equal(weight[reflected], 1.0)
+    np.testing.assert_allclose(weight[~reflected], 1 / 1.5**2, rtol=1e-6)
     np.testing.assert_allclose(pdf[reflected], f, rtol=1e-5)
+    np.testing.assert_allclose(pdf[~reflected], 1.0 - f, rtol=1e-5)
     assert np.all(wi[reflected, 2] > 0) and np.all(wi[~reflected, 2] < 0)
     _, _, _, flags, _, _ = sample(materials, "glass", direction(60.0), eta=1.5, n=64)
     assert np.all(flags == BSDF_REFLECTION | BSDF_SPECULAR | BSDF_TOTAL_INTERNAL)

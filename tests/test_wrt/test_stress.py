@@ -39,6 +39,7 @@ def assert_all_pass(rows):
         "grazing",
         "degenerate",
         "small-lights",
+        "transport",
         "zero-radius",
         "coincident",
         "zero-components",

@@ -47,15 +47,16 @@ SLAB_DEPTH = 8  # max_depth of the critical-angle renders
 
 
 def slab_radiance(cos_i, ior):
-    """What the critical-angle scene's pixel must be, float64: ``(1 - F) sum_k F^(2k)``, k < 4.
+    """What the critical-angle scene's pixel must be, float64: ``ior^2 (1 - F) sum_k F^(2k)``, k < 4.
 
     The camera ray meets the slab's top face from inside at incidence ``cos_i``; the share 1 - F
     leaves to the background (radiance 1), F is reflected to the bottom face, where 1 - F leaves
     onto a black floor and F comes back up at the same angle (the faces are parallel), and so on:
-    the top face is met at segments 1, 3, 5 and 7 of ``SLAB_DEPTH = 8``.
+    the top face is met at segments 1, 3, 5 and 7 of ``SLAB_DEPTH = 8``. Radiance seen from inside
+    glass is ``ior^2`` times the radiance outside (``L / n^2`` is conserved across the surface).
     """
     f = fresnel64(cos_i, ior)
-    return (1.0 - f) * sum(f ** (2 * k) for k in range(SLAB_DEPTH // 2))
+    return ior**2 * (1.0 - f) * sum(f ** (2 * k) for k in range(SLAB_DEPTH // 2))
 
 
 def critical_angle_case(ior, rng):
@@ -101,6 +102,7 @@ def critical_angle_case(ior, rng):
         one, two = slab_radiance(cos_i + ANGLE_SLACK, ior), slab_radiance(cos_i - ANGLE_SLACK, ior)
         value = r.rgb.astype(np.float64)
         off = np.maximum(np.minimum(one, two)[..., None] - value, value - np.maximum(one, two)[..., None]).max(axis=-1)
+        off = off / ior**2  # relative to the ior^2 scale of the values
         off = np.where(on_top, np.maximum(off, 0.0), np.inf)
         worst = max(worst, float(off.max()))
         failures += int(np.count_nonzero(off > VALUE_SLACK))

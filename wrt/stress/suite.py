@@ -27,6 +27,7 @@ from .refraction import (
     case_not_finite,
 )
 from .report import CaseResult, format_table, write_report
+from .transport import case_transport
 from .watertight import case_watertight, case_watertight_polygons
 
 DEFAULT_RAYS = 10**6
@@ -50,6 +51,7 @@ CASES = [
     ("camera-inside", case_camera_inside),
     ("not-finite", case_not_finite),
     ("small-lights", case_small_lights),
+    ("transport", case_transport),
 ]
 
 
