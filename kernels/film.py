@@ -33,6 +33,7 @@ class Film:
     rgb: wp.array(dtype=wp.vec3)  # linear radiance, W/(m^2 sr): rgb_sum / samples so far
     rgb_sum: wp.array(dtype=wp.vec3)  # running float32 sum of the samples so far, in sample order
     luminance_sq_sum: wp.array(dtype=float)  # running sum of the samples' squared luminance (error estimates)
+    rejected: wp.array(dtype=wp.int32)  # samples so far whose radiance was NaN or Inf (taken as 0)
     depth: wp.array(dtype=float)
     normal: wp.array(dtype=wp.vec3)
     object_id: wp.array(dtype=wp.int32)

@@ -193,9 +193,11 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
         first = launch.first_sample
         total = wp.vec3(0.0)
         total_sq = float(0.0)
+        rejected = int(0)
         if first > 0:
             total = film.rgb_sum[pixel]
             total_sq = film.luminance_sq_sum[pixel]
+            rejected = film.rejected[pixel]
         elif sampler.spp > 1:  # the AOVs' pixel-centre ray is not a sample
             t, prim = trace.closest_hit(geometry, cam.origin, centre, mid_shutter, 0.0, wp.inf)
             write_aovs(film, geometry, pixel, cam.origin, centre, t, prim, mid_shutter)
@@ -215,10 +217,15 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
             if sampler.spp == 1:  # the pixel-centre ray is the sample, and gives the AOVs
                 write_aovs(film, geometry, pixel, o, d, ray.t, ray.prim, time)
             value = radiance(geometry, materials, lights, settings, sampler, ray, rec)
-            total += value
-            total_sq += luminance(value) * luminance(value)
+            lum = luminance(value)
+            if wp.isfinite(total + value) and wp.isfinite(lum * lum):
+                total += value
+                total_sq += lum * lum
+            else:  # NaN, Inf or an overflowing sum must not poison the pixel: counted, taken as 0
+                rejected += 1
         film.rgb_sum[pixel] = total
         film.luminance_sq_sum[pixel] = total_sq
+        film.rejected[pixel] = rejected
         film.rgb[pixel] = total / float(first + launch.pass_spp)
 
     return render_pixels

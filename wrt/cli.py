@@ -168,20 +168,25 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
 
 
 @contextlib.contextmanager
-def _stop_on_ctrl_c():
-    """Within: the first Ctrl-C (SIGINT) sets the event yielded instead of raising, a second one
-    raises ``KeyboardInterrupt`` as usual."""
+def _stop_on_signal():
+    """Within: the first Ctrl-C (SIGINT) or SIGTERM sets the event yielded instead of ending the
+    process (a render then stops after its pass and writes the samples done); a second one ends
+    it as usual. ``stop.signum`` is the signal that came."""
     stop = threading.Event()
+    stop.signum = 0
 
-    def first_ctrl_c(signum, frame):
+    def first_signal(signum, frame):
+        stop.signum = signum
         stop.set()
         signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
-    previous = signal.signal(signal.SIGINT, first_ctrl_c)
+    previous = {signum: signal.signal(signum, first_signal) for signum in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield stop
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
 
 
 def _render(args) -> int:
@@ -189,6 +194,7 @@ def _render(args) -> int:
 
     from . import __version__
     from .device import init_warp
+    from .files import check_writable
     from .imageio import write_image
     from .loader import load_scene, override_render
     from .renderer import render
@@ -204,6 +210,7 @@ def _render(args) -> int:
         raise WrtError(f"{args.output}: unsupported output format {ext or '(none)'!r} (use .exr or .png)")
     if args.aov and ext != ".exr":
         raise WrtError(f"{args.output}: --aov needs an .exr output")
+    check_writable(args.output, protect=(args.scene,))  # before the work, not after it
     messages = init_warp()
     if args.device.startswith("cuda") and messages:
         print(messages, end="", file=sys.stderr)
@@ -241,7 +248,7 @@ def _render(args) -> int:
         file=sys.stderr,
         disable=True if scene.render.spp == 1 else None,  # None: shown on a terminal only
     )
-    with bar, _stop_on_ctrl_c() as stop:
+    with bar, _stop_on_signal() as stop:
 
         def on_pass(done: int, spp: int, elapsed: float, snapshot) -> bool:
             if args.target_error is None:
@@ -275,9 +282,15 @@ def _render(args) -> int:
         f"kernels {result.compile_time_s:.2f} s, render {result.render_time_s:.3f} s "
         f"({samples / max(result.render_time_s, 1e-9) / 1e6:.3g} M samples/s)"
     )
-    if result.spp < scene.render.spp:
-        print(f"wrt: interrupted: wrote the {result.spp} of {scene.render.spp} spp done", file=sys.stderr)
-        return 130
+    if result.rejected_samples:
+        print(
+            f"wrt: warning: {result.rejected_samples} samples were NaN or Inf and were taken as black",
+            file=sys.stderr,
+        )
+    if stop.is_set():  # a signal, not adaptive sampling's early convergence
+        what = "interrupted" if stop.signum == signal.SIGINT else "terminated"
+        print(f"wrt: {what}: wrote the {result.spp} of {scene.render.spp} spp done", file=sys.stderr)
+        return 128 + stop.signum
     return 0
 
 

@@ -85,6 +85,8 @@ class RenderResult:
     ``position`` (H, W, 3) world space. ``spp``: the samples per pixel in ``rgb`` (fewer than asked
     when a progress callback stopped the render). Times are wall seconds: ``build_time_s`` for the
     BVH, ``compile_time_s`` for loading kernels (near 0 with a warm cache), ``render_time_s`` for the launches.
+    ``rejected_samples``: samples whose radiance came out NaN or Inf, taken as 0 (black) so that no
+    pixel is poisoned; a correct scene has none (``wrt render`` warns when there are).
     """
 
     rgb: np.ndarray
@@ -97,6 +99,7 @@ class RenderResult:
     build_time_s: float
     compile_time_s: float
     render_time_s: float
+    rejected_samples: int = 0
 
 
 @dataclass
@@ -163,6 +166,7 @@ def prepare(scene: Scene, dev: wp.context.Device) -> DeviceScene:
         film.rgb = wp.zeros(w * h, dtype=wp.vec3, device=dev)
         film.rgb_sum = wp.zeros(w * h, dtype=wp.vec3, device=dev)
         film.luminance_sq_sum = wp.zeros(w * h, dtype=wp.float32, device=dev)
+        film.rejected = wp.zeros(w * h, dtype=wp.int32, device=dev)
         film.depth = wp.zeros(w * h, dtype=wp.float32, device=dev)
         film.normal = wp.zeros(w * h, dtype=wp.vec3, device=dev)
         film.object_id = wp.zeros(w * h, dtype=wp.int32, device=dev)
@@ -184,9 +188,10 @@ def prepare(scene: Scene, dev: wp.context.Device) -> DeviceScene:
 
 
 # Memory per pixel, measured (peak RSS of `wrt render` at 2048^2 and 3072^2, EXR with all AOVs
-# and PNG): the film is RGB + RGB sum + luminance^2 sum + depth + normal + object id + position = 15 4-byte values;
-# writing it to an image file (channel copies, tone mapping in float64) peaks at about 100 bytes more.
-FILM_BYTES_PER_PIXEL = 60
+# and PNG): the film is RGB + RGB sum + luminance^2 sum + rejected count + depth + normal + object id + position
+# = 16 4-byte values; writing it to an image file (channel copies, tone mapping in float64) peaks at
+# about 100 bytes more.
+FILM_BYTES_PER_PIXEL = 64
 WRITE_BYTES_PER_PIXEL = 100
 
 
@@ -380,6 +385,7 @@ def render(
             build_time_s=device_scene.build_time_s,
             compile_time_s=t1 - t0,
             render_time_s=elapsed,
+            rejected_samples=int(device_scene.film.rejected.numpy().sum()),
         )
 
     schedule = adaptive_passes(spp) if target_error is not None else None

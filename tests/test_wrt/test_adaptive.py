@@ -95,3 +95,7 @@ def test_cli_writes_the_sample_count_aov(tmp_path, capsys):
     )
     assert image.metadata["target_error"] == pytest.approx(0.05)
     assert main(["render", str(path), "-o", str(out), "--target-error", "-1"]) == 2
+    capsys.readouterr()
+    # every pixel converged in the first pass: a finished render, not an interrupted one (issue 13)
+    assert main(["render", str(path), "-o", str(out), "--target-error", "100"]) == 0
+    assert "interrupted" not in capsys.readouterr().err and read_image(out).aovs["spp"].max() == ADAPTIVE_FIRST_PASS

@@ -11,6 +11,7 @@ import os
 import shutil
 import tempfile
 
+import numpy as np
 import pytest
 import warp as wp
 from conftest import EXAMPLES
@@ -259,12 +260,12 @@ def test_image_too_big_for_memory_is_refused_up_front(tmp_path, capsys, monkeypa
         "only 0.1 GiB available",
         extra_args=["--width", "4000", "--height", "3000"],
     )
-    assert "60 B/pixel" in err
+    assert "64 B/pixel" in err
 
 
 def test_memory_estimate_matches_the_film():
-    """The estimate's film share is what the renderer allocates: 15 float32/int32 values per pixel
-    (RGB, its running sum, the sum of squared luminances, and the AOVs)."""
+    """The estimate's film share is what the renderer allocates: 16 float32/int32 values per pixel
+    (RGB, its running sum, the sum of squared luminances, the rejected-sample count, and the AOVs)."""
     scene = wrt.parse_scene(
         {"camera": {"origin": [0, 0, 5], "look_at": [0, 0, 0]}, "render": {"width": 8, "height": 4}}
     )
@@ -279,7 +280,7 @@ def test_render_api_refuses_too(monkeypatch):
         {"camera": {"origin": [0, 0, 5], "look_at": [0, 0, 0]}, "render": {"width": 1000, "height": 1000}},
         file="api.toml",
     )
-    with pytest.raises(WrtError, match=r"api.toml: render.width x height = 1000 x 1000: needs about 0.1 GiB"):
+    with pytest.raises(WrtError, match=r"api.toml: render.width x height = 1000 x 1000: needs about 0.2 GiB"):
         wrt.render(scene)
 
 
@@ -446,3 +447,58 @@ def test_fuzz_mutated_scene_files(text):
         assert_clean(lambda: load_scene(path))
     finally:
         shutil.rmtree(folder)
+
+
+# --- output paths, checked before the render (issue 13) ---------------------------------------------
+
+
+def test_output_paths_that_cannot_be_written_are_refused_before_rendering(tmp_path, capsys, monkeypatch):
+    """A folder, a missing folder, the scene itself, a name over 255 bytes: one line, exit 2,
+    and no render started (the renderer is never called)."""
+    monkeypatch.setattr(wrt.renderer, "render", lambda *a, **k: pytest.fail("rendered before checking -o"))
+    scene = tmp_path / "scene.toml"
+    scene.write_text(GOOD)
+    (tmp_path / "folder.exr").mkdir()
+    cases = [
+        (tmp_path / "folder.exr", "is a folder"),
+        (tmp_path / "nowhere" / "out.exr", "does not exist"),
+        (tmp_path / ("x" * 260 + ".exr"), "longer than 255 bytes"),
+    ]
+    for out, problem in cases:
+        assert main(["render", str(scene), "-o", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("wrt: error: ") and err.count("\n") == 1 and problem in err, err
+    os.symlink(scene, tmp_path / "scene.exr")  # the scene under an image's name
+    assert main(["render", str(scene), "-o", str(tmp_path / "scene.exr")]) == 2
+    assert "refusing to overwrite" in capsys.readouterr().err
+    assert scene.read_text() == GOOD
+
+
+def test_long_names_and_file_modes_survive_the_atomic_write(tmp_path):
+    """A 250-byte name is valid even though its temporary name would not be; a replaced file
+    keeps its permissions (0600 stays 0600)."""
+    scene = tmp_path / "scene.toml"
+    scene.write_text(GOOD)
+    out = tmp_path / ("y" * 246 + ".exr")
+    assert main(["render", str(scene), "-o", str(out)]) == 0 and out.exists()
+    os.chmod(out, 0o600)
+    assert main(["render", str(scene), "-o", str(out)]) == 0
+    assert os.stat(out).st_mode & 0o777 == 0o600
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []  # no temporary left
+
+
+def test_overflowing_samples_are_counted_and_never_written(tmp_path, capsys):
+    """Valid float32 inputs whose products overflow (radiance 3e38 from a huge area light): the
+    samples are dropped and counted, the image stays finite, and `wrt render` says how many."""
+    scene = tmp_path / "hot.toml"
+    scene.write_text(
+        '[render]\nwidth = 16\nheight = 16\nspp = 4\nintegrator = "path"\nmax_depth = 2\n\n'
+        "[camera]\norigin = [0.0, 0.3, 3.0]\nlook_at = [0.0, 0.0, 0.0]\n\n"
+        '[[shape]]\ntype = "plane"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 1.0, 0.0]\n\n'
+        '[[light]]\ntype = "area"\ncorner = [-50.0, 0.5, -50.0]\nedge_u = [100.0, 0.0, 0.0]\n'
+        "edge_v = [0.0, 0.0, 100.0]\nradiance = [3.0e38, 3.0e38, 3.0e38]\n"
+    )
+    result = wrt.render(load_scene(scene))
+    assert result.rejected_samples > 0 and np.isfinite(result.rgb).all()
+    assert main(["render", str(scene), "-o", str(tmp_path / "hot.exr")]) == 0
+    assert f"{result.rejected_samples} samples were NaN or Inf" in capsys.readouterr().err

@@ -138,8 +138,10 @@ def test_checkpoints_are_written_every_n_samples(tmp_path, monkeypatch, capsys):
     assert main(args[:-4] + ["--checkpoint-every", "0"]) == 2
 
 
-def test_ctrl_c_writes_the_samples_done_and_exits_130(tmp_path):
-    """`wrt render` on a terminal: a progress bar; SIGINT mid-render stops after the running pass and writes it."""
+@pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)], ids=["ctrl-c", "sigterm"])
+def test_a_signal_writes_the_samples_done_and_exits_128_plus_it(tmp_path, sig, code):
+    """`wrt render` on a terminal: a progress bar; SIGINT (Ctrl-C) or SIGTERM mid-render stops
+    after the running pass and writes it (issue 13: SIGTERM used to exit 143 writing nothing)."""
     out = tmp_path / "spheres.exr"
     spp = 10**6
     controller, terminal = pty.openpty()
@@ -169,14 +171,14 @@ def test_ctrl_c_writes_the_samples_done_and_exits_130(tmp_path):
             except OSError:  # the render ended and closed the terminal
                 break
         if sent is None and re.search(rb"\b[1-9]\d*/1000000 spp, .*M samples/s", shown):
-            proc.send_signal(signal.SIGINT)  # at least one pass done: the bar shows samples/s and an ETA
+            proc.send_signal(sig)  # at least one pass done: the bar shows samples/s and an ETA
             sent = time.monotonic()
     if proc.poll() is None:
         proc.kill()
     stdout = proc.communicate()[0]
     os.close(controller)
     assert sent is not None, shown.decode(errors="replace")
-    assert proc.returncode == 130 and time.monotonic() - sent < 10
+    assert proc.returncode == code and time.monotonic() - sent < 10
     assert re.search(rb"\d+:\d\d<\d+:\d\d", shown)  # elapsed < ETA
     image = read_image(out)
     assert image.rgb.shape == (48, 64, 3) and np.isfinite(image.rgb).all() and image.rgb.max() > 0
