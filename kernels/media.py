@@ -2,7 +2,9 @@
 separates (shared by the whitted and path integrators).
 
 Each ray (or branch) carries a small stack of the dielectric shapes it is inside, up to
-``MEDIA`` deep (an entry past that is not recorded). The current medium is the entry of highest
+``MEDIA`` deep; a ray entering one more has no medium to be in (``MEDIA_OVERFLOW``): its sample
+is lost, and the integrators make it NaN so that the film counts it and ``wrt render`` warns,
+rather than continue in a wrong medium. The current medium is the entry of highest
 ``priority``, ties going to the most recently entered; outside every dielectric the ray is in the
 scene's exterior medium (``exterior_ior``). A surface of a shape that does not own the space is a
 false interface: the ray goes straight on and only the stack changes. So nested objects need no
@@ -18,8 +20,15 @@ import warp as wp
 from .integrator import IntegratorSettings
 from .materials import MaterialData
 
-MEDIA = 4  # nested dielectrics a ray can be inside at once
+MEDIA = 8  # nested dielectrics a ray can be inside at once
+MEDIA_OVERFLOW = wp.constant(MEDIA + 1)  # n_media of a ray that entered one dielectric too many
 Media = wp.types.vector(length=MEDIA, dtype=wp.int32)
+
+
+@wp.func
+def no_media() -> Media:
+    """The stack of a ray outside every dielectric."""
+    return Media(wp.int32(-1))
 
 
 @wp.func
@@ -93,8 +102,9 @@ def dielectric_interface(
 ):
     """What the surface of dielectric ``shape`` separates for a ray with media stack ``media``:
     ``(real, eta, media_t, n_media_t)``: whether it is a real interface, ``eta = n1 / n2`` (the
-    ior on the incident over that on the far side), and the stack of a ray that crosses it. A ray leaving a shape
-    it never entered (a camera inside glass) refracts from that shape's ior into the current medium.
+    ior on the incident over that on the far side), and the stack of a ray that crosses it
+    (``n_media_t == MEDIA_OVERFLOW``: one dielectric too many). A ray leaving a shape it never
+    entered (a camera inside glass) refracts from that shape's ior into the current medium.
     """
     m = materials.shape_material[shape]
     slot = current_medium(materials, media, n_media)
@@ -112,6 +122,8 @@ def dielectric_interface(
         if n_media < MEDIA:
             media_t[n_media] = shape
             n_media_t = n_media + 1
+        else:
+            n_media_t = MEDIA_OVERFLOW
     elif inside < 0:
         n1 = materials.ior[m]
         n2 = medium_ior(materials, settings, media, slot)

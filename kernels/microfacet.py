@@ -17,13 +17,17 @@ import warp as wp
 
 @wp.func
 def ggx_d(h: wp.vec3, alpha: float) -> float:
-    """GGX normal distribution D(h) (1/sr), normalised so that the integral of D cos(theta_h) is 1."""
+    """GGX normal distribution D(h) (1/sr), normalised so that the integral of D cos(theta_h) is 1.
+
+    The tan^2 form ``1 / (pi alpha^2 cos^4 (1 + tan^2 / alpha^2)^2)``, with ``tan^2`` from the
+    tangential components: the textbook ``cos^2 (alpha^2 - 1) + 1`` cancels in float32 near the
+    normal (3% off at alpha 1e-3)."""
     cos2 = h[2] * h[2]
     if cos2 <= 0.0:
         return 0.0
     a2 = alpha * alpha
-    denom = cos2 * (a2 - 1.0) + 1.0
-    return a2 / (wp.pi * denom * denom)
+    e = 1.0 + (h[0] * h[0] + h[1] * h[1]) / (cos2 * a2)
+    return 1.0 / (wp.pi * a2 * cos2 * cos2 * e * e)
 
 
 @wp.func
@@ -32,7 +36,7 @@ def ggx_g1(w: wp.vec3, alpha: float) -> float:
     cos2 = w[2] * w[2]
     if cos2 <= 0.0:
         return 0.0
-    tan2 = (1.0 - cos2) / cos2
+    tan2 = (w[0] * w[0] + w[1] * w[1]) / cos2  # from the tangential components: no cancellation
     return 2.0 / (1.0 + wp.sqrt(1.0 + alpha * alpha * tan2))
 
 

@@ -44,7 +44,7 @@ from .materials import (
     bsdf_sample,
     non_specular,
 )
-from .media import Media, dielectric_interface, max_component, medium_sigma, medium_transmittance
+from .media import MEDIA_OVERFLOW, dielectric_interface, max_component, medium_sigma, medium_transmittance, no_media
 from .record import (
     REFLECTED,
     REFRACTED,
@@ -186,7 +186,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
         beta = wp.vec3(1.0)
         eta_scale = float(1.0)  # product of 1 / eta^2 over refractions: roulette ignores radiance scaling
         depth = int(1)
-        media = Media(-1, -1, -1, -1)
+        media = no_media()
         n_media = int(0)
         specular = bool(True)
         prev_pdf = float(0.0)
@@ -238,6 +238,9 @@ def make_path_radiance(record: bool, features: Features = ALL):
                     real, eta, media_t, n_media_t = dielectric_interface(
                         materials, settings, media, n_media, hit.shape, hit.entering
                     )
+                    if n_media_t == MEDIA_OVERFLOW:  # no medium to be in: the sample is lost, and counted
+                        radiance = wp.vec3(wp.nan)
+                        break
                     if not real:
                         media = media_t
                         n_media = n_media_t

@@ -60,7 +60,15 @@ from .materials import (
     non_specular,
     specular_lobes,
 )
-from .media import MEDIA, Media, dielectric_interface, max_component, medium_sigma, medium_transmittance
+from .media import (
+    MEDIA,
+    MEDIA_OVERFLOW,
+    dielectric_interface,
+    max_component,
+    medium_sigma,
+    medium_transmittance,
+    no_media,
+)
 from .record import REFLECTED, REFRACTED, STRAIGHT, TOTAL_INTERNAL, RayRecord
 from .sampling import Sampler
 from .shadow import make_shadow_ray
@@ -174,7 +182,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
         radiance = wp.vec3(0.0)
         throughput = wp.vec3(1.0)
         depth = int(1)
-        media = Media(-1, -1, -1, -1)
+        media = no_media()
         n_media = int(0)
         n_pending = int(0)
         if wp.static(features.specular):
@@ -254,6 +262,9 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                                 real, eta, media_t, n_media_t = dielectric_interface(
                                     materials, settings, media, n_media, hit.shape, hit.entering
                                 )
+                                if n_media_t == MEDIA_OVERFLOW:  # no medium to be in: the sample is lost, and counted
+                                    radiance = wp.vec3(wp.nan)
+                                    break
                         if not real:  # a false interface: straight on
                             t_from = t + hit.t_err
                             t_last = t

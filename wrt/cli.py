@@ -284,7 +284,8 @@ def _render(args) -> int:
     )
     if result.rejected_samples:
         print(
-            f"wrt: warning: {result.rejected_samples} samples were NaN or Inf and were taken as black",
+            f"wrt: warning: {result.rejected_samples} samples were NaN or Inf (or entered more than 8 nested "
+            "dielectrics) and were taken as black",
             file=sys.stderr,
         )
     if stop.is_set():  # a signal, not adaptive sampling's early convergence

@@ -127,3 +127,32 @@ def test_cli_max_depth_overrides_the_scene(tmp_path):
     small = wrt.loader.override_render(wrt.load_scene(scene), width=40, height=30, spp=1, max_depth=1)
     np.testing.assert_array_equal(one, wrt.render(small).rgb)
     assert not np.array_equal(one, full)
+
+
+def test_nesting_deeper_than_the_media_stack_is_counted_not_silent():
+    """Concentric ior-1.0 glass spheres (priority 0, so each nests in the last): 8 deep renders
+    the background through them all; the 9th has no slot, and the samples that enter it are lost
+    and counted instead of continuing in a wrong medium (issue 13: the 5th used to be dropped
+    silently)."""
+    for integrator in ("whitted", "path"):
+        for depth, lost in ((8, False), (9, True)):
+            shapes = [
+                {"type": "sphere", "center": [0, 0, 0], "radius": 1.0 - 0.1 * k, "material": "glass"}
+                for k in range(depth)
+            ]
+            render = {"width": 9, "height": 9, "spp": 1, "integrator": integrator, "max_depth": 64}
+            lights = [{"type": "environment", "radiance": [1.0, 1.0, 1.0]}] if integrator == "path" else []
+            if integrator == "whitted":
+                render["background"] = [1.0, 1.0, 1.0]
+            scene = make_scene(
+                shapes,
+                materials=[{"name": "glass", "type": "dielectric", "ior": 1.0}],
+                lights=lights,
+                camera={"origin": [0, 0, 3], "look_at": [0, 0, 0], "fov": 5.0},
+                render=render,
+            )
+            result = wrt.render(scene)
+            assert np.isfinite(result.rgb).all()
+            assert (result.rejected_samples > 0) == lost, (integrator, depth, result.rejected_samples)
+            if not lost:
+                np.testing.assert_allclose(result.rgb, 1.0, rtol=1e-5)
