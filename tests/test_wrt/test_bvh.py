@@ -184,3 +184,15 @@ def test_axis_aligned_rays_with_zero_components(rng):
     t_ref, shape_ref = tr.closest(origins, dirs, brute_force=True)
     assert np.array_equal(shape, shape_ref)
     np.testing.assert_allclose(t[shape >= 0], t_ref[shape >= 0], rtol=1e-5)
+
+
+def test_bounds_are_rounded_outward_not_to_nearest(rng):
+    """float32 boxes hold the float64 ones (issue 13: nearest rounding could shave a sphere's or a
+    moving primitive's extent by half an ulp, so rays grazing it skipped its node)."""
+    lo = rng.uniform(-1e4, 1e4, (10_000, 3))
+    hi = lo + rng.uniform(0.0, 1e-2, (10_000, 3))
+    lo32, hi32 = round_outward(lo, hi)
+    assert lo32.dtype == np.float32 and hi32.dtype == np.float32
+    assert (lo32.astype(np.float64) <= lo).all() and (hi32.astype(np.float64) >= hi).all()
+    nearest = lo.astype(np.float32).astype(np.float64)
+    assert (nearest > lo).any()  # the case that matters occurs in this sample
