@@ -4,6 +4,10 @@ The target is always either the previous file or the complete new one, never a p
 whatever stops the program (an exception, Ctrl-C, SIGTERM). A new file gets the usual
 permissions (``0o666`` less the umask; ``mkstemp`` alone would leave ``0o600``); a replaced one
 keeps its own. ``check_writable`` says before any work is done whether a path can be written.
+
+Temporary names carry the writer's process id (``.NAME.PID.XXXXXXXX``): a process killed
+mid-write (``kill -9``, a power cut) leaves its temporary file behind, and the next write to the
+same target removes those whose process is gone.
 """
 
 from __future__ import annotations
@@ -18,14 +22,37 @@ from collections.abc import Iterator
 from .errors import WrtError
 
 NAME_MAX = 255  # bytes in a file name (Linux, macOS, Windows)
-TEMP_EXTRA = 10  # bytes mkstemp adds around the prefix: "." and 8 random characters, then "."
+RANDOM_CHARS = 8  # what mkstemp appends to the prefix
 
 
-def _temp_prefix(name: str, suffix: str) -> str:
-    """``.NAME.``, NAME shortened so that the temporary name fits in ``NAME_MAX`` bytes."""
-    while name and len(name.encode()) + len(suffix.encode()) + TEMP_EXTRA > NAME_MAX:
+def _temp_stem(name: str, suffix: str) -> str:
+    """``.NAME.``, NAME shortened so that a temporary name (``.NAME.PID.XXXXXXXX`` + suffix) fits
+    in ``NAME_MAX`` bytes."""
+    extra = len(f"..{os.getpid()}.") + RANDOM_CHARS + len(suffix.encode())
+    while name and len(name.encode()) + extra > NAME_MAX:
         name = name[:-1]
     return "." + name + "."
+
+
+def _process_gone(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except (PermissionError, OSError, OverflowError):
+        return False  # alive (someone else's), or not ours to judge
+    return False
+
+
+def _remove_stale(folder: str, stem: str, suffix: str) -> None:
+    """Remove temporary files of writes to the same target whose process is gone."""
+    for entry in os.listdir(folder):
+        if not (entry.startswith(stem) and entry.endswith(suffix)):
+            continue
+        pid = entry[len(stem) :].split(".", 1)[0]
+        if pid.isdigit() and int(pid) != os.getpid() and _process_gone(int(pid)):
+            with contextlib.suppress(OSError):
+                os.unlink(os.path.join(folder, entry))
 
 
 def check_writable(path: str | os.PathLike, *, protect: tuple = ()) -> None:
@@ -49,11 +76,14 @@ def check_writable(path: str | os.PathLike, *, protect: tuple = ()) -> None:
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str = "") -> Iterator[str]:
-    """A temporary file beside ``path`` (same folder, which must exist; name ``.NAME.XXXX`` +
-    ``suffix``) for the block to write; renamed over ``path`` when the block ends normally,
-    removed when it raises (Ctrl-C included)."""
+    """A temporary file beside ``path`` (same folder, which must exist; name
+    ``.NAME.PID.XXXXXXXX`` + ``suffix``) for the block to write; renamed over ``path`` when the
+    block ends normally, removed when it raises (Ctrl-C included). Stale temporary files of
+    dead writers to ``path`` are removed first."""
     folder, name = os.path.split(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=_temp_prefix(name, suffix), suffix=suffix, dir=folder)
+    stem = _temp_stem(name, suffix)
+    _remove_stale(folder, stem, suffix)
+    fd, tmp = tempfile.mkstemp(prefix=f"{stem}{os.getpid()}.", suffix=suffix, dir=folder)
     os.close(fd)
     try:
         yield tmp

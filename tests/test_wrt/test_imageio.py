@@ -264,3 +264,18 @@ def test_bad_aovs(tmp_path, aovs, match):
 def test_bad_metadata(tmp_path, metadata):
     with pytest.raises(ValueError, match="metadata"):
         write_image(tmp_path / "out.exr", _rgb(), metadata=metadata)
+
+
+def test_temporary_files_of_killed_writers_are_cleaned_by_the_next_write(tmp_path):
+    """A writer killed mid-write (kill -9) leaves ``.NAME.PID.XXXXXXXX.exr``; the next write to the
+    same image removes it when that process is gone, and leaves a live one's and other images'
+    alone (issue 13: nothing ever cleaned them)."""
+    out = tmp_path / "img.exr"
+    dead = tmp_path / ".img.exr.999999999.abcdefgh.exr"  # above any pid_max: no such process
+    live = tmp_path / ".img.exr.1.abcdefgh.exr"  # pid 1 is always running
+    other = tmp_path / ".other.exr.999999999.abcdefgh.exr"
+    for f in (dead, live, other):
+        f.write_bytes(b"partial")
+    write_image(out, np.zeros((4, 4, 3), np.float32))
+    names = sorted(p.name for p in tmp_path.iterdir())
+    assert names == sorted([out.name, live.name, other.name])
