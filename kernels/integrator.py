@@ -37,6 +37,7 @@ from .features import ALL, Features
 from .film import Film, luminance, write_aovs
 from .lights import LightData
 from .materials import MaterialData
+from .media import Media
 from .record import CAMERA, RayRecord, record_ray
 from .sample_warps import concentric_disk
 from .sampling import Sampler, sample_1d, sample_2d
@@ -55,6 +56,8 @@ class IntegratorSettings:
     exterior_ior: float
     filtered_shadows: wp.int32  # 1: shadow rays pass dielectrics with Beer-Lambert attenuation
     min_throughput: float
+    camera_media: Media  # the dielectrics the camera is inside, outermost first (wrt.device.camera_media)
+    camera_n_media: wp.int32
 
 
 @wp.struct

@@ -17,18 +17,11 @@ C. Schmidt, B. Budge, "Simple Nested Dielectrics in Ray Traced Images", JGT 7(2)
 
 import warp as wp
 
-from .integrator import IntegratorSettings
 from .materials import MaterialData
 
 MEDIA = 8  # nested dielectrics a ray can be inside at once
 MEDIA_OVERFLOW = wp.constant(MEDIA + 1)  # n_media of a ray that entered one dielectric too many
 Media = wp.types.vector(length=MEDIA, dtype=wp.int32)
-
-
-@wp.func
-def no_media() -> Media:
-    """The stack of a ray outside every dielectric."""
-    return Media(wp.int32(-1))
 
 
 @wp.func
@@ -66,9 +59,9 @@ def current_medium(materials: MaterialData, media: Media, count: wp.int32) -> wp
 
 
 @wp.func
-def medium_ior(materials: MaterialData, settings: IntegratorSettings, media: Media, slot: wp.int32) -> float:
+def medium_ior(materials: MaterialData, exterior_ior: float, media: Media, slot: wp.int32) -> float:
     if slot < 0:
-        return settings.exterior_ior
+        return exterior_ior
     return materials.ior[materials.shape_material[media[slot]]]
 
 
@@ -94,7 +87,7 @@ def remove_medium(media: Media, count: wp.int32, slot: wp.int32) -> Media:
 @wp.func
 def dielectric_interface(
     materials: MaterialData,
-    settings: IntegratorSettings,
+    exterior_ior: float,
     media: Media,
     n_media: wp.int32,
     shape: wp.int32,
@@ -115,7 +108,7 @@ def dielectric_interface(
     n1 = float(1.0)
     n2 = float(1.0)
     if entering:
-        n1 = medium_ior(materials, settings, media, slot)
+        n1 = medium_ior(materials, exterior_ior, media, slot)
         n2 = materials.ior[m]
         if slot >= 0 and shape_priority(materials, media[slot]) > materials.priority[m]:
             real = False
@@ -126,14 +119,14 @@ def dielectric_interface(
             n_media_t = MEDIA_OVERFLOW
     elif inside < 0:
         n1 = materials.ior[m]
-        n2 = medium_ior(materials, settings, media, slot)
+        n2 = medium_ior(materials, exterior_ior, media, slot)
     else:
         media_t = remove_medium(media, n_media, inside)
         n_media_t = n_media - 1
         if inside != slot:
             real = False
         n1 = materials.ior[m]
-        n2 = medium_ior(materials, settings, media_t, current_medium(materials, media_t, n_media_t))
+        n2 = medium_ior(materials, exterior_ior, media_t, current_medium(materials, media_t, n_media_t))
     return real, n1 / n2, media_t, n_media_t
 
 

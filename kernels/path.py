@@ -44,7 +44,7 @@ from .materials import (
     bsdf_sample,
     non_specular,
 )
-from .media import MEDIA_OVERFLOW, dielectric_interface, max_component, medium_sigma, medium_transmittance, no_media
+from .media import MEDIA_OVERFLOW, dielectric_interface, max_component, medium_sigma, medium_transmittance
 from .record import (
     REFLECTED,
     REFRACTED,
@@ -186,8 +186,8 @@ def make_path_radiance(record: bool, features: Features = ALL):
         beta = wp.vec3(1.0)
         eta_scale = float(1.0)  # product of 1 / eta^2 over refractions: roulette ignores radiance scaling
         depth = int(1)
-        media = no_media()
-        n_media = int(0)
+        media = settings.camera_media  # the camera may be inside glass or water
+        n_media = settings.camera_n_media
         specular = bool(True)
         prev_pdf = float(0.0)
         prev_p = o
@@ -236,7 +236,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
                 if (flags & BSDF_TRANSMISSION) != 0:
                     real = bool(True)
                     real, eta, media_t, n_media_t = dielectric_interface(
-                        materials, settings, media, n_media, hit.shape, hit.entering
+                        materials, settings.exterior_ior, media, n_media, hit.shape, hit.entering
                     )
                     if n_media_t == MEDIA_OVERFLOW:  # no medium to be in: the sample is lost, and counted
                         radiance = wp.vec3(wp.nan)

@@ -67,7 +67,6 @@ from .media import (
     max_component,
     medium_sigma,
     medium_transmittance,
-    no_media,
 )
 from .record import REFLECTED, REFRACTED, STRAIGHT, TOTAL_INTERNAL, RayRecord
 from .sampling import Sampler
@@ -182,8 +181,8 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
         radiance = wp.vec3(0.0)
         throughput = wp.vec3(1.0)
         depth = int(1)
-        media = no_media()
-        n_media = int(0)
+        media = settings.camera_media  # the camera may be inside glass or water
+        n_media = settings.camera_n_media
         n_pending = int(0)
         if wp.static(features.specular):
             pending_origin = BranchVec3()
@@ -260,7 +259,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                         if wp.static(features.dielectric):
                             if (flags & BSDF_TRANSMISSION) != 0:
                                 real, eta, media_t, n_media_t = dielectric_interface(
-                                    materials, settings, media, n_media, hit.shape, hit.entering
+                                    materials, settings.exterior_ior, media, n_media, hit.shape, hit.entering
                                 )
                                 if n_media_t == MEDIA_OVERFLOW:  # no medium to be in: the sample is lost, and counted
                                     radiance = wp.vec3(wp.nan)

@@ -33,6 +33,7 @@ from wrt.kernels.materials import (
     PHONG,
     MaterialData,
 )
+from wrt.kernels.media import MEDIA, Media
 from wrt.kernels.sampling import INDEPENDENT, SOBOL, STRATIFIED, Sampler
 from wrt.kernels.traverse import GeometryData
 
@@ -45,9 +46,11 @@ from .scene import (
     DirectionalLight,
     EnvironmentLight,
     Material,
+    Mesh,
     PointLight,
     RenderSettings,
     Scene,
+    Sphere,
     SphereLight,
     SpotLight,
 )
@@ -232,8 +235,50 @@ def upload_lights(scene: Scene, device) -> LightData:
     return lights
 
 
-def integrator_settings(render: RenderSettings) -> IntegratorSettings:
+def camera_media(scene: Scene) -> list[int]:
+    """The dielectric spheres and meshes the camera origin lies inside (shape indices, the
+    largest first, as a ray from outside would have entered them), where camera rays start: their
+    absorption applies from the first segment on. A mesh holds the origin when a ray from it
+    crosses the mesh an odd number of times (float64). Triangles and polygons bound no volume
+    alone; a moving shape is taken at time 0; a thin lens is taken at its centre."""
+    o = np.asarray(scene.camera.origin, dtype=np.float64)
+    inside = []
+    for index, shape in enumerate(scene.shapes):
+        if scene.materials[shape.material].type != "dielectric":
+            continue
+        if isinstance(shape, Sphere):
+            if np.linalg.norm(o - np.asarray(shape.center)) < shape.radius:
+                inside.append((shape.radius, index))
+        elif isinstance(shape, Mesh) and _crossings(o, shape.vertices[shape.faces]) % 2 == 1:
+            inside.append((float(np.ptp(shape.vertices, axis=0).max()), index))
+    return [index for _, index in sorted(inside, reverse=True)]
+
+
+def _crossings(o: np.ndarray, triangles: np.ndarray) -> int:
+    """How many of ``triangles`` (F, 3, 3) a ray from ``o`` along a fixed generic direction crosses
+    (Moller-Trumbore, float64)."""
+    d = np.array([0.5773502691, 0.5773672691, 0.5773332691])
+    e1, e2 = triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]
+    p = np.cross(d, e2)
+    det = np.einsum("ij,ij->i", e1, p)
+    ok = np.abs(det) > 1e-300
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    s = o - triangles[:, 0]
+    u = np.einsum("ij,ij->i", s, p) * inv
+    q = np.cross(s, e1)
+    v = (q @ d) * inv
+    t = np.einsum("ij,ij->i", e2, q) * inv
+    return int(np.count_nonzero(ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)))
+
+
+def integrator_settings(scene: Scene) -> IntegratorSettings:
+    render = scene.render
+    media = camera_media(scene)
+    if len(media) > MEDIA:
+        raise WrtError(f"the camera is inside {len(media)} nested dielectrics; at most {MEDIA} are supported")
     s = IntegratorSettings()
+    s.camera_media = Media(*(media + [-1] * (MEDIA - len(media))))
+    s.camera_n_media = len(media)
     s.max_depth = render.max_depth
     s.ambient = wp.vec3(*render.ambient)
     s.background = wp.vec3(*render.background)

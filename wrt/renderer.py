@@ -178,7 +178,7 @@ def prepare(scene: Scene, dev: wp.context.Device) -> DeviceScene:
             geometry=upload_geometry(prims, dev),
             materials=upload_materials(scene, dev),
             lights=upload_lights(scene, dev),
-            settings=integrator_settings(scene.render),
+            settings=integrator_settings(scene),
             camera=camera_data(scene.camera, scene.render, w, h),
             film=film,
             build_time_s=build_time,

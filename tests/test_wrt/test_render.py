@@ -156,3 +156,34 @@ def test_nesting_deeper_than_the_media_stack_is_counted_not_silent():
             assert (result.rejected_samples > 0) == lost, (integrator, depth, result.rejected_samples)
             if not lost:
                 np.testing.assert_allclose(result.rgb, 1.0, rtol=1e-5)
+
+
+def test_camera_media_are_the_dielectric_volumes_holding_the_camera():
+    """A camera inside a glass cube mesh inside a water sphere starts in both, outermost first;
+    a diffuse sphere, a glass sphere elsewhere and an open triangle do not count."""
+    from wrt.device import camera_media
+    from wrt.stress.common import make_scene as scene_with_meshes
+    from wrt.stress.common import split_cube
+
+    v, f = split_cube()  # the closed cube [-1, 1]^3, its faces split (edges exactly on the ray's path)
+    shapes = [
+        {"type": "sphere", "center": [0, 0, 0], "radius": 3.0, "material": "water"},
+        {"type": "sphere", "center": [0, 0, 0], "radius": 2.5, "material": "grey"},
+        {"type": "sphere", "center": [9, 0, 0], "radius": 1.0, "material": "glass"},
+        {"type": "triangle", "vertices": [[-5, -5, 0.5], [5, -5, 0.5], [0, 5, 0.5]], "material": "glass"},
+    ]
+    materials = [
+        {"name": "water", "type": "dielectric", "ior": 1.33},
+        {"name": "glass", "type": "dielectric", "ior": 1.5},
+        {"name": "grey", "albedo": [0.5, 0.5, 0.5]},
+    ]
+    for origin, expected in (
+        ([0.1, 0.2, 0.3], [0, 4]),
+        ([0.0, 0.0, 0.0], [0, 4]),
+        ([2.0, 0.0, 0.0], [0]),
+        ([0, 4, 0], []),
+    ):
+        scene = scene_with_meshes(
+            shapes, meshes=[(v, f, "glass")], materials=materials, camera={"origin": origin, "look_at": [0, 0, -10]}
+        )
+        assert camera_media(scene) == expected, origin
