@@ -12,11 +12,44 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import re
 import signal
 import sys
 import threading
 
-from .errors import WrtError
+from .errors import SceneError, WrtError
+from .loader import MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SEED, MAX_SPP
+
+MAX_CAPACITY = 1 << 24
+"""Most segments ``wrt rays --capacity`` may reserve: 92 bytes each, 1.5 GiB in all."""
+MAX_THREADS = 1024
+MAX_STRESS_RAYS = 10**8
+INT32_MAX = 2**31 - 1
+
+
+def int_in(lo: int | None, hi: int, option: str, key: str | None = None):
+    """The argparse ``type`` of an integer option: an integer in ``[lo, hi]``.
+
+    Text that is not an integer is argparse's own error (usage, ``invalid int value``, exit 2). An
+    integer out of range raises ``WrtError``, which argparse passes on and ``main`` prints as one
+    line naming the option and the value (exit 2), before any work: ``command line:
+    render.KEY = V: must be in [lo, hi] (OPTION)`` for an option that overrides the ``[render]`` key
+    ``key`` (the loader's range and words), else ``OPTION V: must be >= lo`` (or ``<= hi``).
+    ``lo`` None: no lower bound here, the library checks it (with the image size, say).
+    """
+
+    def parse(text: str) -> int:
+        value = int(text)  # ValueError: argparse's "invalid int value"
+        if (lo is None or lo <= value) and value <= hi:
+            return value
+        if key is not None:
+            raise SceneError("command line", "render", key, f"must be in [{lo}, {hi}] ({option})", value)
+        raise WrtError(f"{option} {value}: must be " + (f">= {lo}" if lo is not None and value < lo else f"<= {hi}"))
+
+    parse.__name__ = "int"  # argparse names the type in "invalid int value"
+    parse.range = (lo, hi)
+    return parse
+
 
 AOV_CHOICES = {
     "depth": "depth",
@@ -60,8 +93,12 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
     r.add_argument("scene", help="scene file: .toml (docs/scene-format.md) or Mitsuba 3 .xml (docs/mitsuba.md)")
     r.add_argument("--strict", action="store_true", help="Mitsuba XML: unsupported elements are errors, not warnings")
     r.add_argument("-o", "--output", required=True, help="output image, .exr or .png (written atomically)")
-    r.add_argument("--spp", type=int, help="samples per pixel (default: the scene's [render] spp)")
-    r.add_argument("--seed", type=int, help="random seed (default: the scene's [render] seed)")
+    r.add_argument(
+        "--spp", type=int_in(1, MAX_SPP, "--spp", "spp"), help="samples per pixel (default: the scene's [render] spp)"
+    )
+    r.add_argument(
+        "--seed", type=int_in(0, MAX_SEED, "--seed", "seed"), help="random seed (default: the scene's [render] seed)"
+    )
     r.add_argument(
         "--sampler",
         choices=("independent", "stratified", "sobol"),
@@ -69,13 +106,25 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
     )
     r.add_argument(
         "--max-depth",
-        type=int,
+        type=int_in(1, MAX_DEPTH, "--max-depth", "max_depth"),
         help="ray segments per path, camera ray included (default: the scene's [render] max_depth)",
     )
-    r.add_argument("--width", type=int, help="image width in pixels (default: the scene's)")
-    r.add_argument("--height", type=int, help="image height in pixels (default: the scene's)")
+    r.add_argument(
+        "--width",
+        type=int_in(1, MAX_IMAGE_SIDE, "--width", "width"),
+        help="image width in pixels (default: the scene's)",
+    )
+    r.add_argument(
+        "--height",
+        type=int_in(1, MAX_IMAGE_SIDE, "--height", "height"),
+        help="image height in pixels (default: the scene's)",
+    )
     r.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
-    r.add_argument("--threads", type=int, help="CPU threads launching image tiles (default: all cores)")
+    r.add_argument(
+        "--threads",
+        type=int_in(1, MAX_THREADS, "--threads"),
+        help=f"CPU threads launching image tiles, at most {MAX_THREADS} (default: all cores)",
+    )
     r.add_argument(
         "--aov",
         type=_aov_list,
@@ -94,7 +143,7 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
     )
     r.add_argument(
         "--checkpoint-every",
-        type=int,
+        type=int_in(1, MAX_SPP, "--checkpoint-every"),
         metavar="N",
         help="also write the image to the output every N samples per pixel (its metadata spp: the samples done)",
     )
@@ -110,7 +159,7 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
     rays.add_argument(
         "--pixel",
         nargs=2,
-        type=int,
+        type=int_in(-INT32_MAX, INT32_MAX, "--pixel"),  # checked against the image by wrt.rays
         action="append",
         default=[],
         metavar=("X", "Y"),
@@ -119,16 +168,21 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
     rays.add_argument(
         "--grid",
         nargs=2,
-        type=int,
+        type=int_in(1, MAX_IMAGE_SIDE, "--grid"),
         metavar=("NX", "NY"),
         help="also trace the centre pixels of an NX x NY grid over the image",
     )
-    rays.add_argument("--samples", type=int, default=1, help="samples per pixel (default 1: the pixel centre)")
+    rays.add_argument(
+        "--samples",
+        type=int_in(None, MAX_SPP, "--samples"),  # >= 1: wrt.rays says so
+        default=1,
+        help="samples per pixel (default 1: the pixel centre)",
+    )
     rays.add_argument(
         "--max-depth",
         "--depth",
         dest="max_depth",
-        type=int,
+        type=int_in(1, MAX_DEPTH, "--max-depth", "max_depth"),
         help="ray segments per path, camera ray included (default: the scene's [render] max_depth)",
     )
     shown = rays.add_mutually_exclusive_group(required=True)
@@ -143,7 +197,12 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
         help="view angles in degrees relative to the scene camera (default: automatic)",
     )
     rays.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
-    rays.add_argument("--capacity", type=int, default=1 << 18, help="segments the record buffer holds (default 262144)")
+    rays.add_argument(
+        "--capacity",
+        type=int_in(1, MAX_CAPACITY, "--capacity"),
+        default=1 << 18,
+        help=f"segments the record buffer holds, 92 bytes each (default 262144, at most {MAX_CAPACITY})",
+    )
     rays.add_argument(
         "--show-bvh", action="store_true", help="also draw the BVH boxes each traced ray's closest-hit query visited"
     )
@@ -155,8 +214,13 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
         "precision, float32 vs float64, grazing and degenerate geometry, refraction, NaN/Inf) and print a table: "
         "case, rays, failures, worst error, bound. Exit 0 when every case passes, 1 otherwise. See docs/stress.md.",
     )
-    st.add_argument("--rays", type=int, default=10**6, help="rays per ray-batch case (default 1000000)")
-    st.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    st.add_argument(
+        "--rays",
+        type=int_in(1, MAX_STRESS_RAYS, "--rays"),
+        default=10**6,
+        help=f"rays per ray-batch case (default 1000000, at most {MAX_STRESS_RAYS})",
+    )
+    st.add_argument("--seed", type=int_in(0, MAX_SEED, "--seed"), default=0, help="random seed (default 0)")
     st.add_argument("--report", metavar="DIR", help="also write the table as DIR/stress.json and DIR/stress.md")
     runs = {"render": _render, "rays": _rays, "stress": _stress}
     if plugins:
@@ -199,10 +263,6 @@ def _render(args) -> int:
     from .loader import load_scene, override_render
     from .renderer import render
 
-    if args.threads is not None and args.threads < 1:
-        raise WrtError(f"--threads {args.threads}: must be >= 1")
-    if args.checkpoint_every is not None and args.checkpoint_every < 1:
-        raise WrtError(f"--checkpoint-every {args.checkpoint_every}: must be >= 1")
     if args.target_error is not None and not args.target_error > 0.0:
         raise WrtError(f"--target-error {args.target_error}: must be > 0")
     ext = os.path.splitext(args.output)[1].lower()
@@ -319,8 +379,6 @@ def _rays(args) -> int:
 def _stress(args) -> int:
     from . import stress
 
-    if args.rays < 1:
-        raise WrtError(f"--rays {args.rays}: must be >= 1")
     return stress.command(args.rays, args.seed, args.report)
 
 
@@ -338,17 +396,34 @@ def run_verb(run, args: argparse.Namespace, prog: str = "wrt") -> int:
             init_warp()
         return run(args)
     except WrtError as e:
-        print(f"{prog}: error: {e}", file=sys.stderr)
-        return 2
+        return report_error(e, prog)
     except KeyboardInterrupt:
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
 
 
+_CONTROL = re.compile("[\x00-\x1f\x7f-\x9f]")
+
+
+def report_error(error: WrtError, prog: str = "wrt") -> int:
+    """Print ``prog: error: <message>`` as one line on stderr; return exit code 2.
+
+    The one place the CLI prints errors. Control characters (C0, DEL, C1: a newline, or ESC
+    sequences from a file name or a value, which would reach the terminal raw) are written as
+    ``\\xNN`` escapes.
+    """
+    message = _CONTROL.sub(lambda m: f"\\x{ord(m.group()):02x}", str(error))
+    print(f"{prog}: error: {message}", file=sys.stderr)
+    return 2
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     parser, runs = _parser(plugins=not (argv and argv[0] in LIBRARY_VERBS))
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except WrtError as e:  # an integer option out of range (int_in)
+        return report_error(e)
     return run_verb(runs[args.verb], args)
 
 

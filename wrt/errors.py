@@ -32,7 +32,10 @@ class SceneError(WrtError):
         self.file, self.table, self.key, self.problem, self.value = file, table, key, problem, value
         where = ".".join(_printable(part) for part in (table, key) if part)
         if value is not SceneError._NO_VALUE:
-            where += f" = {value!r}"
+            try:
+                where += f" = {value!r}"
+            except RecursionError:  # a value nested deeper than repr goes
+                where += " = (a value nested too deeply to show)"
         file = _printable(str(file))
         super().__init__(f"{file}: {where}: {problem}" if where else f"{file}: {problem}")
 

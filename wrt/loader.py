@@ -43,13 +43,24 @@ from .scene import (
     Triangle,
 )
 
+UTF8_BOM = b"\xef\xbb\xbf"
 TOP_LEVEL = ("render", "camera", "material", "shape", "light")
 SHAPE_TYPES = ("sphere", "plane", "triangle", "polygon", "mesh")
 LIGHT_TYPES = ("point", "directional", "spot", "area", "sphere", "environment")
 DEFAULT_MATERIAL = Material(name="default", type="diffuse", albedo=(0.5, 0.5, 0.5))
 MAX_IMAGE_SIDE = 16384
 MAX_SPP = 1 << 20
+MAX_DEPTH = 1024
+MAX_SEED = 2**31 - 1
 FLOAT32_MAX = float(np.finfo(np.float32).max)
+FLOAT32_TINY = float(np.finfo(np.float32).tiny)  # the smallest normal float32
+MAX_MAGNITUDE = 1e18
+"""Largest magnitude of any number of a scene (coordinates, lengths, radiances, shutter times) and
+of a shape's displacement over the shutter (``|velocity| * max(|open|, |close|)``). The kernels
+compute in float32 (largest finite value about 3.4e38): squared distances between points within
+this bound (at most 3 * (2e18)^2 = 1.2e37) and a radiance summed over 2^20 samples (1e24) stay
+finite, with a factor of 28 to spare. Larger numbers are refused rather than rendered as Inf or NaN."""
+BEYOND_FLOAT32 = f"must be at most {MAX_MAGNITUDE:g} in magnitude (so that float32 products of it stay finite)"
 _REQUIRED = object()
 
 
@@ -86,7 +97,9 @@ class _Table:
         below = value <= lo if lo_open else value < lo
         above = value >= hi if hi_open else value > hi
         if below or above:
-            raise self.error(key, f"must be in {'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}", value)
+            raise self.error(
+                key, f"must be in {'(' if lo_open else '['}{_g(lo)}, {_g(hi)}{')' if hi_open else ']'}", value
+            )
         return int(value) if integer else float(value)
 
     def string(self, key: str, default=_REQUIRED, choices=None) -> str:
@@ -114,6 +127,8 @@ class _Table:
         v = _vec3(self, key, value, value)
         if nonzero and not any(v):
             raise self.error(key, "must not be the zero vector", value)
+        if nonzero and _float32_unit(v) is None:
+            raise self.error(key, "is too short to normalise in float32 (its squared length underflows)", value)
         if any(c < lo or c > hi for c in v):
             raise self.error(key, f"components must be in [{lo:g}, {hi:g}]", value)
         return v
@@ -134,17 +149,36 @@ def _vec3(table: _Table, key: str, v, shown) -> tuple[float, float, float]:
     return (float(v[0]), float(v[1]), float(v[2]))
 
 
+def _g(x) -> str:
+    """A range end as written in messages: integers exactly, other numbers short."""
+    return str(x) if isinstance(x, int) else f"{x:g}"
+
+
 def _check_float32(table: _Table, key: str, numbers, shown) -> None:
-    """Numbers go to the device as float32: each must be finite there (|x| <= FLOAT32_MAX)."""
+    """Numbers go to the device as float32: each must be finite and at most ``MAX_MAGNITUDE`` in
+    magnitude, so that the kernels' products of them stay finite too."""
     for c in numbers:
         try:
             c = float(c)
         except OverflowError:  # an integer beyond float64
-            raise table.error(key, f"must fit in float32 (|x| <= {FLOAT32_MAX:.4g})", shown) from None
+            raise table.error(key, BEYOND_FLOAT32, shown) from None
         if not math.isfinite(c):
             raise table.error(key, "components must be finite" if len(numbers) > 1 else "must be finite", shown)
-        if abs(c) > FLOAT32_MAX:
-            raise table.error(key, f"must fit in float32 (|x| <= {FLOAT32_MAX:.4g})", shown)
+        if abs(c) > MAX_MAGNITUDE:
+            raise table.error(key, BEYOND_FLOAT32, shown)
+
+
+def _float32_unit(v) -> np.ndarray | None:
+    """``v`` normalised as the kernels do it, in float32 (``wp.normalize``: ``v / sqrt(x*x + y*y +
+    z*z)``), or None when float32 cannot: ``v`` is zero there, or its squared length underflows to
+    zero or to a denormal (too imprecise to normalise) or overflows."""
+    f = np.asarray(v, dtype=np.float64).astype(np.float32)
+    with np.errstate(all="ignore"):
+        squared = f[0] * f[0] + f[1] * f[1] + f[2] * f[2]  # float32 arithmetic, as in the kernels
+        if not (np.isfinite(squared) and squared >= FLOAT32_TINY):
+            return None
+        unit = f / np.sqrt(squared)
+    return unit if np.all(np.isfinite(unit)) else None
 
 
 def _array_of_tables(file: str, doc: Mapping, key: str) -> list:
@@ -161,8 +195,8 @@ def _render(file: str, data) -> RenderSettings:
         width=t.number("width", d.width, integer=True, lo=1, hi=MAX_IMAGE_SIDE),
         height=t.number("height", d.height, integer=True, lo=1, hi=MAX_IMAGE_SIDE),
         spp=t.number("spp", d.spp, integer=True, lo=1, hi=MAX_SPP),
-        max_depth=t.number("max_depth", d.max_depth, integer=True, lo=1, hi=1024),
-        seed=t.number("seed", d.seed, integer=True, lo=0, hi=2**31 - 1),
+        max_depth=t.number("max_depth", d.max_depth, integer=True, lo=1, hi=MAX_DEPTH),
+        seed=t.number("seed", d.seed, integer=True, lo=0, hi=MAX_SEED),
         integrator=t.string("integrator", d.integrator, INTEGRATORS),
         ambient=t.vec3("ambient", d.ambient, lo=0.0),
         background=t.vec3("background", d.background, lo=0.0),
@@ -197,13 +231,31 @@ def _camera(file: str, data) -> Camera:
             raise t.error("shutter", "close must not come before open", shutter)
         shutter = (float(shutter[0]), float(shutter[1]))
     t.finish()
-    forward = np.subtract(look_at, origin)
-    if not np.any(forward):
+    # the frame of kernels/camera.py, in float32 as the device holds it: forward =
+    # normalize(look_at - origin), right = normalize(cross(forward, up)) must be unit vectors
+    forward64 = np.subtract(look_at, origin)
+    if not np.any(forward64):
         raise t.error("look_at", "must differ from origin", list(look_at))
-    forward /= np.linalg.norm(forward)
-    sin_angle = np.linalg.norm(np.cross(forward, np.asarray(up) / np.linalg.norm(up)))
+    with np.errstate(all="ignore"):
+        difference = np.asarray(look_at, dtype=np.float32) - np.asarray(origin, dtype=np.float32)
+    forward = _float32_unit(difference)
+    if forward is None:
+        raise t.error(
+            "look_at",
+            f"must differ from origin = {list(origin)} by a vector float32 can normalise (look_at - origin = "
+            f"{[float(c) for c in difference]} in float32: its squared length underflows)",
+            list(look_at),
+        )
+    sin_angle = np.linalg.norm(np.cross(forward64 / np.linalg.norm(forward64), np.asarray(up) / np.linalg.norm(up)))
     if sin_angle < 1e-6:
         raise t.error("up", "is parallel to the viewing direction (look_at - origin)", list(up))
+    if _float32_unit(np.cross(forward, np.asarray(up, dtype=np.float32))) is None:
+        raise t.error(
+            "up",
+            "is too short, or too close to parallel to the viewing direction, for float32: cross(forward, up) "
+            "does not normalise (its squared length underflows)",
+            list(up),
+        )
     return Camera(
         origin=origin, look_at=look_at, up=up, fov=fov, aperture_radius=aperture, focus_distance=focus, shutter=shutter
     )
@@ -283,8 +335,8 @@ def _mesh(t: _Table, scene_dir: str, material: int) -> Mesh:
     except MeshFileError as e:
         raise t.error("file", str(e), name) from None
     vertices = apply_transform(vertices, translate=translate, scale=scale, rotate=rotate)
-    if not np.all(np.abs(vertices) <= FLOAT32_MAX):
-        raise t.error("file", f"vertices (after the transform) must fit in float32 (|x| <= {FLOAT32_MAX:.4g})", name)
+    if not np.all(np.abs(vertices) <= MAX_MAGNITUDE):
+        raise t.error("file", f"vertices (after the transform) {BEYOND_FLOAT32}", name)
     return Mesh(file=path, vertices=vertices, faces=faces, material=material)
 
 
@@ -346,6 +398,10 @@ def _light(file: str, index: int, data):
         )
         if not np.any(np.cross(light.edge_u, light.edge_v)):
             raise t.error("edge_v", "is parallel to edge_u (the light has no area)", list(light.edge_v))
+        if _float32_unit(np.cross(np.float32(light.edge_u), np.float32(light.edge_v))) is None:
+            raise t.error(
+                "edge_v", "spans with edge_u an area float32 cannot resolve (it underflows)", list(light.edge_v)
+            )
     elif kind == "sphere":
         light = SphereLight(
             center=t.vec3("center"),
@@ -380,6 +436,18 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
     material_index[DEFAULT_MATERIAL.name] = len(materials)
     materials.append(DEFAULT_MATERIAL)
     shapes = [_shape(file, i, s, material_index, scene_dir) for i, s in enumerate(_array_of_tables(file, doc, "shape"))]
+    longest_time = max(abs(c) for c in camera.shutter)
+    for i, shape in enumerate(shapes):  # a moving shape's displacement is a coordinate too
+        displacement = float(np.linalg.norm(shape.velocity)) * longest_time
+        if displacement > MAX_MAGNITUDE:
+            raise SceneError(
+                file,
+                f"shape[{i}]",
+                "velocity",
+                f"times the camera shutter {list(camera.shutter)} moves the shape {displacement:.3g} units: "
+                f"{BEYOND_FLOAT32}",
+                list(shape.velocity),
+            )
     lights = [_light(file, i, light) for i, light in enumerate(_array_of_tables(file, doc, "light"))]
     if render.integrator == "whitted":
         for i, light in enumerate(lights):
@@ -413,17 +481,25 @@ def load_scene(path: str | os.PathLike, *, strict: bool = False) -> Scene:
     if path.lower().endswith(".xml"):
         from .mitsuba import load_mitsuba
 
-        doc, warnings = load_mitsuba(path, strict=strict)
+        try:
+            doc, warnings = load_mitsuba(path, strict=strict)
+        except RecursionError:
+            raise SceneError(path, None, None, "elements nested too deeply") from None
         for warning in warnings:
             print(f"wrt: warning: {warning}", file=sys.stderr)
         return parse_scene(doc, file=path, scene_dir=os.path.dirname(os.path.abspath(path)))
     try:
         with open(path, "rb") as f:
-            doc = tomllib.load(f)
+            data = f.read()
     except OSError as e:
         raise WrtError(f"{path}: cannot read scene file ({e.strerror})") from None
+    data = data.removeprefix(UTF8_BOM)  # as Windows editors write it; a second one is text
+    try:
+        doc = tomllib.loads(data.decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise SceneError(path, None, None, f"not valid TOML: {e}") from None
+    except RecursionError:  # tomllib recurses once per level of [ or {
+        raise SceneError(path, None, None, "not valid TOML: arrays or inline tables nested too deeply") from None
     return parse_scene(doc, file=path, scene_dir=os.path.dirname(os.path.abspath(path)))
 
 
