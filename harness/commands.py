@@ -21,7 +21,7 @@ from .references import (
     store_calibration,
 )
 from .run import evaluate, run_matrix
-from .score import max_error, rmse, ssim, z_test
+from .score import check_spp, check_threshold, image_problem, max_error, rmse, size_problem, ssim, z_test
 
 
 def _table(results) -> str:
@@ -97,7 +97,19 @@ def refs_calibrate(names: list[str], device: str) -> int:
 
 
 def compare(a: str, b: str, threshold: float | None) -> int:
+    """Score image ``a`` against ``b``. Refused (``WrtError``): a threshold outside [-1, 1] or NaN,
+    an image with NaN or Inf values or a negative variance, smaller than the SSIM window, of
+    another size than the other, or with a ``wrt:spp`` that is not a whole number >= 1."""
+    if threshold is not None:
+        threshold = check_threshold(threshold, "--threshold")
     image, reference = read_image(a), read_image(b)
+    for path, data in ((a, image), (b, reference)):
+        problem = image_problem(data.rgb, data.aovs.get("variance"))
+        if problem:
+            raise WrtError(f"{path}: cannot be scored: {problem}")
+        problem = size_problem(data.rgb.shape)
+        if problem:
+            raise WrtError(f"{path} {problem}")
     if image.rgb.shape != reference.rgb.shape:
         raise WrtError(
             f"{a} is {image.rgb.shape[1]}x{image.rgb.shape[0]} but {b} is "
@@ -109,16 +121,16 @@ def compare(a: str, b: str, threshold: float | None) -> int:
     if "variance" in reference.aovs and "spp" in image.metadata and "spp" in reference.metadata:
         z = z_test(
             image.rgb,
-            int(image.metadata["spp"]),
+            check_spp(image.metadata["spp"], f"{a}: wrt:spp"),
             reference.rgb,
             reference.aovs["variance"],
-            int(reference.metadata["spp"]),
+            check_spp(reference.metadata["spp"], f"{b}: wrt:spp"),
         )
         print(
             f"Z-test {'pass' if z.passed else 'FAIL'}: min p {z.min_p:.3e}, level {z.threshold:.3e}, {z.rejected} "
             "rejected"
         )
-    if threshold is not None and score < threshold:
+    if threshold is not None and not score >= threshold:
         print(f"FAIL: SSIM {score:.6f} < {threshold}")
         return 1
     return 0

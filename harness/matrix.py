@@ -28,6 +28,8 @@ from wrt.errors import WrtError
 from wrt.loader import override_render, parse_scene
 from wrt.scene import Mesh, Scene
 
+from .score import SSIM_WINDOW, check_threshold
+
 HARNESS_DIR = os.path.dirname(os.path.abspath(__file__))
 FEATURES_FILE = os.path.join(HARNESS_DIR, "features.toml")
 # SSIM of the id images below which the geometry oracle disagrees: exact agreement scores 1; a
@@ -133,13 +135,18 @@ def load_features(path: str = FEATURES_FILE) -> list[Feature]:
                 spp=spp,
                 seed=int(entry.get("seed", 0)),
                 reference_spp=int(entry.get("reference_spp", 64 * spp if spp > 1 else 1)),
-                geometry_threshold=float(entry.get("geometry_threshold", GEOMETRY_THRESHOLD)),
+                geometry_threshold=check_threshold(
+                    entry.get("geometry_threshold", GEOMETRY_THRESHOLD), f"{where}.geometry_threshold"
+                ),
                 wrong=dict(entry.get("wrong", {})),
             )
         except KeyError as e:
             raise WrtError(f"{where}: missing key {e.args[0]!r}") from None
         except (TypeError, ValueError) as e:
             raise WrtError(f"{where}: {e}") from None
+        for key in ("width", "height"):
+            if getattr(feature, key) < SSIM_WINDOW:
+                raise WrtError(f"{where}.{key} = {getattr(feature, key)}: must be >= {SSIM_WINDOW} (the SSIM window)")
         features.append(feature)
     names = [f.name for f in features]
     duplicates = {n for n in names if names.count(n) > 1}

@@ -14,6 +14,11 @@ spread of the batch means gives the per-sample variance, and the two halves of t
 agree by the per-pixel Z-test before anything is stored ("reproduces"). Each file is written
 atomically, so an interrupted regeneration leaves every file old or new; a calibration that does
 not belong to its reference (hash mismatch) is reported, never used.
+
+Corrupt numbers are refused, never scored: a reference with NaN or Inf values or a negative
+variance, a ``wrt:spp`` that is not a whole number >= 1, a calibration that is not a JSON object,
+lacks ``reference_sha256`` or ``ssim_threshold``, or whose threshold is not a finite number in
+[-1, 1] (``score.check_threshold``) is a ``ReferenceError`` naming the file, the key and the value.
 """
 
 from __future__ import annotations
@@ -34,7 +39,7 @@ from wrt.files import write_json
 from wrt.imageio import read_image, write_image
 
 from .matrix import Feature, load_feature_scene, scene_hash
-from .score import ssim, z_test
+from .score import check_spp, check_threshold, image_problem, ssim, z_test
 
 REFERENCE_DIR = str(
     resources.files("wrt_harness.reference_images")
@@ -42,14 +47,15 @@ REFERENCE_DIR = str(
 BATCHES = 32  # independent batches a reference is rendered in (variance estimate with 31 dof)
 REFERENCE_SEED = 1_000_000  # reference batches use seeds from here; test renders use small seeds
 CALIBRATION_SEEDS = (11, 12, 13, 14, 15, 16)
+HALF_MAX = float(np.finfo(np.float16).max)  # the largest RGB value a reference EXR (half float) holds
 CALIBRATION_MARGIN = 0.002  # threshold = min(SSIM) - max(CALIBRATION_MARGIN, 3 std(SSIM))
 
 
 class ReferenceError(WrtError):
     """A reference that is missing, unreadable or does not match its feature."""
 
-    def __init__(self, feature: str, problem: str):
-        super().__init__(f"reference of {feature!r}: {problem}; run: wrt refs regenerate {feature}")
+    def __init__(self, feature: str, problem: str, action: str = "regenerate"):
+        super().__init__(f"reference of {feature!r}: {problem}; run: wrt refs {action} {feature}")
         self.feature = feature
 
 
@@ -102,6 +108,13 @@ def load_reference(feature: Feature, folder: str | None = None, calibration: boo
             f"{p['exr']} is {image.rgb.shape[1]}x{image.rgb.shape[0]} without the expected channels, the matrix wants "
             f"{feature.width}x{feature.height}",
         )
+    problem = image_problem(image.rgb, image.aovs["variance"])
+    if problem:
+        raise ReferenceError(feature.name, f"{p['exr']} is corrupt: {problem}")
+    try:
+        spp = check_spp(image.metadata.get("spp"), f"{p['exr']}: wrt:spp")
+    except WrtError as e:
+        raise ReferenceError(feature.name, str(e)) from None
     if image.metadata.get("scene_hash") != scene_hash(feature):
         raise ReferenceError(
             feature.name, "the scene or the matrix entry changed since the reference was made (scene hash differs)"
@@ -113,18 +126,54 @@ def load_reference(feature: Feature, folder: str | None = None, calibration: boo
                 stored = json.load(f)
         except (OSError, ValueError) as e:
             raise ReferenceError(feature.name, f"{p['json']} is unreadable ({e})") from None
-        if stored.get("reference_sha256") != file_sha256(p["exr"]):
-            raise ReferenceError(
-                feature.name,
-                "its calibration belongs to another reference image (run wrt refs calibrate, or regenerate)",
-            )
+        stored = _checked_calibration(feature, stored, p["json"], p["exr"])
     return Reference(
         rgb=image.rgb,
         variance=image.aovs["variance"],
-        spp=int(image.metadata.get("spp", 0)),
+        spp=spp,
         metadata=image.metadata,
         calibration=stored,
     )
+
+
+_JSON_KINDS = {
+    list: "an array",
+    str: "a string",
+    int: "a number",
+    float: "a number",
+    bool: "a boolean",
+    type(None): "null",
+}
+
+
+def _checked_calibration(feature: Feature, stored, path: str, exr: str) -> dict:
+    """The calibration ``stored`` (read from ``path``), with its ``ssim_threshold`` as a float, if
+    it is an object that belongs to the image ``exr`` and has a usable threshold; else a
+    ``ReferenceError`` naming the file and the key."""
+    if not isinstance(stored, dict):
+        raise ReferenceError(
+            feature.name,
+            f"{path} is not a JSON object (it holds {_JSON_KINDS.get(type(stored), 'something else')})",
+            "calibrate",
+        )
+    for key in ("reference_sha256", "ssim_threshold"):
+        if key not in stored:
+            raise ReferenceError(feature.name, f"{path}: missing key {key!r}", "calibrate")
+    sha = stored["reference_sha256"]
+    if not isinstance(sha, str):
+        raise ReferenceError(
+            feature.name, f"{path}: reference_sha256 = {sha!r}: must be the SHA-256 text of {exr}", "calibrate"
+        )
+    if sha != file_sha256(exr):
+        raise ReferenceError(
+            feature.name,
+            "its calibration belongs to another reference image (run wrt refs calibrate, or regenerate)",
+        )
+    try:
+        threshold = check_threshold(stored["ssim_threshold"], f"{path}: ssim_threshold")
+    except WrtError as e:
+        raise ReferenceError(feature.name, str(e), "calibrate") from None
+    return {**stored, "ssim_threshold": threshold}
 
 
 def render_reference(
@@ -147,11 +196,17 @@ def render_reference(
     total = per_batch * batches
     variance = np.zeros_like(mean)
     if batches > 1:
-        # per-sample variance pooled within the two halves (disjoint seeds), then the halves
-        # must agree within it: a reference that depends on its seeds is not stored
+        # per-sample variance pooled within the two halves (disjoint seeds)
         half = batches // 2
         first, second = means[:half], means[half:]
         variance = 0.5 * (first.var(axis=0, ddof=1) + second.var(axis=0, ddof=1)) * per_batch
+    problem = image_problem(mean, variance)
+    if not problem and np.abs(mean).max() > HALF_MAX:  # stored as half float: it would read back as Inf
+        problem = f"RGB exceeds the half-float range ({np.abs(mean).max():.3g} > {HALF_MAX:.0f})"
+    if problem:
+        raise WrtError(f"feature {feature.name!r}: the reference cannot be stored: {problem}; nothing was written")
+    if batches > 1:
+        # the halves must agree within their noise: a reference that depends on its seeds is not stored
         check = z_test(
             first.mean(axis=0), per_batch * half, second.mean(axis=0), variance, per_batch * (batches - half)
         )
@@ -181,7 +236,15 @@ def calibrate(feature: Feature, reference: Reference, device: str = "cpu", threa
     """Render the feature at its test spp with ``CALIBRATION_SEEDS`` and set its SSIM threshold
     under the spread: ``min - max(CALIBRATION_MARGIN, 3 std)``."""
     seeds = CALIBRATION_SEEDS if feature.stochastic else CALIBRATION_SEEDS[:1]
-    scores = [ssim(render_feature(feature, seed=s, device=device, threads=threads).rgb, reference.rgb) for s in seeds]
+    scores = []
+    for seed in seeds:
+        rgb = render_feature(feature, seed=seed, device=device, threads=threads).rgb
+        problem = image_problem(rgb)
+        if problem:
+            raise WrtError(
+                f"feature {feature.name!r}: the calibration render with seed {seed} is not finite: {problem}"
+            )
+        scores.append(ssim(rgb, reference.rgb))
     spread = statistics.stdev(scores) if len(scores) > 1 else 0.0
     margin = max(CALIBRATION_MARGIN, 3.0 * spread)
     return {

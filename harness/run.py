@@ -8,7 +8,9 @@ A feature passes when all hold:
 - SSIM of the ``object_id`` AOV against pyvista's rasterisation >= the geometry threshold;
 - stochastic features: RMSE against the reference falls with spp at N, 4N, 16N with a log-log
   slope of at most ``CONVERGENCE_SLOPE_MAX`` (an unbiased estimator shows about -0.5; one that
-  converges to the wrong image flattens toward 0).
+  converges to the wrong image flattens toward 0);
+- the render is finite: a NaN or Inf pixel fails the feature (it is never scored as black).
+Every comparison is written so that a NaN score fails.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ from wrt.errors import WrtError
 from .matrix import Feature, load_feature_scene
 from .oracle import palette, rasterize_ids
 from .references import ReferenceError, load_reference, render_feature
-from .score import ZTest, convergence_slope, max_error, rmse, ssim, z_test
+from .score import ZTest, convergence_slope, image_problem, max_error, rmse, ssim, z_test
 
 CONVERGENCE_SLOPE_MAX = -0.35
 RERENDER_SEED_OFFSET = 7919  # the 4x re-render draws samples independent of the first render's
@@ -50,7 +52,8 @@ class FeatureResult:
 
 
 def score_render(feature: Feature, rgb: np.ndarray, spp: int, reference, threshold: float) -> tuple[float, ZTest, bool]:
-    s = ssim(rgb, reference.rgb)
+    """SSIM (NaN for a render with NaN or Inf values, which fails), the Z-test, and whether both pass."""
+    s = float("nan") if image_problem(rgb) else ssim(rgb, reference.rgb)
     z = z_test(rgb, spp, reference.rgb, reference.variance, reference.spp)
     return s, z, s >= threshold and z.passed
 
@@ -83,14 +86,17 @@ def evaluate(feature: Feature, device: str = "cpu", threads: int | None = None, 
         out.rerendered = True
         out.ssim, out.z, ok = score_render(feature, again.rgb, again.spp, reference, threshold)
         rgb = again.rgb
-    if not ok:
+    problem = image_problem(rgb)
+    if problem:
+        out.failures.append(f"render has non-finite values: {problem}")
+    elif not ok:
         out.failures.append(
             f"SSIM {out.ssim:.4f} (threshold {threshold:.4f}), Z-test "
             f"{'pass' if out.z.passed else f'{out.z.rejected} pixel channels rejected'}"
         )
     ids = rasterize_ids(load_feature_scene(feature, wrong))
     out.geometry_ssim = ssim(palette(result.aovs["object_id"]), palette(ids))
-    if out.geometry_ssim < feature.geometry_threshold:
+    if not out.geometry_ssim >= feature.geometry_threshold:
         out.failures.append(f"geometry SSIM {out.geometry_ssim:.4f} < {feature.geometry_threshold}")
     if feature.stochastic and not wrong:
         spps = [feature.spp, 4 * feature.spp, 16 * feature.spp]
@@ -102,7 +108,7 @@ def evaluate(feature: Feature, device: str = "cpu", threads: int | None = None, 
         ]
         slope = convergence_slope(spps, errors)
         out.convergence = {"spp": spps, "rmse": errors, "slope": slope}
-        if slope > CONVERGENCE_SLOPE_MAX:
+        if not slope <= CONVERGENCE_SLOPE_MAX:  # NaN (a non-finite error) fails
             out.failures.append(f"RMSE does not converge: slope {slope:.2f} > {CONVERGENCE_SLOPE_MAX} over spp {spps}")
     out.passed = not out.failures
     out.images = {"render": rgb, "reference": reference.rgb, "ids": result.aovs["object_id"], "raster_ids": ids}

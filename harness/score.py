@@ -21,9 +21,11 @@ from scipy.ndimage import maximum_filter
 from scipy.special import erfc
 from skimage.metrics import structural_similarity
 
+from wrt.errors import WrtError
 from wrt.imageio import srgb_encode
 
 SSIM_DATA_RANGE = 1.0  # tone-mapped images live in [0, 1]
+SSIM_WINDOW = 7  # scikit-image's window: images smaller than 7 x 7 have no SSIM
 Z_TEST_ALPHA = 0.01  # family-wise significance level of the per-pixel test
 # Standard deviation floor of the Z-test: float32 rounding and CPU/CUDA differences make even a
 # noise-free render differ from its reference by this much (absolute + relative to the value).
@@ -34,13 +36,72 @@ Z_FLOOR_REL = 1e-3
 VARIANCE_NEIGHBOURHOOD = 5
 
 
+def check_threshold(value, name: str) -> float:
+    """``value`` as a float if it is a usable SSIM threshold, else a ``WrtError`` naming ``name``
+    (the file and key, or the option) and the value.
+
+    The one check of every threshold the harness reads: a calibration's ``ssim_threshold``, a
+    feature's ``geometry_threshold``, ``wrt compare --threshold``. A threshold must be a finite
+    number in [-1, 1], SSIM's range: ``-inf`` or anything under -1 would pass every image, NaN
+    (``score >= nan`` is false, ``score < nan`` too) would fail or pass every image depending on
+    how the comparison is written, and anything over 1 would fail every image.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not -1.0 <= value <= 1.0:
+        raise WrtError(f"{name} = {value!r}: must be a finite number in [-1, 1] (the range of SSIM)")
+    return float(value)
+
+
+def check_spp(value, name: str) -> int:
+    """``value`` (an int, or its decimal text as PNG metadata stores it) as an int >= 1, else a
+    ``WrtError`` naming ``name`` and the value: the Z-test divides by the spp."""
+    if isinstance(value, str) and value.strip().isdigit():
+        value = int(value)
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise WrtError(f"{name} = {value!r}: must be a whole number of samples >= 1")
+    return value
+
+
+def image_problem(rgb: np.ndarray, variance: np.ndarray | None = None) -> str | None:
+    """What makes an image unfit to be scored, or None when it is clean: NaN or Inf values in the
+    RGB or the variance (SSIM would count a NaN pixel as black, the Z-test would skip it), or a
+    negative variance (the Z-test would clamp it to 0)."""
+    problems = []
+    for name, values in (("RGB", rgb), ("variance", variance)):
+        if values is None:
+            continue
+        values = np.asarray(values)
+        counts = [(np.isnan(values).sum(), "NaN"), (np.isinf(values).sum(), "Inf")]
+        if name == "variance":
+            counts.append(((values < 0).sum(), "negative"))
+        found = [f"{int(n)} {what}" for n, what in counts if n]
+        if found:
+            problems.append(f"{name} has {', '.join(found)} of {values.size} values")
+    return "; ".join(problems) or None
+
+
+def size_problem(shape: tuple) -> str | None:
+    """Why an image of ``shape`` (H, W, ...) has no SSIM, or None."""
+    if min(shape[:2]) < SSIM_WINDOW:
+        return f"is {shape[1]}x{shape[0]}, smaller than the {SSIM_WINDOW}x{SSIM_WINDOW} SSIM window"
+    return None
+
+
 def ssim(image: np.ndarray, reference: np.ndarray) -> float:
     """SSIM of two linear RGB images (H, W, 3), at least 7 x 7, after tone mapping to sRGB in [0, 1]
-    (7 x 7 Gaussian-free uniform windows, scikit-image's defaults)."""
+    (7 x 7 Gaussian-free uniform windows, scikit-image's defaults).
+
+    Both images must be finite (``image_problem``): tone mapping would turn a NaN pixel into black
+    and score it as if it were clean; callers check their inputs and report them first.
+    """
     if image.shape != reference.shape:
         raise ValueError(f"image shape {image.shape} differs from reference shape {reference.shape}")
-    if min(image.shape[:2]) < 7:
-        raise ValueError(f"SSIM needs images of at least 7 x 7 pixels, got {image.shape[1]} x {image.shape[0]}")
+    problem = size_problem(image.shape)
+    if problem:
+        raise ValueError(f"SSIM needs images of at least 7 x 7 pixels: the image {problem}")
+    for name, values in (("image", image), ("reference", reference)):
+        problem = image_problem(values)
+        if problem:
+            raise ValueError(f"SSIM of a non-finite {name}: {problem}")
     return float(
         structural_similarity(srgb_encode(image), srgb_encode(reference), channel_axis=-1, data_range=SSIM_DATA_RANGE)
     )
@@ -83,7 +144,9 @@ def z_test(image: np.ndarray, spp: int, reference: np.ndarray, ref_variance: np.
     variance shows), and its standard error ``sqrt(var/4 (1/spp + 1/ref_spp))``, floored by
     ``Z_FLOOR_ABS + Z_FLOOR_REL |reference|``. Every block and channel is a two-sided test; the
     family is controlled by Bonferroni (level ``Z_TEST_ALPHA / n``), so noise alone fails the
-    whole image with probability under 1%, while a shifted mean fails it.
+    whole image with probability under 1%, while a shifted mean fails it. A block whose p-value is
+    NaN (a NaN or Inf in the image, the reference or its variance) counts as rejected: corrupt
+    numbers never pass.
     """
     image, reference = bin2x2(image), bin2x2(reference)
     diff = image - reference
@@ -93,12 +156,14 @@ def z_test(image: np.ndarray, spp: int, reference: np.ndarray, ref_variance: np.
     sigma = np.sqrt(var + (Z_FLOOR_ABS + Z_FLOOR_REL * np.abs(reference)) ** 2)
     p = erfc(np.abs(diff / sigma) / np.sqrt(2.0))
     threshold = Z_TEST_ALPHA / p.size
-    rejected = int((p < threshold).sum())
+    rejected = int(np.count_nonzero(~(p >= threshold)))  # NaN p: rejected
     return ZTest(passed=rejected == 0, min_p=float(p.min()), threshold=threshold, rejected=rejected)
 
 
 def convergence_slope(spps: list[int], errors: list[float]) -> float:
     """Least-squares slope of log(error) against log(spp): about -0.5 for an unbiased Monte Carlo
-    estimator whose error is dominated by its own noise."""
+    estimator whose error is dominated by its own noise. NaN when an error is NaN or Inf."""
+    if not np.all(np.isfinite(errors)):
+        return float("nan")
     x, y = np.log(np.asarray(spps, float)), np.log(np.maximum(np.asarray(errors, float), 1e-30))
     return float(np.polyfit(x, y, 1)[0])
