@@ -351,6 +351,12 @@ scalars = st.one_of(
             "dielectric",
             "a\x00b",
             "../../etc/passwd",
+            1e-40,  # denormal (issue 13: a look_at a denormal away from the origin)
+            -5e-324,
+            1e18,  # the loader's number limit, and just past it
+            1.0000001e18,
+            3e38,
+            "\x1b[31m\x07",  # terminal control characters
         ]
     ),
     st.text(max_size=12),
@@ -410,8 +416,10 @@ def assert_clean(load):
 @given(doc=mutated_scenes())
 def test_fuzz_mutated_scene_documents(doc):
     scene = assert_clean(lambda: parse_scene(doc, file="fuzz.toml", scene_dir=str(MESHES)))
-    if scene is not None:  # whatever loads is usable: finite camera, finite float32 geometry
+    if scene is not None:  # whatever loads is usable: finite camera, and it renders a finite image
         assert all(math.isfinite(c) for c in (*scene.camera.origin, *scene.camera.look_at, scene.camera.fov))
+        small = wrt.loader.override_render(scene, width=4, height=3, spp=1)
+        assert np.isfinite(wrt.render(small, specialize=False).rgb).all()
 
 
 GOOD_TEXT = (EXAMPLES / "showcase.toml").read_text().replace("torus_knot.ply", "tetra.obj")
@@ -428,6 +436,7 @@ def mutated_texts(draw):
             + draw(
                 st.sampled_from(
                     ["", "[", "]", "=", '"', "\n", "nan", "-", "[[shape]]\n", "type = ", "0", "1e400", "\x00"]
+                    + ["\ufeff", "\x1b", "\x07", "1e-40", "3e38", "[" * 3000, "{a=" * 2000]  # issue 13
                 )
                 | st.text(max_size=6)
             )
