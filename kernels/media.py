@@ -131,6 +131,17 @@ def dielectric_interface(
 
 
 @wp.func
+def current_ior(materials: MaterialData, exterior_ior: float, media: Media, n_media: wp.int32) -> float:
+    """Index of refraction of the medium a ray with stack ``media`` is in.
+
+    Refraction scales radiance by ``(n1 / n2)^2`` (``wrt.kernels.materials.specular_lobes``), so a
+    path's throughput carries ``(n_camera / n_current)^2``: decisions on how much a path still
+    matters (roulette, whitted's cut and branch order) multiply it back by
+    ``(current_ior / n_camera)^2``, as pbrt-v4's ``etaScale`` does."""
+    return medium_ior(materials, exterior_ior, media, current_medium(materials, media, n_media))
+
+
+@wp.func
 def medium_sigma(materials: MaterialData, media: Media, n_media: wp.int32) -> wp.vec3:
     """Absorption coefficient (per unit length) of the medium a ray with stack ``media`` is in; 0
     in the exterior medium."""

@@ -44,7 +44,7 @@ from .materials import (
     bsdf_sample,
     non_specular,
 )
-from .media import MEDIA_OVERFLOW, dielectric_interface, max_component, medium_sigma, medium_transmittance
+from .media import MEDIA_OVERFLOW, current_ior, dielectric_interface, max_component, medium_sigma, medium_transmittance
 from .record import (
     REFLECTED,
     REFRACTED,
@@ -184,7 +184,6 @@ def make_path_radiance(record: bool, features: Features = ALL):
         prim = ray.prim
         radiance = wp.vec3(0.0)
         beta = wp.vec3(1.0)
-        eta_scale = float(1.0)  # product of 1 / eta^2 over refractions: roulette ignores radiance scaling
         depth = int(1)
         media = settings.camera_media  # the camera may be inside glass or water
         n_media = settings.camera_n_media
@@ -286,7 +285,6 @@ def make_path_radiance(record: bool, features: Features = ALL):
                 if (bs.flags & BSDF_TRANSMISSION) != 0:
                     media = media_t
                     n_media = n_media_t
-                    eta_scale = eta_scale / (eta * eta)
                     straight = eta == 1.0  # index-matched: straight on
                     segment_kind = wp.where(straight, STRAIGHT, REFRACTED)
             else:
@@ -304,7 +302,12 @@ def make_path_radiance(record: bool, features: Features = ALL):
                 t_from = 0.0
                 t_last = 0.0
                 if depth > RR_DEPTH:
-                    q = wp.min(max_component(beta) * eta_scale, 0.95)
+                    n_ratio = float(1.0)  # the throughput without the eta^2 radiance scaling
+                    if wp.static(features.dielectric):
+                        n_ratio = current_ior(materials, settings.exterior_ior, media, n_media) / current_ior(
+                            materials, settings.exterior_ior, settings.camera_media, settings.camera_n_media
+                        )
+                    q = wp.min(max_component(beta) * n_ratio * n_ratio, 0.95)
                     if sample_1d(sampler, ray.pixel, ray.sample, bounce_dim(depth, 3)) >= q:
                         break
                     beta = beta / q

@@ -15,9 +15,10 @@ Per camera ray, a ray tree is traced depth first with an explicit stack of pendi
 
 Depth: the camera ray is segment 1, each reflected, refracted or shadow ray one more; nothing is
 traced past ``max_depth`` segments (so direct light needs ``max_depth >= 2``). A branch whose
-throughput falls below ``min_throughput`` (largest channel) is cut. At a dielectric the heavier
-branch is followed first and the lighter one deferred; when a path ends, the heaviest deferred
-branch is resumed. At most ``BRANCHES`` wait, and when they are full the lightest branch
+throughput falls below ``min_throughput`` (largest channel, without the ``eta^2`` radiance
+scaling of refractions: see ``wrt.kernels.media.current_ior``) is cut. At a dielectric the
+heavier branch is followed first and the lighter one deferred; when a path ends, the heaviest
+deferred branch is resumed. At most ``BRANCHES`` wait, and when they are full the lightest branch
 (deferred or new) is dropped, so the energy lost to the bound is the smallest available. A camera
 ray's whole tree stops at ``MAX_SEGMENTS`` segments (light trapped by total internal reflection
 with a tiny ``min_throughput`` can reach it; what is left then is the lightest).
@@ -63,6 +64,7 @@ from .materials import (
 from .media import (
     MEDIA,
     MEDIA_OVERFLOW,
+    current_ior,
     dielectric_interface,
     max_component,
     medium_sigma,
@@ -79,24 +81,25 @@ MAX_SEGMENTS = wp.constant(4096)  # hard stop per camera ray, whatever happens (
 BranchVec3 = wp.types.matrix(shape=(BRANCHES, 3), dtype=float)
 BranchMedia = wp.types.matrix(shape=(BRANCHES, MEDIA), dtype=wp.int32)
 BranchInt = wp.types.vector(length=BRANCHES, dtype=wp.int32)
+BranchFloat = wp.types.vector(length=BRANCHES, dtype=float)
 
 
 @wp.func
-def lightest_branch(throughput: BranchVec3, count: wp.int32) -> wp.int32:
-    """Index of the deferred branch with the smallest throughput (largest channel)."""
+def lightest_branch(weight: BranchFloat, count: wp.int32) -> wp.int32:
+    """Index of the deferred branch of smallest weight."""
     best = int(0)
     for k in range(1, count):
-        if max_component(throughput[k]) < max_component(throughput[best]):
+        if weight[k] < weight[best]:
             best = k
     return best
 
 
 @wp.func
-def heaviest_branch(throughput: BranchVec3, count: wp.int32) -> wp.int32:
-    """Index of the deferred branch with the largest throughput (largest channel)."""
+def heaviest_branch(weight: BranchFloat, count: wp.int32) -> wp.int32:
+    """Index of the deferred branch of largest weight."""
     best = int(0)
     for k in range(1, count):
-        if max_component(throughput[k]) > max_component(throughput[best]):
+        if weight[k] > weight[best]:
             best = k
     return best
 
@@ -185,9 +188,12 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
         n_media = settings.camera_n_media
         n_pending = int(0)
         if wp.static(features.specular):
+            # a branch's weight: its throughput's largest channel without the eta^2 scaling
+            n_camera = current_ior(materials, settings.exterior_ior, media, n_media)
             pending_origin = BranchVec3()
             pending_dir = BranchVec3()
             pending_throughput = BranchVec3()
+            pending_weight = BranchFloat()
             pending_depth = BranchInt()
             pending_media = BranchMedia()
             pending_n_media = BranchInt()
@@ -276,23 +282,21 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                             lobes = specular_lobes(materials, hit.material, hit.n_facing, hit.wo, eta)
                             reflected = wp.cw_mul(throughput, lobes.reflectance)
                             transmitted = wp.cw_mul(throughput, lobes.transmittance)
-                            keep_r = (
-                                max_component(reflected) > 0.0 and max_component(reflected) >= settings.min_throughput
-                            )
-                            keep_t = (
-                                lobes.refracts
-                                and max_component(transmitted) > 0.0
-                                and max_component(transmitted) >= settings.min_throughput
-                            )
+                            n_r = current_ior(materials, settings.exterior_ior, media, n_media) / n_camera
+                            n_t = current_ior(materials, settings.exterior_ior, media_t, n_media_t) / n_camera
+                            weight_r = max_component(reflected) * n_r * n_r
+                            weight_t = max_component(transmitted) * n_t * n_t
+                            keep_r = weight_r > 0.0 and weight_r >= settings.min_throughput
+                            keep_t = lobes.refracts and weight_t > 0.0 and weight_t >= settings.min_throughput
                             # Follow the heavier branch now and defer the lighter one. A full stack
                             # evicts its lightest entry if the new one is heavier, else drops the new one.
                             if keep_r and keep_t:
-                                defer_reflected = max_component(reflected) < max_component(transmitted)
-                                weight = wp.min(max_component(reflected), max_component(transmitted))
+                                defer_reflected = weight_r < weight_t
+                                weight = wp.min(weight_r, weight_t)
                                 slot_new = n_pending
                                 if n_pending == BRANCHES:
-                                    slot_new = lightest_branch(pending_throughput, n_pending)
-                                    if max_component(pending_throughput[slot_new]) >= weight:
+                                    slot_new = lightest_branch(pending_weight, n_pending)
+                                    if pending_weight[slot_new] >= weight:
                                         slot_new = -1
                                 else:
                                     n_pending += 1
@@ -301,6 +305,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                                     pending_origin[slot_new] = spawn_origin(hit.p, hit.n, hit.err, w)
                                     pending_dir[slot_new] = w
                                     pending_throughput[slot_new] = wp.where(defer_reflected, reflected, transmitted)
+                                    pending_weight[slot_new] = weight
                                     pending_media[slot_new] = wp.where(defer_reflected, media, media_t)
                                     pending_n_media[slot_new] = wp.where(defer_reflected, n_media, n_media_t)
                                     pending_depth[slot_new] = depth + 1
@@ -340,7 +345,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                 if wp.static(features.specular):
                     if n_pending == 0:
                         break
-                    k = heaviest_branch(pending_throughput, n_pending)
+                    k = heaviest_branch(pending_weight, n_pending)
                     o = pending_origin[k]
                     d = pending_dir[k]
                     t_from = 0.0
@@ -356,6 +361,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                     pending_origin[k] = pending_origin[n_pending]
                     pending_dir[k] = pending_dir[n_pending]
                     pending_throughput[k] = pending_throughput[n_pending]
+                    pending_weight[k] = pending_weight[n_pending]
                     pending_depth[k] = pending_depth[n_pending]
                     pending_media[k] = pending_media[n_pending]
                     pending_n_media[k] = pending_n_media[n_pending]
