@@ -8,7 +8,8 @@ PLY files are parsed here with numpy rather than by VTK: VTK's ``vtkPLYReader`` 
 crashes the process with a segmentation fault on a truncated binary PLY file or on a face
 index far out of range, which no Python code can catch. A PLY file of triangles never touches
 VTK (nor imports pyvista, which takes a fifth of a second): its arrays are checked and returned
-as they are; polygons with more vertices are triangulated by VTK. Every other format is read by
+as they are; polygons with more vertices are triangulated by VTK. The PLY header is checked as a
+whole before the body is read, and the body must hold exactly what the header declares. Every other format is read by
 pyvista's VTK readers, with their console output silenced and their errors collected.
 """
 
@@ -48,7 +49,10 @@ def load_mesh(path):
     MeshFileError
         If the file is missing, a directory, of an unsupported format, unreadable, corrupt or
         truncated, has no faces, has NaN or infinite vertices, or has a face index outside
-        ``0..V-1``. The message is one line naming `path` and the problem.
+        ``0..V-1``; for PLY also a malformed header (a property declared twice, of an unknown
+        type, a list ``x``, ...), element counts that do not match the body, and faces of fewer
+        than 3 vertices. The message is one line naming `path` and the problem (for an ASCII PLY
+        body, the line).
 
     Notes
     -----
@@ -60,6 +64,7 @@ def load_mesh(path):
     _check_mesh_path(path)
     if path.suffix.lower() == ".ply":
         points, counts, indices = _read_ply(path)
+        _check_face_indices(counts, indices, len(points), path)  # before VTK, which can crash on them
         if len(counts) and np.all(counts == 3):
             return _checked_triangles(points, indices.reshape(-1, 3), path)
         return _triangles(_polydata(points, counts, indices), path)
@@ -208,14 +213,21 @@ def _vtk_message(alert):
     return re.sub(r" \(0x[0-9a-fA-F]+\)", "", useful[0])
 
 
-def _checked_triangles(points, faces, path):
-    """``(vertices, faces)`` of a triangle mesh whose face indices and vertices are valid, else
-    MeshFileError (the checks of ``_triangles``, without VTK)."""
-    outside = np.count_nonzero((faces < 0) | (faces >= len(points)))
-    if outside:
+def _check_face_indices(counts, indices, n_points, path):
+    """Raise MeshFileError, naming the first face at fault, unless every vertex index of the
+    faces (``counts[i]`` indices each, listed in ``indices``) is in ``0..n_points-1``."""
+    outside = np.flatnonzero((indices < 0) | (indices >= n_points))
+    if outside.size:
+        face = int(np.searchsorted(np.cumsum(counts), outside[0], side="right"))
         raise MeshFileError(
-            f"{path}: {outside} of {faces.size} face vertex indices are out of range for {len(points)} vertices"
+            f"{path}: {outside.size} of {indices.size} face vertex indices are out of range for {n_points} vertices"
+            f" (face {face} has {indices[outside[0]]})"
         )
+
+
+def _checked_triangles(points, faces, path):
+    """``(vertices, faces)`` of a triangle mesh whose face indices are valid (`_check_face_indices`)
+    if its vertices are finite, else MeshFileError (the check of ``_triangles``, without VTK)."""
     bad_points = np.count_nonzero(~np.all(np.isfinite(points), axis=1))
     if bad_points:
         raise MeshFileError(f"{path}: {bad_points} of {len(points)} vertices are NaN or infinite")
@@ -262,6 +274,11 @@ def _cell_point_ids(dataset):
 
 
 # --- PLY ------------------------------------------------------------------------------------
+#
+# A PLY file is read in three steps: the header is parsed and then checked as a whole, in one
+# place (`_check_ply_header`), before a byte of the body is read; the body is read against the
+# checked header (ASCII line by line, one element entry per line; binary entry by entry) and must
+# end where the header says it does; the faces are then checked for size and index range.
 
 _PLY_TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
@@ -269,9 +286,12 @@ _PLY_TYPES = {
     "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
     "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
 }  # fmt: skip
-_PLY_ENDIAN = {"binary_little_endian": "<", "binary_big_endian": ">", "ascii": "<"}
-"""Byte order of each PLY encoding; ASCII bodies are re-encoded as little-endian float64."""
+_PLY_ENDIAN = {"binary_little_endian": "<", "binary_big_endian": ">"}
+"""Byte order of each binary PLY encoding."""
+_PLY_ENCODINGS = ("ascii", *_PLY_ENDIAN)
 _PLY_FACE_LISTS = ("vertex_indices", "vertex_index")
+_PLY_MAX_LIST = 2**31
+"""Lists are at most this long (a longer one is a corrupt length field)."""
 
 
 class _PlyError(Exception):
@@ -293,7 +313,18 @@ class _PlyElement:
 
     name: str
     count: int
-    properties: list
+    properties: tuple
+
+
+@dataclass(frozen=True)
+class _PlyHeader:
+    """A checked PLY header: its encoding, its elements, where the body starts (byte offset and
+    line number)."""
+
+    encoding: str
+    elements: tuple
+    body_start: int
+    body_line: int
 
 
 def _read_ply(path):
@@ -308,26 +339,27 @@ def _read_ply(path):
     try:
         return _ply_arrays(data)
     except _PlyError as err:
-        raise MeshFileError(f"{path}: not a readable mesh ({err})") from None
+        raise MeshFileError(f"{path}: not a readable mesh: {err}") from None
 
 
 def _ply_arrays(data):
-    """Vertices, face sizes and flat face vertex indices from the bytes of a PLY file; raise
-    _PlyError if they are malformed."""
-    encoding, elements, body_start = _parse_ply_header(data)
-    if encoding == "ascii":
-        body = _ascii_as_binary(data[body_start:])
-        elements = [_as_float64(element) for element in elements]
+    """Vertices, face sizes (each at least 3) and flat face vertex indices from the bytes of a PLY
+    file; raise _PlyError if they are malformed."""
+    header = _parse_ply_header(data)
+    if header.encoding == "ascii":
+        values = _read_ascii_body(data[header.body_start :], header.elements, header.body_line)
     else:
-        body = memoryview(data)[body_start:]
-    values = _read_ply_body(body, elements, _PLY_ENDIAN[encoding])
-    vertex = values.get("vertex", {})
-    if not all(axis in vertex for axis in "xyz"):
-        raise _PlyError("no 'vertex' element with x, y and z properties")
-    points = np.column_stack([vertex[axis] for axis in "xyz"]).astype(np.float64)
+        values = _read_binary_body(memoryview(data)[header.body_start :], header.elements, header.encoding)
+    vertex = values["vertex"]
+    points = np.column_stack([np.asarray(vertex[axis], dtype=np.float64) for axis in "xyz"])
     face = values.get("face", {})
     counts, indices = next((face[name] for name in _PLY_FACE_LISTS if name in face), ([], []))
-    return points, _integers(counts, "face size"), _integers(indices, "vertex index")
+    counts, indices = _integers(counts, "face size"), _integers(indices, "vertex index")
+    small = np.flatnonzero(counts < 3)
+    if small.size:
+        others = f"; {small.size} faces have fewer than 3" if small.size > 1 else ""
+        raise _PlyError(f"face {small[0]} has {counts[small[0]]} vertices (a face needs at least 3{others})")
+    return points, counts, indices
 
 
 def _polydata(points, counts, indices):
@@ -339,64 +371,234 @@ def _polydata(points, counts, indices):
 
 
 def _parse_ply_header(data):
-    """Return (encoding, elements, offset of the first body byte) from a PLY file's bytes."""
-    if not data.startswith(b"ply"):
-        raise _PlyError("does not start with 'ply'")
+    """The `_PlyHeader` of a PLY file's bytes: its lines parsed, then checked by `_check_ply_header`."""
     end = data.find(b"\nend_header")
+    lines = data[: max(end, 0)].decode("ascii", errors="replace").split("\n")
+    if lines[0].strip() != "ply":
+        raise _PlyError("does not start with 'ply'")
     if end < 0:
         raise _PlyError("no 'end_header' line")
     newline = data.find(b"\n", end + 1)
     body_start = len(data) if newline < 0 else newline + 1
-    encoding, elements = None, []
-    for line in data[:end].decode("ascii", errors="replace").splitlines()[1:]:
+    formats, elements = [], []
+    for number, line in enumerate(lines[1:], start=2):
         words = line.split()
         if not words or words[0] in ("comment", "obj_info"):
             continue
-        if words[0] == "format" and len(words) == 3 and words[1] in _PLY_ENDIAN:
-            encoding = words[1]
-        elif words[0] == "element" and len(words) == 3 and words[2].isdigit():
-            elements.append(_PlyElement(words[1], int(words[2]), []))
-        elif words[0] == "property" and elements:
-            elements[-1].properties.append(_parse_ply_property(words))
+        if words[0] == "format" and len(words) == 3:
+            formats.append(words[1:])
+        elif words[0] == "element" and len(words) == 3 and re.fullmatch(r"[0-9]+", words[2]):
+            elements.append((words[1], int(words[2]), []))
+        elif words[0] == "property" and elements and len(words) == (5 if words[1:2] == ["list"] else 3):
+            elements[-1][2].append(words[1:])
         else:
-            raise _PlyError(f"unexpected header line {line.strip()!r}")
-    if encoding is None:
+            raise _PlyError(f"header line {number}: unexpected {line.strip()!r}")
+    encoding, checked = _check_ply_header(formats, elements, len(data) - body_start)
+    return _PlyHeader(encoding, checked, body_start, data.count(b"\n", 0, body_start) + 1)
+
+
+def _check_ply_header(formats, elements, body_size):
+    """Check a parsed PLY header as a whole; return its encoding and its `_PlyElement` tuple.
+
+    Parameters
+    ----------
+    formats : list of [encoding, version]
+        The words of every ``format`` line.
+    elements : list of (name, count, list of property words)
+        Each ``element`` line with the words after ``property`` of its properties, e.g.
+        ``["float", "x"]`` or ``["list", "uchar", "int", "vertex_indices"]``.
+    body_size : int
+        Bytes after the header: a binary body must hold at least the declared entries.
+
+    Raises _PlyError for: no or several ``format`` lines, an unknown encoding or version; an
+    element declared twice, or with entries but no properties; a property declared twice in an
+    element, of an unknown type, or a list whose length type is not an integer type; no
+    ``vertex`` element, or one without scalar x, y and z; a ``face`` element without exactly one
+    ``vertex_indices`` (or ``vertex_index``) list; a binary body too short for the counts.
+    """
+    if not formats:
         raise _PlyError("no 'format' line")
-    return encoding, elements, body_start
+    if len(formats) > 1:
+        raise _PlyError("a second 'format' line")
+    encoding, version = formats[0]
+    if encoding not in _PLY_ENCODINGS:
+        raise _PlyError(f"unknown format {encoding!r} (known: {', '.join(_PLY_ENCODINGS)})")
+    if version != "1.0":
+        raise _PlyError(f"unsupported PLY version {version!r} (only 1.0 exists)")
+    checked = {}
+    for name, count, declared in elements:
+        if name in checked:
+            raise _PlyError(f"element '{name}' is declared twice")
+        if count and not declared:
+            raise _PlyError(f"element '{name}' has {count} entries but no properties")
+        properties = {}
+        for words in declared:
+            prop, types = words[-1], words[1:-1] if words[0] == "list" else words[:-1]
+            where = f"property '{prop}' of element '{name}'"
+            if prop in properties:
+                raise _PlyError(f"{where} is declared twice")
+            for kind in types:
+                if kind not in _PLY_TYPES:
+                    raise _PlyError(f"{where} has unknown type {kind!r} (known: {', '.join(_PLY_TYPES)})")
+            if words[0] != "list":
+                properties[prop] = _PlyProperty(prop, _PLY_TYPES[types[0]])
+            elif np.dtype(_PLY_TYPES[types[0]]).kind not in "iu":
+                raise _PlyError(f"{where}: list length type {types[0]!r} is not an integer type")
+            else:
+                properties[prop] = _PlyProperty(prop, _PLY_TYPES[types[1]], _PLY_TYPES[types[0]])
+        checked[name] = _PlyElement(name, count, tuple(properties.values()))
+    if "vertex" not in checked:
+        raise _PlyError("no 'vertex' element with x, y and z properties")
+    vertex = {p.name: p for p in checked["vertex"].properties}
+    for axis in "xyz":
+        if axis not in vertex:
+            raise _PlyError(f"element 'vertex' has no property '{axis}' (x, y and z are needed)")
+        if vertex[axis].count_type:
+            raise _PlyError(f"property '{axis}' of element 'vertex' is a list, not a number")
+    if "face" in checked:
+        lists = [p for p in checked["face"].properties if p.name in _PLY_FACE_LISTS]
+        if len(lists) > 1:
+            raise _PlyError("element 'face' has both vertex_indices and vertex_index")
+        if checked["face"].count and not lists:
+            raise _PlyError("element 'face' has no vertex_indices list")
+        if lists and not lists[0].count_type:
+            raise _PlyError(f"property '{lists[0].name}' of element 'face' is not a list")
+    if encoding != "ascii":
+        least = sum(element.count * _ply_entry_bytes(element) for element in checked.values())
+        if least > body_size:
+            raise _PlyError(
+                f"truncated: the header's element counts ({_ply_counts(checked.values())}) need at least {least} "
+                f"bytes, the body has {body_size}"
+            )
+    return encoding, tuple(checked.values())
 
 
-def _parse_ply_property(words):
-    """Parse the words of a ``property`` header line into a _PlyProperty."""
-    if len(words) == 3 and words[1] in _PLY_TYPES:
-        return _PlyProperty(words[2], _PLY_TYPES[words[1]])
-    if len(words) == 5 and words[1] == "list" and words[2] in _PLY_TYPES and words[3] in _PLY_TYPES:
-        return _PlyProperty(words[4], _PLY_TYPES[words[3]], _PLY_TYPES[words[2]])
-    raise _PlyError(f"unexpected header line {' '.join(words)!r}")
+def _ply_entry_bytes(element):
+    """The fewest bytes one binary entry of `element` takes (its lists empty)."""
+    return sum(np.dtype(p.count_type or p.item_type).itemsize for p in element.properties)
 
 
-def _ascii_as_binary(text):
-    """Encode the numbers of an ASCII PLY body as little-endian float64 bytes."""
+def _ply_counts(elements):
+    """The header's element counts as words: ``3 vertex, 1 face``."""
+    return ", ".join(f"{element.count} {element.name}" for element in elements)
+
+
+# --- PLY: ASCII bodies --------------------------------------------------------------------------
+
+
+def _read_ascii_body(body, elements, first_line):
+    """Read an ASCII PLY body, one element entry per (non-blank) line, as the header declares.
+
+    Returns ``{element: {property: values}}`` as `_read_binary_body` does (float64 values).
+    Every line must hold exactly the values its entry takes, and the body exactly the lines the
+    element counts declare; `first_line` is the file's line number of the body's first line.
+    """
+    lines = body.splitlines()
+    sizes = np.fromiter(map(len, map(bytes.split, lines)), dtype=np.int64, count=len(lines))
     try:
-        return np.array(text.split(), dtype="<f8").tobytes()
-    except ValueError as err:
-        raise _PlyError(f"non-numeric value in body: {err}") from None
+        tokens = np.array(body.split(), dtype=np.float64)
+    except ValueError:
+        raise _PlyError(_first_non_number(lines, first_line)) from None
+    rows = np.flatnonzero(sizes)
+    expected = sum(element.count for element in elements)
+    if len(rows) != expected:
+        problem = (
+            f"the header's element counts ({_ply_counts(elements)}) need {expected} lines, the body has {len(rows)}"
+        )
+        raise _PlyError(problem if len(rows) > expected else f"truncated: {problem}")
+    starts = (np.cumsum(sizes) - sizes)[rows]
+    entries = _PlyAsciiEntries(tokens, starts, starts + sizes[rows], first_line + rows)
+    values, row = {}, 0
+    for element in elements:
+        values[element.name] = entries.read(element, row)
+        row += element.count
+    return values
 
 
-def _as_float64(element):
-    """The same element with every value stored as float64, as `_ascii_as_binary` encodes them."""
-    properties = [_PlyProperty(p.name, "f8", p.count_type and "f8") for p in element.properties]
-    return _PlyElement(element.name, element.count, properties)
+@dataclass(frozen=True)
+class _PlyAsciiEntries:
+    """The numbers of an ASCII PLY body and where each entry's line starts and ends in them."""
+
+    tokens: np.ndarray
+    starts: np.ndarray
+    ends: np.ndarray
+    line_numbers: np.ndarray
+
+    def read(self, element, first):
+        """The values of `element`, whose entries are the lines from entry number `first` on."""
+        entries = slice(first, first + element.count)
+        starts, ends = self.starts[entries], self.ends[entries]
+        position, values = starts.copy(), {}
+        for prop in element.properties:
+            missing = np.flatnonzero(position >= ends)
+            if missing.size:
+                i = missing[0]
+                self.fail(first + i, f"{element.name} {i} has {ends[i] - starts[i]} values, it takes more")
+            if prop.count_type:
+                lengths = self.tokens[position]
+                bad = np.flatnonzero(~((lengths >= 0) & (lengths < _PLY_MAX_LIST) & (lengths == np.trunc(lengths))))
+                if bad.size:
+                    i = bad[0]
+                    self.fail(first + i, f"{element.name} {i} has the list length {lengths[i]:g}")
+                lengths = lengths.astype(np.int64)
+                over = np.flatnonzero(position + 1 + lengths > ends)
+                if over.size:
+                    i = over[0]
+                    self.fail(
+                        first + i,
+                        f"{element.name} {i} has a list of {lengths[i]} items, its line holds "
+                        f"{ends[i] - position[i] - 1} more values",
+                    )
+                runs = np.repeat(position + 1 - (np.cumsum(lengths) - lengths), lengths)
+                values[prop.name] = (lengths, self.tokens[runs + np.arange(runs.size)])
+                position += 1 + lengths
+            else:
+                values[prop.name] = self.tokens[position]
+                position += 1
+        extra = np.flatnonzero(position != ends)
+        if extra.size:
+            i = extra[0]
+            self.fail(
+                first + i, f"{element.name} {i} has {ends[i] - starts[i]} values, it takes {position[i] - starts[i]}"
+            )
+        return values
+
+    def fail(self, entry, problem):
+        """Raise _PlyError for the line of `entry`; a problem on the last line may be a truncation."""
+        truncated = "truncated: " if entry == len(self.starts) - 1 else ""
+        raise _PlyError(f"{truncated}line {self.line_numbers[entry]}: {problem}")
 
 
-def _read_ply_body(body, elements, endian):
-    """Read every element of a binary PLY body.
+def _first_non_number(lines, first_line):
+    """The message for the first word of an ASCII body that is not a number."""
+    for i, line in enumerate(lines):
+        for word in line.split():
+            try:
+                float(word)
+            except ValueError:
+                return f"line {first_line + i}: {word.decode('ascii', errors='replace')!r} is not a number"
+    return "a value in the body is not a number"
+
+
+# --- PLY: binary bodies -------------------------------------------------------------------------
+
+
+def _read_binary_body(body, elements, encoding):
+    """Read every element of a binary PLY body, which must end with the last element (a final
+    line break aside).
 
     Returns ``{element: {property: values}}``, where a scalar property's values are an array
     with one entry per element, and a list property's are ``(counts, flat items)``.
     """
-    values, offset = {}, 0
+    values, offset, endian = {}, 0, _PLY_ENDIAN[encoding]
     for element in elements:
         values[element.name], offset = _read_ply_element(body, offset, element, endian)
+    rest = bytes(body[offset:])
+    if rest not in (b"", b"\n", b"\r\n"):
+        raise _PlyError(
+            f"{len(rest)} bytes after the last element: the header's element counts ({_ply_counts(elements)}) "
+            "or property types do not match the data"
+        )
     return values
 
 
@@ -408,9 +610,9 @@ def _read_ply_element(body, offset, element, endian):
     find where each value lies, and the values are then gathered with numpy.
     """
     if element.count == 0:
-        return {p.name: ([], []) if p.count_type else [] for p in element.properties}, offset
-    if not element.properties:
-        raise _PlyError(f"element '{element.name}' has no properties")
+        return {
+            p.name: (np.empty(0, np.int64), np.empty(0)) if p.count_type else np.empty(0) for p in element.properties
+        }, offset
     _, first_lengths, _ = _scan_ply_entries(body, offset, element, endian, 1)
     row = np.dtype(_ply_row_fields(element.properties, first_lengths[0], endian))
     end = offset + element.count * row.itemsize
@@ -471,12 +673,12 @@ def _scan_ply_entries(body, offset, element, endian, count):
         for p in element.properties
     ]
     starts, lengths = [], []
-    for _ in range(count):
+    for index in range(count):
         for item_size, length_field in steps:
             starts.append(offset)
             length = 1
             if length_field:
-                length = _ply_list_length(body, offset, length_field, element)
+                length = _ply_list_length(body, offset, length_field, element, index)
                 lengths.append(length)
                 offset += length_field.size
             offset += length * item_size
@@ -486,14 +688,14 @@ def _scan_ply_entries(body, offset, element, endian, count):
     return np.reshape(starts, shape), np.reshape(np.array(lengths, dtype=np.int64), shape), offset
 
 
-def _ply_list_length(body, offset, length_field, element):
-    """Read the length of a PLY list at byte `offset` and check it is a count."""
+def _ply_list_length(body, offset, length_field, element, index):
+    """Read the length of a PLY list at byte `offset` (in entry `index`) and check it is a count."""
     try:
         (length,) = length_field.unpack_from(body, offset)
     except struct.error:
         raise _PlyError(f"truncated: the file ends inside element '{element.name}'") from None
-    if not (0 <= length < 2**31 and length == int(length)):
-        raise _PlyError(f"element '{element.name}' has a list of length {length}")
+    if not 0 <= length < _PLY_MAX_LIST:
+        raise _PlyError(f"{element.name} {index} has the list length {length}")
     return int(length)
 
 

@@ -54,7 +54,8 @@ def surface_light(geometry: dict, radiance: list[float]) -> dict:
     if geometry["type"] == "sphere":
         return {"type": "sphere", "center": geometry["center"], "radius": geometry["radius"], "radiance": radiance}
     v = np.array(geometry["vertices"])
-    edge_u, edge_v = v[1] - v[0], v[3] - v[0]
+    with np.errstate(all="ignore"):  # far apart vertices: the caller checks the edges are finite
+        edge_u, edge_v = v[1] - v[0], v[3] - v[0]
     return {
         "type": "area",
         "corner": as_list(v[0]),

@@ -7,8 +7,8 @@ import math
 
 import numpy as np
 
-from .transforms import as_list, vertical_fov
-from .xml import Document, Element, Plugin
+from .transforms import as_list, mirrors, vertical_fov
+from .xml import Document, Element, Plugin, parse_number
 
 MAX_DEPTH = 1024
 """wrt's largest ``max_depth``: what Mitsuba's ``max_depth = -1`` (unbounded) becomes."""
@@ -40,17 +40,25 @@ def sensor(doc: Document, element: Element) -> tuple[dict, dict]:
     if p.has("fov") and p.has("focal_length"):
         raise doc.error(element, "give either fov or focal_length, not both")
     if p.has("fov"):
-        fov, axis = p.number("fov", None), p.string("fov_axis", "x")
+        fov, axis = p.number("fov", None, above=0.0, below=180.0), p.string("fov_axis", "x")
+        source, name = p.params["fov"], "fov"
     else:  # 35 mm film equivalent focal length -> diagonal fov (Mitsuba's default: 50mm)
-        focal = p.string("focal_length", "50mm").strip().removesuffix("mm")
+        text = p.string("focal_length", "50mm")
+        source, name = p.params.get("focal_length", element), "focal_length"
         try:
-            fov, axis = math.degrees(2 * math.atan(math.hypot(36.0, 24.0) / (2 * float(focal)))), "diagonal"
-        except ValueError:
-            raise doc.error(element, f"focal_length = {focal!r} is not of the form <x>mm") from None
+            focal = parse_number(text.strip().removesuffix("mm"))
+        except ValueError as e:
+            raise doc.error(source, f"'focal_length' = {text!r} {e} (it must be of the form <x>mm)") from None
+        if not focal > 0:
+            raise doc.error(source, f"'focal_length' = {text!r} must be > 0 mm")
+        fov, axis = math.degrees(2 * math.atan(math.hypot(36.0, 24.0) / (2 * focal))), "diagonal"
     try:
         fov = vertical_fov(fov, axis, render["width"], render["height"])
     except ValueError as e:
         raise doc.error(element, str(e)) from None
+    if not 0.0 < fov < 180.0:  # a fov just inside (0, 180), or a tiny focal length, rounded to an end
+        value = source.attrs.get("value", "")
+        raise doc.error(source, f"'{name}' = {value!r} gives a vertical field of view of {fov:g} degrees")
 
     matrix, lookat = p.transform("to_world")
     camera = camera_pose(doc, element, matrix, lookat)
@@ -79,7 +87,7 @@ def camera_pose(doc: Document, element: Element, matrix: np.ndarray, lookat) -> 
     norms = np.linalg.norm(basis, axis=0)
     if np.any(np.abs(norms - 1.0) > 1e-4):
         doc.warn(element, "the to_world transform scales (Mitsuba refuses this): its scale is dropped")
-    if np.linalg.det(basis) < 0:
+    if mirrors(basis):
         doc.warn(element, "the to_world transform mirrors the image (negative determinant): wrt renders it unmirrored")
     if lookat is not None:
         origin, target, up = lookat

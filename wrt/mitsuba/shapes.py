@@ -10,9 +10,10 @@ import numpy as np
 
 from .bsdfs import DEFAULT_BSDF, Materials
 from .emitters import area_radiance, surface_light
-from .transforms import as_list, transform_point
+from .transforms import as_list, mirrors, transform_point
 from .xml import Document, Element, Plugin
 
+BEYOND_FLOAT64 = "beyond the float64 range (not finite)"
 RECTANGLE = np.array([(-1.0, -1.0, 0.0), (1.0, -1.0, 0.0), (1.0, 1.0, 0.0), (-1.0, 1.0, 0.0)])
 
 
@@ -38,23 +39,29 @@ def shape(doc: Document, materials: Materials, element: Element, shapes: list, l
     for extra in bsdfs[1:] + emitters[1:]:
         doc.warn(extra, "a shape takes one BSDF and one emitter: ignored")
     front = -1.0 if p.boolean("flip_normals", False) else 1.0
-    mirrored = np.linalg.det(matrix[:3, :3]) * front < 0  # winding must be reversed to keep Mitsuba's front
+    mirrored = mirrors(matrix[:3, :3]) != (front < 0)  # winding must be reversed to keep Mitsuba's front
 
     if p.type == "sphere":
-        placed = matrix @ np.diag([*(p.number("radius", 1.0),) * 3, 1.0])
-        placed[:3, 3] = transform_point(matrix, p.vector("center", (0.0, 0.0, 0.0)))
+        radius, center = p.number("radius", 1.0, above=0.0), p.vector("center", (0.0, 0.0, 0.0))
+        with np.errstate(all="ignore"):  # overflow is checked below
+            placed = matrix @ np.diag([radius, radius, radius, 1.0])
+            placed[:3, 3] = transform_point(matrix, center)
+            radius = float(np.linalg.norm(placed[:3, 0]))
+        if not (np.all(np.isfinite(placed)) and np.isfinite(radius)):
+            raise doc.error(element, f"radius, center and to_world place the sphere {BEYOND_FLOAT64}")
         scales = np.linalg.svd(placed[:3, :3], compute_uv=False)
         if scales.max() - scales.min() > 1e-6 * scales.max():
             doc.warn(element, "non-uniform scale: the radius is the to_world x axis scale (as in Mitsuba)")
         if front < 0:
             doc.warn(p.params["flip_normals"], "flip_normals on a sphere is not supported: normals point outward")
-        tables = [{"type": "sphere", "center": as_list(placed[:3, 3]), "radius": float(np.linalg.norm(placed[:3, 0]))}]
+        tables = [{"type": "sphere", "center": as_list(placed[:3, 3]), "radius": radius}]
     elif p.type in ("rectangle", "cube"):
         loops = [RECTANGLE] if p.type == "rectangle" else cube_faces()
-        loops = [loop[::-1] if mirrored else loop for loop in loops]
-        tables = [
-            {"type": "polygon", "vertices": [as_list(transform_point(matrix, v)) for v in loop]} for loop in loops
-        ]
+        with np.errstate(all="ignore"):
+            loops = [[transform_point(matrix, v) for v in (loop[::-1] if mirrored else loop)] for loop in loops]
+        if not np.all(np.isfinite(loops)):
+            raise doc.error(element, f"to_world places the {p.type} {BEYOND_FLOAT64}")
+        tables = [{"type": "polygon", "vertices": [as_list(v) for v in loop]} for loop in loops]
     elif p.type in ("obj", "ply"):
         tables = [mesh(doc, p, matrix)]
     else:
@@ -71,7 +78,10 @@ def shape(doc: Document, materials: Materials, element: Element, shapes: list, l
                     "wrt's area lights reflect no light, but this emitter's "
                     "BSDF reflects in Mitsuba (set its reflectance to 0 to compare)",
                 )
-            lights.append(surface_light(tables[0], radiance))
+            light = surface_light(tables[0], radiance)
+            if not all(np.all(np.isfinite(v)) for v in light.values() if not isinstance(v, str)):
+                raise doc.error(element, f"to_world places the {p.type} light {BEYOND_FLOAT64}")
+            lights.append(light)
             p.finish()
             return
         doc.warn(emitters[0], "an area emitter on this shape becomes emission of its material (front side only)")
@@ -98,7 +108,7 @@ def mesh(doc: Document, p: Plugin, matrix: np.ndarray) -> dict:
         raise doc.error(p.element, "a mesh needs a filename")
     if p.boolean("flip_normals", False):
         doc.warn(p.params["flip_normals"], "flip_normals on a mesh is not supported: the file's winding is kept")
-    if np.linalg.det(matrix[:3, :3]) < 0:
+    if mirrors(matrix[:3, :3]):
         doc.warn(
             p.element,
             "the to_world transform mirrors the mesh: wrt's front side follows the mirrored winding, "

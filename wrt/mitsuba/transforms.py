@@ -30,6 +30,7 @@ def look_at_matrix(origin, target, up) -> np.ndarray:
 def rotation_matrix(axis, angle) -> np.ndarray:
     """4x4 right-handed rotation by ``angle`` degrees about ``axis`` (Mitsuba's ``rotate``)."""
     axis = np.asarray(axis, dtype=np.float64)
+    axis = axis / np.abs(axis).max()  # first, so that the norm of a tiny or huge axis is finite and nonzero
     x, y, z = axis / np.linalg.norm(axis)
     s, c = (0.0 if abs(v) < 1e-15 else v for v in (math.sin(math.radians(angle)), math.cos(math.radians(angle))))
     matrix = np.eye(4)
@@ -70,6 +71,13 @@ def coordinate_system(n: np.ndarray) -> np.ndarray:
     sign = math.copysign(1.0, n[2])
     a = -1.0 / (sign + n[2])
     return np.array([1.0 + sign * n[0] * n[0] * a, sign * n[0] * n[1] * a, -sign * n[0]])
+
+
+def mirrors(basis: np.ndarray) -> bool:
+    """Whether the 3x3 ``basis`` mirrors (negative determinant); its sign without computing the
+    determinant itself, which overflows for large finite scales."""
+    sign, _ = np.linalg.slogdet(basis)
+    return bool(sign < 0)
 
 
 def transform_point(matrix: np.ndarray, p) -> np.ndarray:

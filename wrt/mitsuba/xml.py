@@ -9,6 +9,7 @@ records which ones a converter read so that ``finish`` can report the rest.
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass, field
 from xml.parsers import expat
@@ -43,9 +44,40 @@ HARMLESS = {
 }
 """Parameters read without conversion because they change only the noise or the output file."""
 
+MAX_NESTING = 100
+"""Deepest element nesting read (a real scene nests a handful deep); deeper is an error."""
+
 _REQUIRED = object()
 _PARAMETER = re.compile(r"\$([A-Za-z_][A-Za-z0-9_]*)")
 _SPLIT = re.compile(r"[\s,]+")
+_DECIMAL = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+_INTEGER = re.compile(r"[+-]?[0-9]+")
+_NON_FINITE = ("nan", "inf", "infinity")
+_SINGULAR = 1e-12
+"""A 3x3 transform is singular when its smallest singular value is below this fraction of its largest."""
+
+
+def parse_number(text: str, integer: bool = False):
+    """One number of a scene file: a decimal (``-1``, ``.5``, ``2.5e-3``) or, with ``integer``, a
+    whole number within int64, surrounding spaces allowed.
+
+    Every number of a Mitsuba file goes through here. Raises ValueError, whose message completes
+    "'name' = 'text' ...": NaN and infinities (``nan``, ``inf``, ``1e999``) are "not finite";
+    other spellings Python would take (``1_0``, ``0x10``) are "not a number".
+    """
+    word = text.strip()
+    if integer:
+        if not _INTEGER.fullmatch(word):
+            raise ValueError("is not an integer")
+        if len(word.lstrip("+-")) > 18:
+            raise ValueError("is out of range (integers are at most 18 digits)")
+        return int(word)
+    if not _DECIMAL.fullmatch(word):
+        raise ValueError("is not finite" if word.lower().lstrip("+-") in _NON_FINITE else "is not a number")
+    value = float(word)
+    if not math.isfinite(value):
+        raise ValueError("is not finite (beyond the float64 range)")
+    return value
 
 
 @dataclass(eq=False)
@@ -63,7 +95,12 @@ class Element:
 
 
 def read_xml(path: str) -> Element:
-    """The root element of the XML file ``path`` (``WrtError`` naming the file, line and column)."""
+    """The root element of the XML file ``path`` (``WrtError`` naming the file, line and column).
+
+    Elements nested more than ``MAX_NESTING`` deep are refused (every later step may then recurse
+    safely). Expat expands no external entity and refuses entity expansion that amplifies the input
+    beyond its limits ("billion laughs"), both as malformed XML.
+    """
     try:
         with open(path, "rb") as f:
             data = f.read()
@@ -74,6 +111,10 @@ def read_xml(path: str) -> Element:
     roots: list[Element] = []
 
     def start(tag, attrs):
+        if len(stack) >= MAX_NESTING:
+            raise WrtError(
+                f"{path}:{parser.CurrentLineNumber}: <{tag}> is nested more than {MAX_NESTING} elements deep"
+            )
         element = Element(tag, attrs, parser.CurrentLineNumber)
         (stack[-1].children if stack else roots).append(element)
         stack.append(element)
@@ -108,18 +149,48 @@ class Document:
 
     # --- the file's ids and defaults ----------------------------------------------------------
     def index(self, root: Element) -> None:
-        """Record every element's ``id`` and the root's ``<default>`` parameters (the caller's
-        ``params`` take precedence)."""
-        self._collect_ids(root)
+        """Record every element's ``id`` (each once) and the root's ``<default>`` parameters (the
+        caller's ``params`` take precedence), then refuse reference loops."""
+        for element in _descendants(root):
+            if "id" in element.attrs and element.tag != "ref":
+                first = self.ids.setdefault(element.attrs["id"], element)
+                if first is not element:
+                    raise self.error(
+                        element,
+                        f"id {element.attrs['id']!r} is already the id of {first.describe()} on line {first.line}",
+                    )
         for child in root.children:
             if child.tag == "default":
                 self.params.setdefault(self.attr(child, "name"), self.attr(child, "value"))
+        self._check_references(root)
 
-    def _collect_ids(self, element: Element) -> None:
-        for child in element.children:
-            if "id" in child.attrs and child.tag != "ref":
-                self.ids[child.attrs["id"]] = child
-            self._collect_ids(child)
+    def _check_references(self, root: Element) -> None:
+        """Refuse an element that contains itself through ``<ref>`` elements (a reference to itself,
+        to an element enclosing it, or to one that refers back): converting it would never end.
+
+        A depth-first walk of the elements and their references, without recursion; an element
+        reached again while it is still being walked closes a loop."""
+        walking, done = set(), set()
+        chain, pending = [root], [iter(root.children)]
+        walking.add(id(root))
+        while pending:
+            child = next(pending[-1], None)
+            if child is None:
+                pending.pop()
+                element = chain.pop()
+                walking.discard(id(element))
+                done.add(id(element))
+                continue
+            target = self.ids.get(self.attr(child, "id", "")) if child.tag == "ref" else child
+            if target is None or id(target) in done:
+                continue
+            if id(target) in walking:
+                cycle = chain[next(i for i, e in enumerate(chain) if e is target) :]
+                path = " > ".join(f"{e.describe()} (line {e.line})" for e in cycle)
+                raise self.error(child, f"reference loop: {path} > back to {target.describe()}")
+            walking.add(id(target))
+            chain.append(target)
+            pending.append(iter(target.children))
 
     # --- attribute values ---------------------------------------------------------------------
     def attr(self, element: Element, name: str, default=_REQUIRED):
@@ -135,20 +206,38 @@ class Document:
 
         return _PARAMETER.sub(substitute, element.attrs[name])
 
-    def floats(self, element: Element, text: str | None) -> list[float]:
+    def numbers(self, element: Element, name: str, text: str, counts: tuple[int, ...] | None = None) -> list[float]:
+        """The finite numbers of ``text``, the value of ``name`` (an attribute or a parameter) in
+        ``element``, separated by spaces or commas; as many as one of ``counts`` says, if given."""
+        words = _SPLIT.split(text.strip())
+        values = []
+        for word in words:
+            try:
+                values.append(parse_number(word))
+            except ValueError as e:
+                shown = f"{word!r} " if len(words) > 1 else ""
+                problem = f"'{name}' = {text!r}: {shown}{e}" if shown else f"'{name}' = {text!r} {e}"
+                raise self.error(element, problem) from None
+        if counts is not None and len(values) not in counts:
+            wanted = " or ".join("one" if n == 1 else str(n) for n in counts)
+            raise self.error(element, f"'{name}' = {text!r} must be {wanted} number{'s' * (counts != (1,))}")
+        return values
+
+    def number(self, element: Element, name: str, text: str, integer: bool = False):
+        """The one finite number (or integer) ``text``, the value of ``name`` in ``element``."""
+        if not integer:
+            return self.numbers(element, name, text, (1,))[0]
         try:
-            return [float(t) for t in _SPLIT.split((text or "").strip())]
-        except ValueError:
-            raise self.error(element, f"{text!r} is not a list of numbers") from None
+            return parse_number(text, integer=True)
+        except ValueError as e:
+            raise self.error(element, f"'{name}' = {text!r} {e}") from None
 
     def xyz(self, element: Element, default: float) -> np.ndarray:
         """``x``, ``y``, ``z`` attributes, or ``value`` with one or three numbers."""
         if "value" in element.attrs:
-            values = self.floats(element, self.attr(element, "value"))
-            if len(values) not in (1, 3):
-                raise self.error(element, "value must be one or three numbers")
+            values = self.numbers(element, "value", self.attr(element, "value"), (1, 3))
             return np.array(values * 3 if len(values) == 1 else values)
-        return np.array([self.floats(element, self.attr(element, k, str(default)))[0] for k in "xyz"])
+        return np.array([self.number(element, k, self.attr(element, k, str(default))) for k in "xyz"])
 
     def resolve(self, ref: Element) -> Element:
         target = self.ids.get(self.attr(ref, "id"))
@@ -158,7 +247,11 @@ class Document:
 
     def transform(self, element: Element) -> tuple[np.ndarray, tuple | None]:
         """Compose a ``<transform>``'s operations in Mitsuba's order: each one is applied after
-        those above it (``M = op_n ... op_2 op_1``)."""
+        those above it (``M = op_n ... op_2 op_1``).
+
+        Every operation, and their composition, must be a finite, invertible affine map: a
+        ``scale`` by 0 or a singular ``matrix`` (which flatten space), a ``matrix`` whose bottom
+        row is not ``0 0 0 1``, or operations whose product overflows are errors."""
         matrix, lookat = np.eye(4), None
         for op in element.children:
             if op.tag == "translate":
@@ -170,26 +263,59 @@ class Document:
                 axis = self.xyz(op, 0.0)
                 if not np.any(axis):
                     raise self.error(op, "rotation axis is zero")
-                step = rotation_matrix(axis, self.floats(op, self.attr(op, "angle"))[0])
+                step = rotation_matrix(axis, self.number(op, "angle", self.attr(op, "angle")))
             elif op.tag == "matrix":
-                values = self.floats(op, self.attr(op, "value"))
-                if len(values) not in (9, 16):
-                    raise self.error(op, "matrix needs 16 (or 9) numbers, row by row")
+                values = self.numbers(op, "value", self.attr(op, "value"), (16, 9))
                 step = np.eye(4)
                 n = 4 if len(values) == 16 else 3
                 step[:n, :n] = np.reshape(values, (n, n))
+                if not np.array_equal(step[3], [0.0, 0.0, 0.0, 1.0]):
+                    raise self.error(op, f"{_shown(op)}: the bottom row must be 0 0 0 1 (an affine transform)")
             elif op.tag in ("lookat", "look_at"):
-                origin, target = (np.array(self.floats(op, self.attr(op, k))) for k in ("origin", "target"))
-                up = np.array(self.floats(op, self.attr(op, "up", "0, 0, 0")))
-                with np.errstate(invalid="ignore", divide="ignore"):
+                origin, target = (np.array(self.numbers(op, k, self.attr(op, k), (3,))) for k in ("origin", "target"))
+                up = np.array(self.numbers(op, "up", self.attr(op, "up", "0, 0, 0"), (3,)))
+                with np.errstate(all="ignore"):  # checked below
                     step = look_at_matrix(origin, target, up)
                 if not np.all(np.isfinite(step)):
-                    raise self.error(op, "invalid lookat (origin = target, or up parallel to the view direction)")
+                    raise self.error(
+                        op,
+                        f"{_shown(op)}: invalid lookat (origin = target, up parallel to the view direction, "
+                        "or points too far apart for float64)",
+                    )
                 lookat = (origin, target, up) if len(element.children) == 1 else None
             else:
                 raise self.error(op, f"unknown transform operation inside {element.describe()}")
-            matrix = step @ matrix
+            if _singular(step):
+                raise self.error(op, f"{_shown(op)} makes the transform singular (it flattens space)")
+            with np.errstate(all="ignore"):
+                matrix = step @ matrix
+            if not np.all(np.isfinite(matrix)):
+                raise self.error(element, "the composed transform is not finite (its operations overflow float64)")
+            if _singular(matrix):
+                raise self.error(element, "the composed transform is singular (its scales underflow float64)")
         return matrix, lookat
+
+
+def _descendants(root: Element):
+    """Every element inside ``root``, in file order, without recursion."""
+    pending = list(reversed(root.children))
+    while pending:
+        element = pending.pop()
+        yield element
+        pending.extend(reversed(element.children))
+
+
+def _shown(element: Element) -> str:
+    """An element's attributes as a message shows values: ``'x' = '1', 'y' = '0'``."""
+    return ", ".join(f"'{k}' = {v!r}" for k, v in element.attrs.items())
+
+
+def _singular(matrix: np.ndarray) -> bool:
+    """Whether the 3x3 part of a finite 4x4 transform is singular (or nearly, in float64)."""
+    if not np.all(np.isfinite(matrix)):
+        return False  # reported as not finite
+    scales = np.linalg.svd(matrix[:3, :3], compute_uv=False)
+    return not scales[-1] > scales[0] * _SINGULAR
 
 
 class Plugin:
@@ -219,7 +345,10 @@ class Plugin:
         self.used.add(name)
         element = self.params.get(name)
         if element is not None and element.tag not in tags:
-            raise self.doc.error(element, f"parameter '{name}' of {self.element.describe()} must be a <{tags[0]}>")
+            shown = f" = {element.attrs['value']!r}" if "value" in element.attrs else ""
+            raise self.doc.error(
+                element, f"parameter '{name}'{shown} of {self.element.describe()} must be a <{tags[0]}>"
+            )
         if element is None:
             for nested_name, child in self.nested:
                 if nested_name == name and child.tag == "texture":
@@ -232,17 +361,21 @@ class Plugin:
     def has(self, name: str) -> bool:
         return name in self.params
 
-    def number(self, name: str, default, integer: bool = False):
+    def number(self, name: str, default, integer: bool = False, above: float | None = None, below: float | None = None):
+        """Parameter ``name`` as a finite number (an integer with ``integer``), or ``default`` if
+        absent; with ``above`` / ``below``, it must be greater than / less than those."""
         element = self.value(name, ("integer",) if integer else ("float", "integer"))
         if element is None:
             return default
         text = self.doc.attr(element, "value")
-        try:
-            return int(text) if integer else float(text)
-        except ValueError:
-            raise self.doc.error(
-                element, f"'{name}' = {text!r} is not {'an integer' if integer else 'a number'}"
-            ) from None
+        value = self.doc.number(element, name, text, integer)
+        if (above is not None and not value > above) or (below is not None and not value < below):
+            if above is not None and below is not None:
+                wanted = f"in ({above:g}, {below:g})"
+            else:
+                wanted = f"> {above:g}" if above is not None else f"< {below:g}"
+            raise self.doc.error(element, f"'{name}' = {text!r} must be {wanted}")
+        return value
 
     def boolean(self, name: str, default: bool) -> bool:
         element = self.value(name, ("boolean",))
@@ -265,12 +398,14 @@ class Plugin:
         text = self.doc.attr(element, "value", None)
         if element.tag == "spectrum" and (text is None or ":" in text):
             pairs = _SPLIT.split(text.strip()) if text else [f"0:{default}"]
-            values = self.doc.floats(element, " ".join(pair.partition(":")[2] for pair in pairs))
+            values = self.doc.numbers(element, name, " ".join(pair.partition(":")[2] for pair in pairs))
             self.doc.warn(element, f"spectral data for '{name}' is not supported: using its mean {np.mean(values):.4g}")
             return [float(np.mean(values))] * 3
-        values = self.doc.floats(element, text)
+        if text is None:
+            raise self.doc.error(element, "attribute 'value' is required")
+        values = self.doc.numbers(element, name, text)
         if len(values) not in (1, 3) or (element.tag != "rgb" and len(values) != 1):
-            raise self.doc.error(element, f"'{name}' must be one or three numbers")
+            raise self.doc.error(element, f"'{name}' = {text!r} must be one or three numbers")
         return values * 3 if len(values) == 1 else values
 
     def vector(self, name: str, default) -> np.ndarray:
