@@ -331,7 +331,12 @@ def _render(args) -> int:
             progress=on_pass,
             progress_every=args.checkpoint_every,
             target_error=args.target_error,
+            stop=stop,
         )
+    if result.spp == 0:  # a signal before the first pass ended: no sample to write
+        what = "interrupted" if stop.signum == signal.SIGINT else "terminated"
+        print(f"wrt: {what} before the first pass ended: nothing written", file=sys.stderr)
+        return 128 + stop.signum
     write(result)
     h, w = result.rgb.shape[:2]
     samples = int(result.aovs["spp"].sum()) if "spp" in result.aovs else result.spp * pixels  # adaptive: as taken

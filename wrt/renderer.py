@@ -18,6 +18,7 @@ variants over chosen pixels.
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -275,6 +276,14 @@ def relative_error(rgb_sum: np.ndarray, luminance_sq_sum: np.ndarray, n: int) ->
     return np.sqrt(variance / n) / scale
 
 
+def pass_state(film: Film, first_sample: int) -> list[wp.array]:
+    """The film arrays a pass starting at ``first_sample`` writes (the first pass also the AOVs)."""
+    state = [film.rgb, film.rgb_sum, film.luminance_sq_sum, film.rejected]
+    if first_sample == 0:
+        state += [film.depth, film.normal, film.object_id, film.position]
+    return state
+
+
 def render(
     scene: Scene,
     *,
@@ -286,6 +295,7 @@ def render(
     progress_every: int | None = None,
     target_error: float | None = None,
     specialize: bool | None = None,
+    stop: threading.Event | None = None,
 ) -> RenderResult:
     """Render ``scene`` with its integrator.
 
@@ -321,6 +331,11 @@ def render(
         ``SPECIALIZE_MIN_SAMPLES`` pixel samples (width x height x spp) on: a variant's first
         compilation takes seconds (then Warp's cache serves it), more than a smaller render
         could save, so small renders take the all-features kernel, compiled once for all.
+    stop : threading.Event, optional
+        Set from another thread (a signal handler) to end the render at the next tile boundary
+        on the CPU, without waiting for the pass in flight: that pass is abandoned and its tiles
+        already done are rolled back, so the result holds the passes completed (possibly 0
+        samples) and is the image of that many spp. On CUDA a pass is one launch: it ends first.
 
     Notes
     -----
@@ -352,22 +367,30 @@ def render(
     counts = np.zeros(w * h, dtype=np.int32)  # samples taken by each pixel
     active = None  # adaptive sampling: indices of the pixels still sampled (None: all)
 
-    def run_pass(first_sample: int, pass_spp: int) -> None:
+    def run_pass(first_sample: int, pass_spp: int) -> bool:
+        """One pass; False when ``stop`` abandoned it (the film is then as it was before it)."""
         n = w * h if active is None else len(active)
         on_device = None if active is None else wp.array(active, dtype=wp.int32, device=dev)
         if pool is None:
             device_scene.launch(kernel, 0, n, spp, seed, None, first_sample, pass_spp, on_device)
             wp.synchronize_device(dev)
         else:
+            state = pass_state(device_scene.film, first_sample) if stop is not None else []
+            before = [np.copy(a.numpy()) for a in state]  # CPU arrays: numpy views of the film
+
+            def tile(first: int, count: int) -> bool:
+                if stop is not None and stop.is_set():
+                    return False
+                device_scene.launch(kernel, first, count, spp, seed, None, first_sample, pass_spp, on_device)
+                return True
+
             tiles = [(first, min(TILE_PIXELS, n - first)) for first in range(0, n, TILE_PIXELS)]
-            for future in [
-                pool.submit(
-                    device_scene.launch, kernel, first, count, spp, seed, None, first_sample, pass_spp, on_device
-                )
-                for first, count in tiles
-            ]:
-                future.result()
+            if not all([future.result() for future in [pool.submit(tile, *t) for t in tiles]]):
+                for a, saved in zip(state, before):
+                    a.numpy()[...] = saved
+                return False
         counts[slice(None) if active is None else active] = first_sample + pass_spp
+        return True
 
     def result(done: int, elapsed: float, copy: bool) -> RenderResult:
         take = np.copy if copy else np.asarray
@@ -397,7 +420,9 @@ def render(
             else:
                 n = spp - done if progress is None else pass_size(spp, done, busy, progress_every)
             t2 = time.perf_counter()
-            run_pass(done, n)
+            if not run_pass(done, n):
+                busy += time.perf_counter() - t2
+                break
             done += n
             if schedule is not None and done < spp:
                 pixels = np.arange(w * h) if active is None else active

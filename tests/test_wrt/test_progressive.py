@@ -184,3 +184,32 @@ def test_a_signal_writes_the_samples_done_and_exits_128_plus_it(tmp_path, sig, c
     assert image.rgb.shape == (48, 64, 3) and np.isfinite(image.rgb).all() and image.rgb.max() > 0
     assert 1 <= image.metadata["spp"] < spp
     assert f"{image.metadata['spp']} spp" in stdout and f"wrote {out}" in stdout
+
+
+def test_stop_mid_pass_rolls_the_pass_back(monkeypatch):
+    """A stop request inside a pass ends the render at the next tile, without waiting for the
+    pass (issue 13: one Ctrl-C in a long pass waited for its end): the tiles of that pass already
+    done are rolled back, so the image is exactly the render with the samples of the passes
+    completed; a stop in the first pass gives 0 samples."""
+    import threading
+
+    monkeypatch.setattr(wrt.renderer, "TILE_PIXELS", 64)
+    scene = path_scene(spp=6)
+    launch = wrt.renderer.DeviceScene.launch
+    for stop_in_pass, samples in ((2, 2), (0, 0)):
+        stop, calls = threading.Event(), []
+
+        def counted(self, kernel, first, count, spp, seed, rec=None, first_sample=0, *args):
+            calls.append(first_sample)
+            if calls.count(stop_in_pass) == 2:  # the second tile of that pass is under way
+                stop.set()
+            return launch(self, kernel, first, count, spp, seed, rec, first_sample, *args)
+
+        monkeypatch.setattr(wrt.renderer.DeviceScene, "launch", counted)
+        result = wrt.render(scene, threads=1, progress=lambda *a: True, progress_every=2, stop=stop)
+        monkeypatch.setattr(wrt.renderer.DeviceScene, "launch", launch)
+        assert result.spp == samples and calls.count(stop_in_pass) == 2
+        if samples:
+            assert np.array_equal(result.rgb, wrt.render(scene, spp=samples).rgb)
+        else:
+            assert not result.rgb.any() and (result.aovs["object_id"] == 0).all()
