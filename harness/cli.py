@@ -99,9 +99,9 @@ def compare_verb(verbs) -> Run:
 
 def main(argv: list[str] | None = None) -> int:
     """``wrt-harness matrix|refs|compare ...``: the harness's verbs as a command of its own."""
-    from wrt.cli import run_verb
+    from wrt.cli import Parser, run_verb
 
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="wrt-harness", description="wrt's visual regression harness (the same verbs as wrt matrix, refs, compare)"
     )
     verbs = parser.add_subparsers(dest="verb", required=True, metavar="VERB")

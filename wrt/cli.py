@@ -75,20 +75,28 @@ def _aov_list(text: str) -> list[str]:
 PLUGIN_GROUP = "wrt.commands"
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse with the CLI's error convention: a bad option or argument is one escaped line,
+    ``prog: error: <message>`` (``report_error``), and exit code 2; ``--help`` shows the usage."""
+
+    def error(self, message: str):
+        report_error(WrtError(message), prog=self.prog)
+        sys.exit(2)
+
+
 def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
     """The parser, and the run function of each verb; with ``plugins``, the verbs of the
     ``wrt.commands`` entry points too."""
-    parser = argparse.ArgumentParser(
-        prog="wrt", description="wrt: a ray tracer whose rendering runs as NVIDIA Warp kernels."
-    )
+    parser = Parser(prog="wrt", description="wrt: a ray tracer whose rendering runs as NVIDIA Warp kernels.")
     verbs = parser.add_subparsers(dest="verb", metavar="VERB", required=True)
     r = verbs.add_parser(
         "render",
         help="render a scene file to an image",
         description="Render a TOML scene file to an EXR (linear float RGB plus optional AOV channels) or PNG "
         "(tone mapped: clipped to [0, 1], sRGB, 8 bit). Options override the scene's [render] table. With spp > 1 "
-        "it renders in passes of about a second, with a progress bar on a terminal; Ctrl-C stops after the running "
-        "pass and writes the samples done (exit code 130; Ctrl-C again aborts without writing).",
+        "it renders in passes of about a second, with a progress bar on a terminal; Ctrl-C (or SIGTERM) stops at the "
+        "next image tile and writes the samples of the passes done (exit code 130, 143 for SIGTERM; a second signal "
+        "aborts without writing).",
     )
     r.add_argument("scene", help="scene file: .toml (docs/scene-format.md) or Mitsuba 3 .xml (docs/mitsuba.md)")
     r.add_argument("--strict", action="store_true", help="Mitsuba XML: unsupported elements are errors, not warnings")

@@ -170,9 +170,13 @@ def _rotation_z(angle):
 
 def _check_mesh_path(path):
     """Raise MeshFileError unless `path` is an existing regular file of a supported format."""
-    if path.is_dir():
+    try:
+        is_dir, is_file = path.is_dir(), path.is_file()
+    except OSError as e:  # a name too long for the file system, say
+        raise MeshFileError(f"{path}: cannot be opened: {e.strerror or e}") from None
+    if is_dir:
         raise MeshFileError(f"{path}: is a directory, not a mesh file")
-    if not path.is_file():
+    if not is_file:
         raise MeshFileError(f"{path}: no such mesh file")
     if path.suffix.lower() not in MESH_FORMATS:
         raise MeshFileError(

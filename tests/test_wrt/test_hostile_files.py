@@ -667,3 +667,17 @@ def test_fuzz_mitsuba_through_the_cli(capsys, text):
         code, lines = render(capsys, path)
         if code == 2:
             assert str(path) in lines[0]
+
+
+def test_a_mesh_name_too_long_for_the_file_system_is_one_line(tmp_path, capsys):
+    """Found by the loader fuzz test: a `file` of 3000 characters raised OSError (File name too
+    long) from the path check."""
+    scene = tmp_path / "s.toml"
+    scene.write_text(
+        '[camera]\norigin = [0, 0, 5]\nlook_at = [0, 0, 0]\n\n[[shape]]\ntype = "mesh"\nfile = "'
+        + "[" * 3000
+        + '.obj"\n'
+    )
+    assert main(["render", str(scene), "-o", str(tmp_path / "o.png")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot be opened" in err

@@ -313,3 +313,23 @@ def test_the_bound_is_the_same_for_a_python_document():
             },
             file="api.toml",
         )
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["render"],
+        ["render", "s.toml", "-o", "o.png", "--sampler", "\x1b[31mbad\x07"],
+        ["bogus\x1b"],
+        ["stress", "--seed", "x"],
+    ],
+    ids=["missing arguments", "bad choice with control characters", "unknown verb", "not an integer"],
+)
+def test_argparse_errors_are_one_escaped_line(capsys, argv):
+    """Errors argparse itself finds (a missing argument, a bad choice or type) follow the CLI's
+    convention too: one line, control characters escaped, exit 2 (they printed the usage and
+    the raw text)."""
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and err.count("\n") == 1 and ": error: " in err and "\x1b" not in err and "\x07" not in err
