@@ -124,17 +124,25 @@ def load_features(path: str = FEATURES_FILE) -> list[Feature]:
     features = []
     for i, entry in enumerate(doc.get("feature", [])):
         where = f"{path}: feature[{i}]"
+
+        def integer(key, default=None, least=1):
+            """``entry[key]``: an integer (not a float, not a bool) >= ``least``."""
+            value = entry[key] if default is None else entry.get(key, default)
+            if isinstance(value, bool) or not isinstance(value, int) or value < least:
+                raise WrtError(f"{where}.{key} = {value!r}: must be an integer >= {least}")
+            return value
+
         try:
-            spp = int(entry.get("spp", 1))
+            spp = integer("spp", 1)
             feature = Feature(
                 name=str(entry["name"]),
                 scene=scene_path(str(entry["scene"]), base),
                 integrator=str(entry["integrator"]),
-                width=int(entry["width"]),
-                height=int(entry["height"]),
+                width=integer("width", least=SSIM_WINDOW),
+                height=integer("height", least=SSIM_WINDOW),
                 spp=spp,
-                seed=int(entry.get("seed", 0)),
-                reference_spp=int(entry.get("reference_spp", 64 * spp if spp > 1 else 1)),
+                seed=integer("seed", 0, least=0),
+                reference_spp=integer("reference_spp", 64 * spp if spp > 1 else 1),
                 geometry_threshold=check_threshold(
                     entry.get("geometry_threshold", GEOMETRY_THRESHOLD), f"{where}.geometry_threshold"
                 ),
@@ -144,9 +152,6 @@ def load_features(path: str = FEATURES_FILE) -> list[Feature]:
             raise WrtError(f"{where}: missing key {e.args[0]!r}") from None
         except (TypeError, ValueError) as e:
             raise WrtError(f"{where}: {e}") from None
-        for key in ("width", "height"):
-            if getattr(feature, key) < SSIM_WINDOW:
-                raise WrtError(f"{where}.{key} = {getattr(feature, key)}: must be >= {SSIM_WINDOW} (the SSIM window)")
         features.append(feature)
     names = [f.name for f in features]
     duplicates = {n for n in names if names.count(n) > 1}

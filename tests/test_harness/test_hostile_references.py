@@ -132,6 +132,24 @@ def test_a_geometry_threshold_string_is_refused(tmp_path):
         load_features(str(features))
 
 
+@pytest.mark.parametrize(
+    "key, value",
+    [("spp", "0"), ("spp", "-4"), ("spp", "2.5"), ("width", "7.9"), ("height", "6"), ("reference_spp", "true")],
+)
+def test_feature_counts_and_sizes_must_be_integers_in_range(tmp_path, key, value):
+    """spp below 1 was accepted and 7.9 pixels became 7: counts and sizes are integers, spp >= 1,
+    sizes >= the 7-pixel SSIM window."""
+    entry = {"spp": "4", "width": "16", "height": "16", "reference_spp": "64"} | {key: value}
+    features = tmp_path / "features.toml"
+    features.write_text(
+        '[[feature]]\nname = "x"\nscene = "wrt.examples:raycast/raycast_sphere.toml"\nintegrator = "raycast"\n'
+        + "".join(f"{k} = {v}\n" for k, v in entry.items())
+    )
+    with pytest.raises(WrtError) as e:
+        load_features(str(features))
+    assert f"feature[0].{key} = " in str(e.value) and "must be an integer" in str(e.value), str(e.value)
+
+
 @pytest.mark.parametrize("value", ["nan", "inf", "-inf", "1.5", "-2"])
 def test_compare_refuses_a_threshold_out_of_range(tmp_path, capsys, value):
     """Class 2: ``--threshold nan`` never failed."""
