@@ -18,7 +18,7 @@ import numpy as np
 import tomllib
 
 from .errors import MeshFileError, SceneError, WrtError
-from .meshio import apply_transform, load_mesh
+from .meshio import apply_transform, load_mesh, transform_matrix
 from .scene import (
     DIELECTRIC_SHADOWS,
     FILTERS,
@@ -328,13 +328,19 @@ def _mesh(t: _Table, scene_dir: str, material: int) -> Mesh:
         if scale == 0.0:
             raise tt.error("scale", "must be nonzero", scale)
     rotate = tt.vec3("rotate", (0.0, 0.0, 0.0))
+    matrix = tt.get("matrix", None)
+    if matrix is not None:
+        try:
+            transform_matrix(matrix=matrix)
+        except ValueError as e:
+            raise tt.error("matrix", str(e).removeprefix("matrix "), matrix) from None
     tt.finish()
     path = os.path.join(scene_dir, name)
     try:
         vertices, faces = load_mesh(path)
     except MeshFileError as e:
         raise t.error("file", str(e), name) from None
-    vertices = apply_transform(vertices, translate=translate, scale=scale, rotate=rotate)
+    vertices = apply_transform(vertices, translate=translate, scale=scale, rotate=rotate, matrix=matrix)
     if not np.all(np.abs(vertices) <= MAX_MAGNITUDE):
         raise t.error("file", f"vertices (after the transform) {BEYOND_FLOAT32}", name)
     return Mesh(file=path, vertices=vertices, faces=faces, material=material)

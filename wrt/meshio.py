@@ -71,7 +71,7 @@ def load_mesh(path):
     return _triangles(_read_with_vtk(path), path)
 
 
-def transform_matrix(*, translate=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0), rotate=(0.0, 0.0, 0.0)):
+def transform_matrix(*, translate=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0), rotate=(0.0, 0.0, 0.0), matrix=None):
     """Build the object-to-world matrix of the scene format.
 
     Parameters
@@ -83,17 +83,22 @@ def transform_matrix(*, translate=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0), rotate
     rotate : sequence of 3 float, default (0, 0, 0)
         Angles in degrees about the world X, then Y, then Z axis. Each rotation is
         right-handed: counter-clockwise when looking down the axis toward the origin.
+    matrix : array_like, shape (4, 4) or (16,), optional
+        Any invertible affine matrix A (row-major, as Mitsuba writes ``<matrix>``: the last
+        row is 0 0 0 1), applied to the object before the others: shear and non-uniform scale
+        included.
 
     Returns
     -------
     numpy.ndarray of float64, shape (4, 4)
-        M = T Rz Ry Rx S acting on column vectors ``(x, y, z, 1)``: a point p maps to
-        ``p' = T + Rz Ry Rx (S p)``, i.e. scale first, then rotate, then translate.
+        M = T Rz Ry Rx S A acting on column vectors ``(x, y, z, 1)``: a point p maps to
+        ``p' = T + Rz Ry Rx (S (A p))``, i.e. the matrix first, then scale, rotate, translate.
 
     Raises
     ------
     ValueError
-        If an argument has the wrong number of components or a non-finite component.
+        If an argument has the wrong number of components or a non-finite component, or the
+        matrix is not affine or not invertible.
 
     Notes
     -----
@@ -104,23 +109,45 @@ def transform_matrix(*, translate=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0), rotate
     t = _vector3("translate", translate)
     s = _vector3("scale", scale if np.ndim(scale) else (scale,) * 3)
     rx, ry, rz = np.radians(_vector3("rotate", rotate))
-    matrix = np.eye(4)
-    matrix[:3, :3] = _rotation_z(rz) @ _rotation_y(ry) @ _rotation_x(rx) @ np.diag(s)
-    matrix[:3, 3] = t
-    return matrix
+    out = np.eye(4)
+    out[:3, :3] = _rotation_z(rz) @ _rotation_y(ry) @ _rotation_x(rx) @ np.diag(s)
+    out[:3, 3] = t
+    return out if matrix is None else out @ _affine(matrix)
 
 
-def apply_transform(vertices, *, translate=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0), rotate=(0.0, 0.0, 0.0)):
-    """Map object-space vertices to world space: ``p' = T + Rz Ry Rx (S p)``.
+def _affine(matrix) -> np.ndarray:
+    """``matrix`` (16 numbers, row-major, or 4 rows of 4) as an invertible affine 4x4 matrix, or
+    a ValueError saying what is wrong."""
+    shape = "matrix must be 16 numbers (row-major) or 4 rows of 4 numbers"
+    rows = matrix if isinstance(matrix, (list, tuple)) and len(matrix) == 4 else [matrix]
+    entries = [x for row in rows if isinstance(row, (list, tuple, np.ndarray)) for x in row]
+    if len(entries) != 16 or not all(
+        isinstance(x, (int, float, np.number)) and not isinstance(x, bool) for x in entries
+    ):
+        raise ValueError(shape)
+    a = np.asarray(entries, dtype=np.float64)
+    a = a.reshape(4, 4)
+    if not np.isfinite(a).all():
+        raise ValueError("matrix must have finite entries")
+    if not np.array_equal(a[3], [0.0, 0.0, 0.0, 1.0]):
+        raise ValueError("matrix must be affine: its last row must be 0 0 0 1")
+    linear = a[:3, :3]
+    if not abs(np.linalg.det(linear)) > 1e-12 * max(np.abs(linear).max(), 1e-300) ** 3:
+        raise ValueError("matrix must be invertible (its 3x3 part is singular)")
+    return a
+
+
+def apply_transform(vertices, *, translate=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0), rotate=(0.0, 0.0, 0.0), matrix=None):
+    """Map object-space vertices to world space: ``p' = T + Rz Ry Rx (S (A p))``.
 
     Parameters
     ----------
     vertices : array_like, shape (V, 3)
         Points in object space.
-    translate, scale, rotate
+    translate, scale, rotate, matrix
         As in `transform_matrix`: translation in world units, one or three scale factors,
-        and angles in degrees about world X, then Y, then Z (right-handed). Scale is applied
-        first, then the rotations, then the translation.
+        angles in degrees about world X, then Y, then Z (right-handed), and an affine matrix A.
+        A is applied first, then the scale, the rotations and the translation.
 
     Returns
     -------
@@ -135,8 +162,8 @@ def apply_transform(vertices, *, translate=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0
     points = np.asarray(vertices, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"vertices must have shape (V, 3), got {points.shape}")
-    matrix = transform_matrix(translate=translate, scale=scale, rotate=rotate)
-    return points @ matrix[:3, :3].T + matrix[:3, 3]
+    m = transform_matrix(translate=translate, scale=scale, rotate=rotate, matrix=matrix)
+    return points @ m[:3, :3].T + m[:3, 3]
 
 
 def _vector3(name, value):

@@ -60,6 +60,48 @@ def test_mesh_path_is_relative_to_scene_and_transform_applies(tmp_path):
     np.testing.assert_allclose(scene.shapes[1].vertices, [[0, 0, -2], [0, 2, -2], [-2, 0, -2]], atol=1e-12)
 
 
+SHEAR = [1, 0.5, 0, 3, 0, 2, 0, 0, 0, 0, 1, -1, 0, 0, 0, 1]  # shear x by y, stretch y, move (3, 0, -1)
+
+
+@pytest.mark.parametrize("form", ["flat", "rows"])
+def test_transform_matrix_is_any_affine_map_applied_before_scale_rotate_translate(tmp_path, form):
+    """`transform = { matrix = [16 numbers] }` (row-major, Mitsuba's order; 4 rows of 4 too):
+    shear and non-uniform scale allowed, composed as p' = T + R (S (A p)) (issue 16)."""
+    (tmp_path / "tri.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    matrix = SHEAR if form == "flat" else [SHEAR[4 * r : 4 * r + 4] for r in range(4)]
+    scene = wrt.load_scene(
+        write(
+            tmp_path,
+            GOOD + f'\n[[shape]]\ntype = "mesh"\nfile = "tri.obj"\n'
+            f"transform = {{ matrix = {matrix}, scale = 2.0, translate = [0, 0, 10] }}\n",
+        )
+    )
+    a = np.array(SHEAR, dtype=float).reshape(4, 4)
+    p = np.array([[0, 0, 0, 1], [1, 0, 0, 1], [0, 1, 0, 1]], dtype=float)
+    np.testing.assert_allclose(scene.shapes[1].vertices, 2.0 * (p @ a.T)[:, :3] + [0, 0, 10], atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "matrix, problem",
+    [
+        ([1, 0, 0], "16 numbers"),
+        ([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 1], "affine"),
+        ([1, 2, 3, 0, 2, 4, 6, 0, 0, 0, 1, 0, 0, 0, 0, 1], "invertible"),
+        ([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, "1"], "16 numbers"),
+        ([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, True], "16 numbers"),
+        ([1, 0, 0, "nan", 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1], "nan"),
+    ],
+    ids=["too short", "projective", "singular", "a string", "a boolean", "nan"],
+)
+def test_bad_transform_matrix_is_one_line(tmp_path, capsys, matrix, problem):
+    (tmp_path / "tri.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    text = repr(matrix).replace("'nan'", "nan").replace("True", "true").replace("'", '"')
+    scene = write(tmp_path, GOOD + f'\n[[shape]]\ntype = "mesh"\nfile = "tri.obj"\ntransform = {{ matrix = {text} }}\n')
+    assert main(["render", str(scene), "-o", str(tmp_path / "o.png")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "shape[1].transform.matrix" in err and problem in err, err
+
+
 def test_lights_are_accepted_and_ignored_by_raycast(tmp_path):
     scene = wrt.load_scene(
         write(tmp_path, GOOD + '\n[[light]]\ntype = "point"\nposition = [0, 3, 0]\nintensity = [10, 10, 10]\n')

@@ -16,6 +16,7 @@ CASES = {  # scene: (width, height, spp), each renderer ~3-10 s on 2 cores
     "cornell_box": (32, 32, 4096),
     "glossy_sphere": (64, 48, 2048),
     "thin_lens": (64, 48, 1024),
+    "sheared_mesh": (64, 48, 1024),  # a mesh placed by a general affine to_world matrix (issue 16)
 }
 
 

@@ -4,8 +4,6 @@ sphere, the area or sphere light it becomes."""
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
 from .bsdfs import DEFAULT_BSDF, Materials
@@ -114,31 +112,13 @@ def mesh(doc: Document, p: Plugin, matrix: np.ndarray) -> dict:
             "the to_world transform mirrors the mesh: wrt's front side follows the mirrored winding, "
             "Mitsuba's shading normals do not",
         )
-    face_normals = p.boolean("face_normals", False)
-    if not face_normals and has_vertex_normals(os.path.join(os.path.dirname(doc.path), filename)):
+    if not p.boolean("face_normals", False):
         doc.warn(
             p.element,
-            "Mitsuba interpolates this file's vertex normals, wrt shades with face normals "
-            "(set face_normals = true to compare)",
+            "Mitsuba shades this mesh with interpolated vertex normals (the file's, or computed when it "
+            "has none), wrt with face normals (set face_normals = true to compare)",
         )
     table = {"type": "mesh", "file": filename}
     if not np.array_equal(matrix, np.eye(4)):
-        table["transform"] = {"matrix": [as_list(row) for row in matrix]}
+        table["transform"] = {"matrix": [x for row in matrix for x in as_list(row)]}  # 16 numbers, row-major
     return table
-
-
-def has_vertex_normals(path: str) -> bool:
-    """Whether an OBJ (``vn`` lines) or PLY (``nx`` vertex property) file stores vertex normals;
-    False for a file that cannot be read (the scene loader reports it)."""
-    try:
-        with open(path, "rb") as f:
-            if path.lower().endswith(".obj"):
-                return any(line.startswith(b"vn ") for line in f)
-            for line in f:
-                if line.strip() == b"end_header":
-                    return False
-                if line.startswith(b"property") and line.split()[-1] == b"nx":
-                    return True
-    except OSError:
-        pass
-    return False
