@@ -5,8 +5,8 @@
 ``stratified`` samplers, the ``path`` integrator, the shapes ``sphere``, ``rectangle``, ``cube``,
 ``obj`` and ``ply`` with their ``to_world`` transforms, the BSDFs ``diffuse``, ``conductor``,
 ``roughconductor``, ``dielectric`` and ``twosided``, and the emitters ``area``, ``point``,
-``spot``, ``constant`` and ``directional``. ``<default>`` parameters with ``$name``
-substitution and ``<ref id=...>`` references work as in Mitsuba. The mapping of every element
+``spot``, ``constant`` and ``directional``. ``<include>``, ``<path>``, ``<default>``
+parameters with ``$name`` substitution and ``<ref id=...>`` references work as in Mitsuba. The mapping of every element
 and parameter, the conventions that differ, and every warning are listed in ``docs/mitsuba.md``.
 
 Whatever would make wrt render the converted scene differently from Mitsuba in expectation (an

@@ -56,6 +56,7 @@ def convert(doc: Document, root: Element) -> dict:
     version = root.attrs.get("version", "")
     if not version.split(".")[0].isdigit() or int(version.split(".")[0]) < 2:
         doc.warn(root, f"version {version!r}: only Mitsuba 3 scenes (version 2.0 and later names) are converted")
+    doc.expand(root)
     doc.index(root)
     sensors = [c for c in root.children if c.tag == "sensor"]
     integrators = [c for c in root.children if c.tag == "integrator"]
@@ -73,7 +74,7 @@ def convert(doc: Document, root: Element) -> dict:
             light = emitter(doc, child)
             if light is not None:
                 lights.append(light)
-        elif child.tag not in ("default", "sensor", "integrator", "bsdf", "texture"):
+        elif child.tag not in ("default", "path", "sensor", "integrator", "bsdf", "texture"):
             doc.warn(child, "not supported: ignored")
     exterior = materials.exterior_ior()
     if exterior != 1.0:

@@ -4,6 +4,8 @@ sphere, the area or sphere light it becomes."""
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from .bsdfs import DEFAULT_BSDF, Materials
@@ -118,7 +120,10 @@ def mesh(doc: Document, p: Plugin, matrix: np.ndarray) -> dict:
             "Mitsuba shades this mesh with interpolated vertex normals (the file's, or computed when it "
             "has none), wrt with face normals (set face_normals = true to compare)",
         )
-    table = {"type": "mesh", "file": filename}
+    found = doc.find_file(p.element, filename)
+    if found is None:
+        raise doc.error(p.element, f"no such mesh file {filename!r} {doc.searched(p.element)}")
+    table = {"type": "mesh", "file": os.path.relpath(found, os.path.dirname(doc.path) or ".")}
     if not np.array_equal(matrix, np.eye(4)):
         table["transform"] = {"matrix": [x for row in matrix for x in as_list(row)]}  # 16 numbers, row-major
     return table

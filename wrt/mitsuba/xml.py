@@ -1,15 +1,18 @@
 """Reading a Mitsuba 3 scene file: its elements with their lines, ``$name`` parameters and
 ``<ref>`` ids, typed plugin parameters, transforms, and the reporting every converter uses.
 
-A ``Document`` is one file being read: it resolves attribute values (``<default>`` parameters,
+A ``Document`` is one scene being read: it splices ``<include>``d files in place, keeps the
+``<path>`` folders files are searched in, resolves attribute values (``<default>`` parameters,
 ``params`` given by the caller), references and transforms, and collects the warnings (or, when
-``strict``, raises them). A ``Plugin`` is one plugin element's parameters and nested plugins; it
+``strict``, raises them). Every element remembers its file and line, so messages name the
+fragment a problem is in. A ``Plugin`` is one plugin element's parameters and nested plugins; it
 records which ones a converter read so that ``finish`` can report the rest.
 """
 
 from __future__ import annotations
 
 import math
+import os
 import re
 from dataclasses import dataclass, field
 from xml.parsers import expat
@@ -46,6 +49,9 @@ HARMLESS = {
 
 MAX_NESTING = 100
 """Deepest element nesting read (a real scene nests a handful deep); deeper is an error."""
+
+MAX_INCLUDES = 32
+"""Deepest chain of ``<include>``d files (a loop is refused before it gets there)."""
 
 _REQUIRED = object()
 _PARAMETER = re.compile(r"\$([A-Za-z_][A-Za-z0-9_]*)")
@@ -88,6 +94,7 @@ class Element:
     attrs: dict
     line: int
     children: list = field(default_factory=list)
+    file: str = ""  # the file it was read from (an <include>d fragment, or the scene)
 
     def describe(self) -> str:
         shown = " ".join(f'{k}="{self.attrs[k]}"' for k in ("type", "name", "id") if k in self.attrs)
@@ -115,7 +122,7 @@ def read_xml(path: str) -> Element:
             raise WrtError(
                 f"{path}:{parser.CurrentLineNumber}: <{tag}> is nested more than {MAX_NESTING} elements deep"
             )
-        element = Element(tag, attrs, parser.CurrentLineNumber)
+        element = Element(tag, attrs, parser.CurrentLineNumber, file=path)
         (stack[-1].children if stack else roots).append(element)
         stack.append(element)
 
@@ -136,16 +143,65 @@ class Document:
         self.params = {str(k): str(v) for k, v in params.items()}
         self.warnings: list[str] = []
         self.ids: dict[str, Element] = {}
+        self.search: list[str] = []  # <path> folders, the latest first (as Mitsuba's resolver prepends them)
 
     # --- reporting ----------------------------------------------------------------------------
     def error(self, element: Element, message: str) -> WrtError:
-        return WrtError(f"{self.path}:{element.line}: {element.describe()}: {message}")
+        return WrtError(f"{element.file or self.path}:{element.line}: {element.describe()}: {message}")
 
     def warn(self, element: Element, message: str) -> None:
-        text = f"{self.path}:{element.line}: {element.describe()}: {message}"
+        text = f"{element.file or self.path}:{element.line}: {element.describe()}: {message}"
         if self.strict:
             raise WrtError(text + " (strict import)")
         self.warnings.append(text)
+
+    # --- files: <include> and <path> ----------------------------------------------------------
+    def expand(self, root: Element, chain: tuple[str, ...] = ()) -> None:
+        """Splice every ``<include filename=...>`` in ``root`` into its place (the included
+        ``<scene>``'s children, themselves expanded), as Mitsuba does, and record the ``<path>``
+        folders in document order. A file that includes itself, directly or not, is refused."""
+        chain = chain or (os.path.abspath(root.file or self.path),)
+        for element in [root, *_descendants(root)]:  # the elements before splicing
+            if not any(child.tag in ("include", "path") for child in element.children):
+                continue
+            children = []
+            for child in element.children:
+                if child.tag == "path":
+                    folder = os.path.join(os.path.dirname(child.file or self.path), self.attr(child, "value"))
+                    self.search.insert(0, folder)
+                    children.append(child)
+                elif child.tag == "include":
+                    target = self.find_file(child, self.attr(child, "filename"))
+                    if target is None:
+                        raise self.error(child, f"no such file {self.attr(child, 'filename')!r} {self.searched(child)}")
+                    target = os.path.abspath(target)
+                    if target in chain:
+                        loop = " > ".join(os.path.basename(f) for f in (*chain, target))
+                        raise self.error(child, f"include loop: {loop}")
+                    if len(chain) >= MAX_INCLUDES:
+                        raise self.error(child, f"includes nested more than {MAX_INCLUDES} files deep")
+                    included = read_xml(target)
+                    if included.tag != "scene":
+                        raise WrtError(f"{target}:{included.line}: an included file's root must be <scene>")
+                    self.expand(included, (*chain, target))
+                    children.extend(included.children)
+                else:
+                    children.append(child)
+            element.children = children
+
+    def find_file(self, element: Element, name: str) -> str | None:
+        """The file ``name`` refers to, as Mitsuba's resolver finds it: as given when absolute,
+        else in the ``<path>`` folders (the latest first), then beside the file ``element`` is in,
+        then beside the scene file; None when it is nowhere."""
+        if os.path.isabs(name):
+            return name if os.path.isfile(name) else None
+        folders = [*self.search, os.path.dirname(element.file or self.path), os.path.dirname(self.path)]
+        return next((os.path.join(f, name) for f in folders if os.path.isfile(os.path.join(f, name))), None)
+
+    def searched(self, element: Element) -> str:
+        """Where ``find_file`` looked, for a message."""
+        folders = dict.fromkeys([*self.search, os.path.dirname(element.file or self.path), os.path.dirname(self.path)])
+        return "(searched: " + ", ".join(repr(f or ".") for f in folders) + ")"
 
     # --- the file's ids and defaults ----------------------------------------------------------
     def index(self, root: Element) -> None:
