@@ -18,6 +18,25 @@ init_warp()
 ROOT = Path(__file__).resolve().parent.parent  # the source checkout
 EXAMPLES = ROOT / "examples"
 CAMERA = {"origin": [0.0, 0.0, 5.0], "look_at": [0.0, 0.0, 0.0]}
+GOOD_SCENE = """\
+[render]
+width = 24
+height = 16
+
+[camera]
+origin = [0, 0, 5]
+look_at = [0, 0, 0]
+
+[[material]]
+name = "red"
+albedo = [0.8, 0.1, 0.1]
+
+[[shape]]
+type = "sphere"
+center = [0, 0, 0]
+radius = 1.0
+material = "red"
+"""  # a small valid scene file that the bad-input tests break one key at a time
 
 
 def make_scene(shapes, render=None, camera=None, materials=None, lights=None, scene_dir="."):

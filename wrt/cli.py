@@ -341,8 +341,8 @@ def _render(args) -> int:
             target_error=args.target_error,
             stop=stop,
         )
+    what = "interrupted" if stop.signum == signal.SIGINT else "terminated"  # when a signal came
     if result.spp == 0:  # a signal before the first pass ended: no sample to write
-        what = "interrupted" if stop.signum == signal.SIGINT else "terminated"
         print(f"wrt: {what} before the first pass ended: nothing written", file=sys.stderr)
         return 128 + stop.signum
     write(result)
@@ -362,7 +362,6 @@ def _render(args) -> int:
             file=sys.stderr,
         )
     if stop.is_set():  # a signal, not adaptive sampling's early convergence
-        what = "interrupted" if stop.signum == signal.SIGINT else "terminated"
         print(f"wrt: {what}: wrote the {result.spp} of {scene.render.spp} spp done", file=sys.stderr)
         return 128 + stop.signum
     return 0

@@ -15,7 +15,7 @@ import tempfile
 import numpy as np
 import pytest
 import warp as wp
-from conftest import EXAMPLES
+from conftest import EXAMPLES, GOOD_SCENE
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from wrt.kernels.film import Film
@@ -29,25 +29,7 @@ from wrt.loader import load_scene, parse_scene
 
 MESHES = EXAMPLES / "meshes"
 
-GOOD = """\
-[render]
-width = 24
-height = 16
-
-[camera]
-origin = [0, 0, 5]
-look_at = [0, 0, 0]
-
-[[material]]
-name = "red"
-albedo = [0.8, 0.1, 0.1]
-
-[[shape]]
-type = "sphere"
-center = [0, 0, 0]
-radius = 1.0
-material = "red"
-"""
+GOOD = GOOD_SCENE
 
 
 def mesh_scene(file):

@@ -9,6 +9,7 @@ import os
 import re
 
 import pytest
+from conftest import GOOD_SCENE
 
 import wrt
 import wrt.rayview
@@ -18,25 +19,7 @@ from wrt.cli import _parser, main, run_verb
 from wrt.errors import SceneError, WrtError
 from wrt.loader import load_scene, parse_scene
 
-GOOD = """\
-[render]
-width = 24
-height = 16
-
-[camera]
-origin = [0, 0, 5]
-look_at = [0, 0, 0]
-
-[[material]]
-name = "red"
-albedo = [0.8, 0.1, 0.1]
-
-[[shape]]
-type = "sphere"
-center = [0, 0, 0]
-radius = 1.0
-material = "red"
-"""
+GOOD = GOOD_SCENE
 
 BOM = b"\xef\xbb\xbf"
 # C0 controls, DEL and C1 controls: none of them may reach the terminal raw (a newline ends the line)
