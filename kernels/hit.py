@@ -11,7 +11,6 @@ rays leaving it (``wrt.kernels.spawn``).
 import warp as wp
 
 from .materials import MaterialData
-from .spawn import ray_error
 from .traverse import GeometryData, prim_shape, surface_point
 
 
@@ -22,7 +21,6 @@ class Hit:
     n_facing: wp.vec3  # n flipped to face the incoming ray: dot(n_facing, wo) >= 0
     wo: wp.vec3  # unit direction back along the ray, -d
     err: float  # bound on the distance of p from the true surface (spawn offset)
-    t_err: float  # bound on the error of t along the ray (a ray going straight on resumes past t + t_err)
     shape: wp.int32  # shape index; area and sphere lights follow the [[shape]]s (num_shapes + light)
     material: wp.int32
     entering: bool  # the ray hits the front side (dot(d, n) < 0)
@@ -38,7 +36,6 @@ def surface_hit(
     hit.p = p
     hit.n = n
     hit.err = err
-    hit.t_err = ray_error(o, p, t)
     hit.wo = -d
     hit.entering = wp.dot(d, hit.n) < 0.0
     hit.n_facing = hit.n

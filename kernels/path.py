@@ -56,7 +56,7 @@ from .record import (
 from .sample_warps import power_heuristic
 from .sampling import Sampler, sample_1d, sample_2d
 from .shadow import make_shadow_ray
-from .spawn import spawn_origin
+from .spawn import ray_error, spawn_origin
 from .traverse import NO_HIT, GeometryData, Traversal, traversal
 
 RR_DEPTH = wp.constant(5)
@@ -187,6 +187,9 @@ def make_path_radiance(record: bool, features: Features = ALL):
         depth = int(1)
         media = settings.camera_media  # the camera may be inside glass or water
         n_media = settings.camera_n_media
+        n_camera = float(1.0)  # the ior where the path starts: roulette undoes eta^2 relative to it
+        if wp.static(features.dielectric):
+            n_camera = current_ior(materials, settings.exterior_ior, media, n_media)
         specular = bool(True)
         prev_pdf = float(0.0)
         prev_p = o
@@ -243,7 +246,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
                     if not real:
                         media = media_t
                         n_media = n_media_t
-                        t_from = t + hit.t_err
+                        t_from = t + ray_error(o, hit.p, t)
                         t_last = t
                         segment_kind = STRAIGHT
                         # a shadow ray stops at this surface, so next-event estimation never finds
@@ -295,7 +298,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
 
             # Spawn the next segment; Russian roulette past RR_DEPTH
             if straight:
-                t_from = t + hit.t_err
+                t_from = t + ray_error(o, hit.p, t)
                 t_last = t
             else:
                 o = spawn_origin(hit.p, hit.n, hit.err, d)
@@ -304,9 +307,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
                 if depth > RR_DEPTH:
                     n_ratio = float(1.0)  # the throughput without the eta^2 radiance scaling
                     if wp.static(features.dielectric):
-                        n_ratio = current_ior(materials, settings.exterior_ior, media, n_media) / current_ior(
-                            materials, settings.exterior_ior, settings.camera_media, settings.camera_n_media
-                        )
+                        n_ratio = current_ior(materials, settings.exterior_ior, media, n_media) / n_camera
                     q = wp.min(max_component(beta) * n_ratio * n_ratio, 0.95)
                     if sample_1d(sampler, ray.pixel, ray.sample, bounce_dim(depth, 3)) >= q:
                         break

@@ -73,7 +73,7 @@ from .media import (
 from .record import REFLECTED, REFRACTED, STRAIGHT, TOTAL_INTERNAL, RayRecord
 from .sampling import Sampler
 from .shadow import make_shadow_ray
-from .spawn import spawn_origin
+from .spawn import ray_error, spawn_origin
 from .traverse import NO_HIT, GeometryData, Traversal, traversal
 
 BRANCHES = 32  # pending branches per camera ray
@@ -271,7 +271,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                                     radiance = wp.vec3(wp.nan)
                                     break
                         if not real:  # a false interface: straight on
-                            t_from = t + hit.t_err
+                            t_from = t + ray_error(o, hit.p, t)
                             t_last = t
                             media = media_t
                             n_media = n_media_t
@@ -323,7 +323,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                                 media = media_t
                                 n_media = n_media_t
                             if keep_t and eta == 1.0:  # index-matched: straight on (refract returned d)
-                                t_from = t + hit.t_err
+                                t_from = t + ray_error(o, hit.p, t)
                                 t_last = t
                             elif keep_r or keep_t:
                                 o = spawn_origin(hit.p, hit.n, hit.err, d)

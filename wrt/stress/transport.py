@@ -76,9 +76,7 @@ def _floor_under_sphere_light(extra_shapes, extra_materials, light_radius, spp, 
         render={"integrator": "path", "width": SIZE, "height": SIZE, "spp": spp, "max_depth": 3, "seed": seed},
     )
     rgb = render(scene).rgb[..., 0].astype(np.float64)
-    forward = unit(-CAMERA)
-    right = unit(np.cross(forward, [0.0, 1.0, 0.0]))
-    up = np.cross(right, forward)
+    forward, right, up = scene.camera.basis()
     centres = (np.arange(SIZE) + 0.5) / SIZE
     sx, sy = np.meshgrid(2.0 * centres - 1.0, 1.0 - 2.0 * centres)
     tan = np.tan(np.radians(fov) / 2.0)
