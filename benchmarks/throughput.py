@@ -49,7 +49,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import warp as wp
 import wrt.kernels  # noqa: F401  (configures Warp)
-from wrt.kernels.traverse import VisitLog
+from wrt.kernels.traverse import KIND_BITS, VisitLog
 
 from wrt.bvh import PLOC_RADIUS, build_bvh
 from wrt.device import init_warp, resolve_device
@@ -265,7 +265,7 @@ class WrtEngine:
         return float(log.count.numpy().mean())
 
     def faces_of(self, prim: np.ndarray) -> np.ndarray:
-        return np.where(prim >= 0, self.face[np.maximum(prim, 0) >> 2], -1)
+        return np.where(prim >= 0, self.face[np.maximum(prim, 0) >> KIND_BITS], -1)
 
 
 class WarpMeshEngine:

@@ -1,8 +1,8 @@
 """The device-side scene (``GeometryData``) and its BVH traversal: closest hit and any hit.
 
-Primitives are referred to by a packed id ``(index << 2) | kind`` with ``kind`` one of
+Primitives are referred to by a packed id ``(index << KIND_BITS) | kind`` with ``kind`` one of
 ``SPHERE``, ``TRIANGLE``, ``POLYGON`` (bounded, in the BVH) and ``PLANE`` (unbounded, tested
-outside the tree); ``index`` counts within that kind's arrays. ``NO_HIT`` (-1) marks a miss.
+outside the tree); ``index`` counts within that kind's arrays (up to 2^28 per kind). ``NO_HIT`` (-1) marks a miss.
 
 The BVH is the 4-wide tree of ``wrt.kernels.bvh``; a leaf lists entries of ``prims``, the packed ids
 in leaf order. Closest hit tests a node's four child boxes together (``child_entry``), descends
@@ -34,6 +34,8 @@ from .intersect import (
 )
 from .spawn import max_abs, point_error
 
+KIND_BITS = wp.constant(3)  # low bits of a packed id that hold its kind
+KIND_MASK = wp.constant(7)
 SPHERE = wp.constant(0)
 TRIANGLE = wp.constant(1)
 POLYGON = wp.constant(2)
@@ -74,8 +76,8 @@ def prim_shape(geometry: GeometryData, prim: wp.int32) -> wp.int32:
     surface of light k (-1 for ``NO_HIT``)."""
     if prim == NO_HIT:
         return -1
-    kind = prim & 3
-    i = prim >> 2
+    kind = prim & KIND_MASK
+    i = prim >> KIND_BITS
     if kind == TRIANGLE:
         return geometry.tri_shape[i]
     if kind == SPHERE:
@@ -100,7 +102,7 @@ def closest_plane(geometry: GeometryData, o: wp.vec3, d: wp.vec3, time: float, t
     hit = int(NO_HIT)
     for i in range(geometry.plane_point.shape[0]):
         t = intersect_plane(
-            ray_origin_at(geometry, (i << 2) | PLANE, o, time),
+            ray_origin_at(geometry, (i << KIND_BITS) | PLANE, o, time),
             d,
             geometry.plane_point[i],
             geometry.plane_normal[i],
@@ -109,7 +111,7 @@ def closest_plane(geometry: GeometryData, o: wp.vec3, d: wp.vec3, time: float, t
         )
         if t < t_max:
             t_max = t
-            hit = (i << 2) | PLANE
+            hit = (i << KIND_BITS) | PLANE
     return t_max, hit
 
 
@@ -139,7 +141,7 @@ def _leaf_entry(features: Features):
     @wp.func
     def leaf_entry(geometry: GeometryData, k: wp.int32) -> wp.int32:
         if wp.static(only >= 0):
-            return (k << 2) | wp.static(only)
+            return (k << KIND_BITS) | wp.static(only)
         return geometry.prims[k]
 
     return leaf_entry
@@ -164,8 +166,8 @@ def _intersect_prim(features: Features):
     ) -> float:
         """Dispatch one bounded primitive (packed id) to its intersection test, at ray time ``time``;
         ``shear`` is ``ray_shear(d)``."""
-        kind = prim & 3
-        i = prim >> 2
+        kind = prim & KIND_MASK
+        i = prim >> KIND_BITS
         o_rel = o
         if wp.static(features.moving):
             o_rel = ray_origin_at(geometry, prim, o, time)
@@ -301,7 +303,7 @@ def _any_hit(features: Features):
         for i in range(geometry.plane_point.shape[0]):
             if (
                 intersect_plane(
-                    ray_origin_at(geometry, (i << 2) | PLANE, o, time),
+                    ray_origin_at(geometry, (i << KIND_BITS) | PLANE, o, time),
                     d,
                     geometry.plane_point[i],
                     geometry.plane_normal[i],
@@ -403,8 +405,8 @@ def surface_point(geometry: GeometryData, prim: wp.int32, o: wp.vec3, d: wp.vec3
     polygons and planes the normal given in the scene (polygons: by Newell's method from the
     winding).
     """
-    kind = prim & 3
-    i = prim >> 2
+    kind = prim & KIND_MASK
+    i = prim >> KIND_BITS
     shift = wp.vec3(0.0)
     if geometry.moving != 0:  # work in the primitive's frame at ``time``
         shift = time * geometry.surface_velocity[prim_shape(geometry, prim)]

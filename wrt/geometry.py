@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wrt.kernels.traverse import PLANE, POLYGON, SPHERE, TRIANGLE
+from wrt.kernels.traverse import KIND_BITS, KIND_MASK, PLANE, POLYGON, SPHERE, TRIANGLE
 
 from .bvh import DeviceBvh, build_bvh
 from .scene import AreaLight, Mesh, Plane, Polygon, Scene, Sphere, SphereLight, Triangle
@@ -43,19 +43,19 @@ class Primitives:
     prims: np.ndarray | None = None  # (N,) packed ids in leaf order
 
     def bounded_ids(self) -> np.ndarray:
-        """Packed ids ``(index << 2) | kind`` of spheres, then triangles, then polygons."""
+        """Packed ids ``(index << KIND_BITS) | kind`` of spheres, then triangles, then polygons."""
         return np.concatenate(
             [
-                (np.arange(len(self.sphere_radius)) << 2) | SPHERE,
-                (np.arange(len(self.tri_shape)) << 2) | TRIANGLE,
-                (np.arange(len(self.poly_verts)) << 2) | POLYGON,
+                (np.arange(len(self.sphere_radius)) << KIND_BITS) | SPHERE,
+                (np.arange(len(self.tri_shape)) << KIND_BITS) | TRIANGLE,
+                (np.arange(len(self.poly_verts)) << KIND_BITS) | POLYGON,
             ]
         ).astype(np.int64)
 
     def shape_of(self, packed: np.ndarray) -> np.ndarray:
         """Shape index (``object_id``) of each packed primitive id; -1 where the id is -1 (no hit)."""
         packed = np.asarray(packed, dtype=np.int64)
-        kind, index = packed & 3, packed >> 2
+        kind, index = packed & KIND_MASK, packed >> KIND_BITS
         out = np.full(packed.shape, -1, dtype=np.int32)
         for k, table in (
             (SPHERE, self.sphere_shape),
@@ -156,7 +156,7 @@ def _joined(blocks: list[np.ndarray]) -> np.ndarray:
 
 def _leaf_order(kind: int, ids: np.ndarray) -> np.ndarray:
     """Input indices of one kind's primitives in the order the BVH leaves list them."""
-    return ids[(ids & 3) == kind] >> 2
+    return ids[(ids & KIND_MASK) == kind] >> KIND_BITS
 
 
 def build(scene: Scene, device) -> Primitives:
@@ -169,15 +169,15 @@ def build(scene: Scene, device) -> Primitives:
     if max(counts) == len(order):  # one kind (a mesh, say): the leaf order is that kind's order
         kind = int(np.argmax(counts))
         s = t = g = order
-        new_ids = (np.arange(len(order), dtype=np.int32) << 2) | kind
+        new_ids = (np.arange(len(order), dtype=np.int32) << KIND_BITS) | kind
     else:
         ids = p.bounded_ids()[order]
         s, t, g = (_leaf_order(kind, ids) for kind in (SPHERE, TRIANGLE, POLYGON))
         # renumber the packed ids: the k-th primitive of a kind in leaf order now has index k
         new_ids = np.empty(len(ids), dtype=np.int32)
         for kind in (SPHERE, TRIANGLE, POLYGON):
-            mask = (ids & 3) == kind
-            new_ids[mask] = (np.arange(mask.sum()) << 2) | kind
+            mask = (ids & KIND_MASK) == kind
+            new_ids[mask] = (np.arange(mask.sum()) << KIND_BITS) | kind
     if counts[0]:
         p.sphere_center, p.sphere_radius, p.sphere_shape = p.sphere_center[s], p.sphere_radius[s], p.sphere_shape[s]
     if counts[1]:

@@ -20,7 +20,7 @@ import warp as wp
 from .device import resolve_device, upload_geometry
 from .geometry import build
 from .kernels.features import ALL
-from .kernels.traverse import trace_kernels
+from .kernels.traverse import KIND_BITS, trace_kernels
 from .renderer import scene_features
 from .scene import Scene
 
@@ -69,4 +69,4 @@ class Tracer:
     def triangles(self, packed):
         """Vertices (n, 3, 3) of the triangles with these packed ids, as the device holds them
         (float32 values, returned as float64)."""
-        return self.prims.tri_verts.astype(np.float64)[np.asarray(packed) >> 2]
+        return self.prims.tri_verts.astype(np.float64)[np.asarray(packed) >> KIND_BITS]

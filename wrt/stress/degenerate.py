@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 
 from ..bvh import lane_bounds
-from ..kernels.traverse import NO_HIT, SPHERE
+from ..kernels.traverse import KIND_BITS, KIND_MASK, NO_HIT, SPHERE
 from ..scene import Sphere
 from ..trace import Tracer
 from .common import EPS32, f32, make_scene, random_directions, split_cube, unit
@@ -140,7 +140,7 @@ def case_zero_radius_sphere(rays, rng):
         t, prim = tracer.closest(o, d)
         tb, primb = tracer.closest(o, d, brute_force=True)
         dist = np.linalg.norm(f32(o) - c, axis=1)
-        small = (prim >> 2 == 0) & ((prim & 3) == 0) & (prim != NO_HIT)
+        small = (prim >> KIND_BITS == 0) & ((prim & KIND_MASK) == 0) & (prim != NO_HIT)
         failures += int(
             np.count_nonzero(
                 _not_finite_t(t) | (small & (np.abs(t - dist) > 1e-5 * dist)) | (t != tb) | (prim != primb)
@@ -234,8 +234,8 @@ def case_zero_components(rays, rng):
     # a ray tangent to a sphere within its test's rounding (SPHERE_BAND) may go either way
     tangent = np.zeros(n, dtype=bool)
     for ref in (prim, primb):
-        sphere = mismatch & (ref != NO_HIT) & ((ref & 3) == SPHERE)
-        k = ref[sphere] >> 2
+        sphere = mismatch & (ref != NO_HIT) & ((ref & KIND_MASK) == SPHERE)
+        k = ref[sphere] >> KIND_BITS
         c, r = f32(tracer.prims.sphere_center[k]), f32(tracer.prims.sphere_radius[k])
         f = f32(o[sphere]) - c
         dd = f32(d[sphere])

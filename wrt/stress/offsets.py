@@ -12,7 +12,7 @@ import warp as wp
 from .. import renderer
 from ..kernels import spawn
 from ..kernels.stress import trace_spawned
-from ..kernels.traverse import NO_HIT
+from ..kernels.traverse import KIND_BITS, NO_HIT
 from ..trace import Tracer, vec3_array
 from .common import (
     f32,
@@ -168,8 +168,8 @@ def self_hit_check(kind, tracer, center, scale, out, plane_id=None):
                 false_hits += int(np.count_nonzero(inward & ~outside & landed & (t2 < 0.5 * t_exit)))
         else:
             if ray != "shadow":
-                left = plane_id[out["hit_prim"][hit] >> 2]
-                arrived = plane_id[np.where(prim >= 0, prim, 0) >> 2]
+                left = plane_id[out["hit_prim"][hit] >> KIND_BITS]
+                arrived = plane_id[np.where(prim >= 0, prim, 0) >> KIND_BITS]
                 false_hits += int(np.count_nonzero(inward & landed & (arrived == left)))
             missed = np.flatnonzero(inward & ~landed)
             inside = _inside_convex_mesh(tracer, o2[missed])
