@@ -245,7 +245,7 @@ class WrtEngine:
             wp.launch(
                 self.closest_kernel,
                 dim=len(o),
-                inputs=[self.data, o, d, 0.0, T_MAX, 0, out[0], out[1]],
+                inputs=[self.data, o, d, 0.0, T_MAX, 0, out[0], out[1], out[2]],
                 device=self.dev,
             )
         else:
@@ -395,7 +395,11 @@ def _measure(engine, query: str, o, d, threads: list[int], repeats: int, dev) ->
     is_warp = engine.name != "Embree"
     if is_warp:
         outs = (
-            (wp.zeros(n, dtype=float, device=dev), wp.zeros(n, dtype=wp.int32, device=dev))
+            (
+                wp.zeros(n, dtype=float, device=dev),
+                wp.zeros(n, dtype=wp.int32, device=dev),
+                wp.zeros(n, dtype=wp.int32, device=dev),
+            )
             if query == "closest"
             else (wp.zeros(n, dtype=wp.int32, device=dev),)
         )

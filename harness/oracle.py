@@ -11,13 +11,14 @@ mesh transforms against an independent implementation.
 from __future__ import annotations
 
 import colorsys
-import math
 import os
 import threading
 
 import numpy as np
 
-from wrt.scene import Mesh, Plane, Polygon, Scene, Sphere, Triangle
+from wrt.scene import Cylinder, Disk, Instance, Mesh, Plane, Polygon, Scene, Sphere, Triangle
+
+QUADRIC_SIDES = 512  # vertices of the rims of disks and tubes: chords within 2e-5 of the radius (1 - cos(pi/512))
 
 # VTK render windows are not safe to use from several threads at once (``wrt matrix --jobs``)
 _VTK_LOCK = threading.Lock()
@@ -49,47 +50,73 @@ def _decode(image: np.ndarray) -> np.ndarray:
     return ((rgb[..., 0] << 16) | (rgb[..., 1] << 8) | rgb[..., 2]) - 1
 
 
+def _corners(shape) -> list:
+    """Points whose box holds a bounded shape (none for a plane)."""
+    if isinstance(shape, Sphere):
+        return [np.asarray(shape.center) - shape.radius, np.asarray(shape.center) + shape.radius]
+    if isinstance(shape, (Triangle, Polygon)):
+        return list(np.asarray(shape.vertices, dtype=float))
+    if isinstance(shape, Mesh):
+        return [shape.vertices.min(axis=0), shape.vertices.max(axis=0)]
+    if isinstance(shape, (Disk, Cylinder)):
+        vertices, _ = shape.triangles(QUADRIC_SIDES)
+        return [vertices.min(axis=0), vertices.max(axis=0)]
+    return []
+
+
 def scene_extent(scene: Scene) -> tuple[np.ndarray, float]:
     """Centre and radius of a sphere around the bounded shapes and the camera."""
     points = [np.asarray(scene.camera.origin), np.asarray(scene.camera.look_at)]
     for s in scene.shapes:
-        if isinstance(s, Sphere):
-            points += [np.asarray(s.center) - s.radius, np.asarray(s.center) + s.radius]
-        elif isinstance(s, (Triangle, Polygon)):
-            points += list(np.asarray(s.vertices))
-        elif isinstance(s, Mesh):
-            points += [s.vertices.min(axis=0), s.vertices.max(axis=0)]
+        if isinstance(s, Instance):  # the group's box, its corners through the instance's transform
+            inner = np.asarray([p for member in scene.groups[s.group].shapes for p in _corners(member)])
+            lo, hi = inner.min(axis=0), inner.max(axis=0)
+            box = np.array([[(lo, hi)[(c >> a) & 1][a] for a in range(3)] for c in range(8)])
+            points += list(box @ s.matrix[:3, :3].T + s.matrix[:3, 3])
         elif isinstance(s, Plane):
             points.append(np.asarray(s.point))
+        else:
+            points += _corners(s)
     p = np.asarray(points, dtype=float)
     center = 0.5 * (p.min(axis=0) + p.max(axis=0))
     return center, float(np.linalg.norm(p.max(axis=0) - p.min(axis=0))) / 2 + 1e-9
 
 
+def _shape_mesh(s, scene: Scene, plane_size: float):
+    """pyvista PolyData of one shape (an instance: its group's shapes, merged, through its transform)."""
+    import pyvista as pv
+
+    if isinstance(s, Sphere):
+        return pv.Sphere(radius=s.radius, center=s.center, theta_resolution=96, phi_resolution=64)
+    if isinstance(s, Plane):
+        return pv.Plane(
+            center=s.point, direction=s.normal, i_size=plane_size, j_size=plane_size, i_resolution=1, j_resolution=1
+        )
+    if isinstance(s, Triangle):
+        return pv.PolyData(np.asarray(s.vertices, dtype=float), faces=[3, 0, 1, 2])
+    if isinstance(s, Polygon):
+        # triangulate in 2D (ear clipping of VTK's triangle filter handles non-convex outlines)
+        v = np.asarray(s.vertices, dtype=float)
+        return pv.PolyData(v, faces=[len(v), *range(len(v))]).triangulate()
+    if isinstance(s, (Disk, Cylinder)):
+        vertices, triangles = s.triangles(QUADRIC_SIDES)
+        return pv.PolyData(vertices, faces=np.column_stack([np.full(len(triangles), 3), triangles]).ravel())
+    if isinstance(s, Instance):
+        members = [_shape_mesh(member, scene, plane_size) for member in scene.groups[s.group].shapes]
+        return pv.merge(members).transform(s.matrix, inplace=False)
+    faces = np.column_stack([np.full(len(s.faces), 3), s.faces]).ravel()
+    return pv.PolyData(np.asarray(s.vertices, dtype=float), faces=faces)
+
+
 def shape_meshes(scene: Scene, plane_size: float):
     """pyvista PolyData of every shape, in ``[[shape]]`` order, where it is at mid-shutter (the time
     of the pixel-centre rays that write the AOVs). Planes become square patches of side
-    ``plane_size`` around their point; spheres are finely tessellated."""
-    import pyvista as pv
-
+    ``plane_size`` around their point; spheres, disks and tubes are finely tessellated; an
+    instance is its group's shapes, placed."""
     mid_shutter = 0.5 * (scene.camera.shutter[0] + scene.camera.shutter[1])
     meshes = []
     for s in scene.shapes:
-        if isinstance(s, Sphere):
-            m = pv.Sphere(radius=s.radius, center=s.center, theta_resolution=96, phi_resolution=64)
-        elif isinstance(s, Plane):
-            m = pv.Plane(
-                center=s.point, direction=s.normal, i_size=plane_size, j_size=plane_size, i_resolution=1, j_resolution=1
-            )
-        elif isinstance(s, Triangle):
-            m = pv.PolyData(np.asarray(s.vertices, dtype=float), faces=[3, 0, 1, 2])
-        elif isinstance(s, Polygon):
-            # triangulate in 2D (ear clipping of VTK's triangle filter handles non-convex outlines)
-            v = np.asarray(s.vertices, dtype=float)
-            m = pv.PolyData(v, faces=[len(v), *range(len(v))]).triangulate()
-        else:
-            faces = np.column_stack([np.full(len(s.faces), 3), s.faces]).ravel()
-            m = pv.PolyData(np.asarray(s.vertices, dtype=float), faces=faces)
+        m = _shape_mesh(s, scene, plane_size)
         if any(s.velocity):
             m = m.translate(np.asarray(s.velocity) * mid_shutter, inplace=False)
         meshes.append(m)
@@ -97,12 +124,19 @@ def shape_meshes(scene: Scene, plane_size: float):
 
 
 def _camera(plotter, scene: Scene, far: float) -> None:
+    """VTK's camera as the scene's: its clipping range, like the scene's clip planes, is measured
+    along the view direction from the camera plane; ``far`` bounds what is drawn."""
+    camera = scene.camera
     cam = plotter.camera
-    cam.position = scene.camera.origin
-    cam.focal_point = scene.camera.look_at
-    cam.up = scene.camera.up
-    cam.view_angle = scene.camera.fov  # VTK's view angle is vertical, like the scene format's
-    cam.clipping_range = (far * 1e-5, far)
+    cam.position = camera.origin
+    cam.focal_point = camera.look_at
+    cam.up = camera.up
+    if camera.type == "orthographic":
+        cam.parallel_projection = True
+        cam.parallel_scale = camera.width / 2 * scene.render.height / scene.render.width  # half the view's height
+    else:
+        cam.view_angle = camera.fov  # VTK's view angle is vertical, like the scene format's
+    cam.clipping_range = (max(camera.near_clip, far * 1e-5), min(camera.far_clip, far))
 
 
 def rasterize_ids(scene: Scene) -> np.ndarray:
@@ -137,13 +171,11 @@ def overview(scene: Scene, path: str, size: tuple[int, int] = (480, 360)) -> Non
     import pyvista as pv
 
     center, radius = scene_extent(scene)
-    forward, right, up = scene.camera.basis()
-    origin = np.asarray(scene.camera.origin)
     with _VTK_LOCK:
-        _overview(scene, pv, path, size, center, radius, forward, right, up, origin)
+        _overview(scene, pv, path, size, center, radius)
 
 
-def _overview(scene, pv, path, size, center, radius, forward, right, up, origin) -> None:
+def _overview(scene, pv, path, size, center, radius) -> None:
     plotter = pv.Plotter(off_screen=True, window_size=size)
     try:
         plotter.set_background("white")
@@ -153,14 +185,13 @@ def _overview(scene, pv, path, size, center, radius, forward, right, up, origin)
                 color=tuple(palette(np.array([i]))[0]),
                 opacity=0.35 if isinstance(scene.shapes[i], Plane) else 0.9,
             )
+        origin = np.asarray(scene.camera.origin)
         length = float(np.linalg.norm(np.asarray(scene.camera.look_at) - origin))
-        th = math.tan(math.radians(scene.camera.fov) / 2)
-        aspect = scene.render.width / scene.render.height
-        corners = [
-            origin + length * (forward + sx * th * aspect * right + sy * th * up)
-            for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))
-        ]
-        lines = [pv.Line(origin, c) for c in corners] + [pv.Line(corners[k], corners[(k + 1) % 4]) for k in range(4)]
+        starts, directions = scene.camera.corner_rays(scene.render.width / scene.render.height)
+        corners = starts + length * directions
+        lines = [pv.Line(a, b) for a, b in zip(starts, corners)]
+        for ring in (starts, corners):  # the view's outline on the camera plane (perspective: a point) and at look_at
+            lines += [pv.Line(ring[k], ring[(k + 1) % 4]) for k in range(4)]
         for line in lines:
             plotter.add_mesh(line, color="black", line_width=2)
         plotter.add_mesh(pv.Sphere(radius=0.02 * radius, center=origin), color="black")

@@ -4,9 +4,11 @@ Each integrator's kernel is built per distinct ``Features`` value by a factory w
 bodies test the flags with ``wp.static``, so a feature the scene does not use is not in the
 generated code at all: no shadow rays or light sampling without lights, no branch stack,
 Fresnel or media bookkeeping without mirrors and dielectrics, no lens or shutter-time sampling
-with a pinhole camera or nothing moving; and in the traversal (``wrt.kernels.traverse``) no test
-of a primitive kind the scene lacks, and no per-primitive ray motion when no surface moves.
-``ALL`` (every flag set) is the all-features kernel that renders any scene. Variants compile on
+with a pinhole camera or nothing moving, no orthographic projection with a perspective camera;
+and in the traversal (``wrt.kernels.traverse``) no test of a primitive kind the scene lacks, and no
+per-primitive ray motion when no surface moves. ``ALL`` (every flag set) is the all-features
+kernel that renders any scene (its flags say what a scene MAY have: it tests the camera's type,
+aperture and shutter at run time). Variants compile on
 first use, each into its own Warp module (see ``wrt.kernels.variants``), and land in Warp's
 kernel cache.
 """
@@ -22,11 +24,15 @@ class Features:
     specular: bool = True  # mirrors or dielectrics: reflected and refracted rays
     dielectric: bool = True  # refraction, Fresnel, nested media, Beer-Lambert absorption
     lens: bool = True  # a thin lens (aperture_radius > 0): lens sampling
+    orthographic: bool = True  # an orthographic camera: parallel rays from the camera plane
     motion: bool = True  # moving shapes and an open shutter: shutter-time sampling
     moving: bool = True  # some surface has a velocity: rays are moved into each primitive's frame
     spheres: bool = True  # primitive kinds in the BVH (sphere lights are spheres, area lights polygons)
     triangles: bool = True
     polygons: bool = True
+    disks: bool = True
+    cylinders: bool = True
+    instances: bool = True  # instances of groups: a two-level traversal
 
     def __post_init__(self):
         if self.dielectric and not self.specular:
@@ -45,5 +51,11 @@ def geometry_features(features: Features) -> Features:
     """Only the flags the traversal is compiled on (primitive kinds, moving surfaces); the others
     set: the key of a traversal variant."""
     return Features(
-        moving=features.moving, spheres=features.spheres, triangles=features.triangles, polygons=features.polygons
+        moving=features.moving,
+        spheres=features.spheres,
+        triangles=features.triangles,
+        polygons=features.polygons,
+        disks=features.disks,
+        cylinders=features.cylinders,
+        instances=features.instances,
     )

@@ -13,7 +13,7 @@ AOVs (arbitrary output variables) describe the primary ray through the pixel CEN
 
 import warp as wp
 
-from .traverse import NO_HIT, GeometryData, prim_shape, surface_point
+from .traverse import NO_HIT, GeometryData, hit_point, hit_shape
 
 LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)  # Y of linear Rec. 709 RGB (host code reads them too)
 
@@ -42,20 +42,28 @@ class Film:
 
 @wp.func
 def write_aovs(
-    film: Film, geometry: GeometryData, pixel: wp.int32, o: wp.vec3, d: wp.vec3, t: float, prim: wp.int32, time: float
+    film: Film,
+    geometry: GeometryData,
+    pixel: wp.int32,
+    o: wp.vec3,
+    d: wp.vec3,
+    t: float,
+    prim: wp.int32,
+    inst: wp.int32,
+    time: float,
 ):
     """Record the AOVs of the pixel-centre ray ``o + t d`` (unit ``d``, at ray time ``time``) that hit
-    ``prim`` (or missed)."""
+    ``(prim, inst)`` (or missed)."""
     if prim == NO_HIT:
         film.depth[pixel] = wp.inf
         film.normal[pixel] = wp.vec3(0.0)
         film.object_id[pixel] = -1
         film.position[pixel] = wp.vec3(0.0)
     else:
-        p, n, _err = surface_point(geometry, prim, o, d, t, time)
+        p, n, _err = hit_point(geometry, prim, inst, o, d, t, time)
         film.depth[pixel] = t
         film.normal[pixel] = wp.where(wp.dot(n, d) > 0.0, -n, n)  # facing the camera
-        surface = prim_shape(geometry, prim)
+        surface = hit_shape(geometry, prim, inst)
         if surface >= geometry.num_shapes:  # the surface of light k is not a shape: -2 - k
             surface = geometry.num_shapes - 2 - surface
         film.object_id[pixel] = surface

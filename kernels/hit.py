@@ -11,7 +11,7 @@ rays leaving it (``wrt.kernels.spawn``).
 import warp as wp
 
 from .materials import MaterialData
-from .traverse import GeometryData, prim_shape, surface_point
+from .traverse import GeometryData, hit_point, hit_shape, prim_shape
 
 
 @wp.struct
@@ -28,11 +28,20 @@ class Hit:
 
 @wp.func
 def surface_hit(
-    geometry: GeometryData, materials: MaterialData, o: wp.vec3, d: wp.vec3, t: float, prim: wp.int32, time: float
+    geometry: GeometryData,
+    materials: MaterialData,
+    o: wp.vec3,
+    d: wp.vec3,
+    t: float,
+    prim: wp.int32,
+    inst: wp.int32,
+    time: float,
 ) -> Hit:
-    """The hit of unit ray ``o + s d`` (at ray time ``time``) at ``t`` on primitive ``prim`` (not ``NO_HIT``)."""
+    """The hit of unit ray ``o + s d`` (at ray time ``time``) at ``t`` on primitive ``prim`` (not
+    ``NO_HIT``), through instance ``inst`` (-1: none), as ``closest_hit`` returns them. The
+    material is the primitive's own (a group member's); the shape is the instance's."""
     hit = Hit()
-    p, n, err = surface_point(geometry, prim, o, d, t, time)
+    p, n, err = hit_point(geometry, prim, inst, o, d, t, time)
     hit.p = p
     hit.n = n
     hit.err = err
@@ -41,6 +50,6 @@ def surface_hit(
     hit.n_facing = hit.n
     if not hit.entering:
         hit.n_facing = -hit.n
-    hit.shape = prim_shape(geometry, prim)
-    hit.material = materials.shape_material[hit.shape]
+    hit.material = materials.shape_material[prim_shape(geometry, prim)]
+    hit.shape = hit_shape(geometry, prim, inst)
     return hit

@@ -32,7 +32,7 @@ recompiles the module.
 
 import warp as wp
 
-from .camera import CameraData, camera_ray_direction, film_position, shutter_time, thin_lens_ray
+from .camera import CameraData, clip_ray, film_position, make_generate_ray, shutter_time, thin_lens_ray
 from .features import ALL, Features
 from .film import Film, luminance, write_aovs
 from .lights import LightData
@@ -41,7 +41,7 @@ from .media import Media
 from .record import CAMERA, RayRecord, record_ray
 from .sample_warps import concentric_disk
 from .sampling import Sampler, sample_1d, sample_2d
-from .traverse import GeometryData, Traversal, traversal
+from .traverse import NO_HIT, GeometryData, Traversal, traversal
 
 RECORD_MODULE = "wrt.kernels.record_variants"
 
@@ -74,7 +74,7 @@ class RenderPass:
 @wp.struct
 class CameraRay:
     """A camera ray handed to an integrator: unit ray ``o + s d`` at ray ``time``, its first hit
-    ``(t, prim)`` (``NO_HIT`` on a miss), the pixel sample it belongs to (keys the random numbers
+    ``(t, prim, inst)`` (``NO_HIT`` on a miss), the pixel sample it belongs to (keys the random numbers
     and the records) and its record index (recording variants; -1 otherwise)."""
 
     o: wp.vec3
@@ -82,6 +82,7 @@ class CameraRay:
     time: float
     t: float
     prim: wp.int32
+    inst: wp.int32  # the instance ``prim`` was hit through; -1: none
     pixel: wp.int32
     sample: wp.int32
     record: wp.int32
@@ -99,16 +100,19 @@ def make_trace_segment(record: bool, trace: Traversal):
         o: wp.vec3,
         d: wp.vec3,
         t_from: float,
+        t_max: float,
         t_last: float,
         throughput: wp.vec3,
         depth: wp.int32,
         parent: wp.int32,
     ):
-        """Closest hit ``(t, prim)`` of unit ray ``o + s d`` for ``s > t_from``, at the time of camera
-        ray ``ray``, and the record index of the segment from ``o + t_last d`` to it (of ``kind``,
-        carrying ``throughput``, segment ``depth`` of its path, child of record ``parent``; ``parent``
-        itself when not recording)."""
-        t, prim = trace.closest_hit(geometry, o, d, ray.time, t_from, wp.inf)
+        """Closest hit ``(t, prim, inst)`` of unit ray ``o + s d`` for ``t_from < s < t_max``, at the time of
+        camera ray ``ray`` (``t = inf`` on a miss, ``t_max`` finite or not), and the record index of the
+        segment from ``o + t_last d`` to it (of ``kind``, carrying ``throughput``, segment ``depth`` of
+        its path, child of record ``parent``; ``parent`` itself when not recording)."""
+        t, prim, inst = trace.closest_hit(geometry, o, d, ray.time, t_from, t_max)
+        if prim == NO_HIT:  # a camera ray that reaches the far clip plane leaves the scene too
+            t = wp.inf
         index = parent
         if wp.static(record):
             index = record_ray(
@@ -121,12 +125,13 @@ def make_trace_segment(record: bool, trace: Traversal):
                 d,
                 t - t_last,
                 prim,
+                inst,
                 ray.time,
                 throughput,
                 depth,
                 parent,
             )
-        return t, prim, index
+        return t, prim, inst, index
 
     return trace_segment
 
@@ -143,13 +148,15 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
     ``record=False`` the kernel passes an empty ``rec`` and ``radiance`` must not touch it (build it
     with recording compiled out).
 
-    ``features``: without ``lens`` the camera is taken to be a pinhole and without ``motion``
-    every sample is at mid-shutter (no lens or time sampling); ``module``: the Warp module to put
-    the kernel in (default: this file's, or ``RECORD_MODULE`` for recording variants).
+    ``features``: without ``lens`` the camera is taken to be a pinhole, without ``orthographic``
+    a perspective camera, and without ``motion`` every sample is at mid-shutter (no lens or time
+    sampling); ``module``: the Warp module to put the kernel in (default: this file's, or
+    ``RECORD_MODULE`` for recording variants).
     """
 
     trace = traversal(features)
     trace_segment = make_trace_segment(record, trace)
+    generate_ray = make_generate_ray(features.orthographic)
 
     @wp.func
     def camera_ray(
@@ -159,18 +166,21 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
         sample: wp.int32,
         o: wp.vec3,
         d: wp.vec3,
+        t_max: float,
         time: float,
     ) -> CameraRay:
-        """The camera ray of one pixel sample, traced (and recorded)."""
+        """The camera ray of one pixel sample, clipped (``o`` on the near clip plane, ``t_max`` at the
+        far one), traced (and recorded)."""
         ray = CameraRay()
         ray.o = o
         ray.d = d
         ray.time = time
         ray.pixel = pixel
         ray.sample = sample
-        t, prim, index = trace_segment(geometry, rec, ray, CAMERA, o, d, 0.0, 0.0, wp.vec3(1.0), 1, -1)
+        t, prim, inst, index = trace_segment(geometry, rec, ray, CAMERA, o, d, 0.0, t_max, 0.0, wp.vec3(1.0), 1, -1)
         ray.t = t
         ray.prim = prim
+        ray.inst = inst
         ray.record = index
         return ray
 
@@ -192,7 +202,7 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
         x = pixel % cam.width
         y = pixel // cam.width
         mid_shutter = shutter_time(cam, 0.5)
-        centre = camera_ray_direction(cam, x, y, 0.5, 0.5)
+        centre_o, centre = generate_ray(cam, x, y, 0.5, 0.5)
         first = launch.first_sample
         total = wp.vec3(0.0)
         total_sq = float(0.0)
@@ -202,23 +212,25 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
             total_sq = film.luminance_sq_sum[pixel]
             rejected = film.rejected[pixel]
         elif sampler.spp > 1:  # the AOVs' pixel-centre ray is not a sample
-            t, prim = trace.closest_hit(geometry, cam.origin, centre, mid_shutter, 0.0, wp.inf)
-            write_aovs(film, geometry, pixel, cam.origin, centre, t, prim, mid_shutter)
+            o, t_max = clip_ray(cam, centre_o, centre)
+            t, prim, inst = trace.closest_hit(geometry, o, centre, mid_shutter, 0.0, t_max)
+            write_aovs(film, geometry, pixel, o, centre, t, prim, inst, mid_shutter)
         for s in range(first, first + launch.pass_spp):
-            o = cam.origin
+            o = centre_o
             d = centre
             time = mid_shutter
             if sampler.spp > 1:
                 uv = film_position(cam, sample_2d(sampler, pixel, s, 0))
-                d = camera_ray_direction(cam, x, y, uv[0], uv[1])
+                o, d = generate_ray(cam, x, y, uv[0], uv[1])
                 if wp.static(features.lens):
                     lens = sample_2d(sampler, pixel, s, 2)
-                    o, d = thin_lens_ray(cam, d, concentric_disk(lens[0], lens[1]))
+                    o, d = thin_lens_ray(cam, o, d, concentric_disk(lens[0], lens[1]))
                 if wp.static(features.motion):
                     time = shutter_time(cam, sample_1d(sampler, pixel, s, 4))
-            ray = camera_ray(geometry, rec, pixel, s, o, d, time)
+            o, t_max = clip_ray(cam, o, d)
+            ray = camera_ray(geometry, rec, pixel, s, o, d, t_max, time)
             if sampler.spp == 1:  # the pixel-centre ray is the sample, and gives the AOVs
-                write_aovs(film, geometry, pixel, o, d, ray.t, ray.prim, time)
+                write_aovs(film, geometry, pixel, o, d, ray.t, ray.prim, ray.inst, time)
             value = radiance(geometry, materials, lights, settings, sampler, ray, rec)
             lum = luminance(value)
             if wp.isfinite(total + value) and wp.isfinite(lum * lum):

@@ -9,7 +9,7 @@ Hits with ``t <= t_min`` (behind the eye, or the surface a ray leaves) are rejec
 References
 ----------
 E. Haines, J. Guenther, T. Akenine-Moller, "Precision Improvements for Ray/Sphere
-Intersection", Ray Tracing Gems, ch. 7, 2019.
+Intersection", Ray Tracing Gems, ch. 7, 2019 (also the cylinder's quadratic).
 S. Woop, C. Benthin, I. Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1), 2013 (also
 the frame of the polygon test).
 M. Pharr, W. Jakob, G. Humphreys, pbrt-v4, sec. 6.1.2 (conservative slab test).
@@ -71,6 +71,93 @@ def intersect_sphere(o: wp.vec3, d: wp.vec3, center: wp.vec3, radius: float, t_m
         return t_near
     if t_far > t_min and t_far < t_max:
         return t_far
+    return t_max
+
+
+@wp.func
+def ray_to_object(to_object: wp.mat44, o: wp.vec3, d: wp.vec3):
+    """The ray ``o + t d`` in the object space of the affine map ``to_object`` (world -> object), in
+    float64: ``(o', d') = (M o, M d)``. The float32 inputs are exact in float64, so the map adds
+    only float64 rounding, and ``d'`` is not normalised, so ``t`` is the same parameter in both spaces."""
+    m = wp.mat44d(to_object)
+    return wp.transform_point(m, wp.vec3d(o)), wp.transform_vector(m, wp.vec3d(d))
+
+
+@wp.func
+def intersect_disk(o: wp.vec3, d: wp.vec3, to_object: wp.mat44, t_min: float, t_max: float) -> float:
+    """Disk: the unit disk ``x^2 + y^2 <= 1`` in the plane ``z = 0`` of the object space that the
+    affine ``to_object`` (world -> object) maps world space to (an ellipse in world space under a
+    non-uniform scale); both sides, rim included.
+
+    In float64 object space (``ray_to_object``): ``t = -o'_z / d'_z``, rounded once, and the hit
+    ``o' + t d'`` tested against the unit circle with the unrounded ``t``. Every step is float64
+    rounding of float32 inputs, so rays from far away and grazing rays lose nothing to
+    cancellation; a ray parallel to the plane (``d'_z = 0``) misses.
+    """
+    o64, d64 = ray_to_object(to_object, o, d)
+    zero = wp.float64(0.0)
+    if d64[2] == zero:
+        return t_max
+    t64 = -o64[2] / d64[2]
+    t = wp.float32(t64)
+    if t <= t_min or t >= t_max:
+        return t_max
+    x = o64[0] + t64 * d64[0]
+    y = o64[1] + t64 * d64[1]
+    if x * x + y * y <= wp.float64(1.0):
+        return t
+    return t_max
+
+
+@wp.func
+def intersect_cylinder(o: wp.vec3, d: wp.vec3, to_object: wp.mat44, t_min: float, t_max: float) -> float:
+    """Cylinder: the open tube ``x^2 + y^2 = 1``, ``0 <= z <= 1`` (no caps) of the object space
+    that the affine ``to_object`` (world -> object) maps world space to; from outside or inside,
+    both sides, end rims included.
+
+    In float64 object space (``ray_to_object``), the quadratic ``a t^2 + 2 beta t + c = 0`` of the
+    xy components (``a = |d'_xy|^2``, ``beta = o'_xy . d'_xy``, ``c = |o'_xy|^2 - 1``) is solved
+    in the cancellation-free form of ``intersect_sphere`` in 2D (Ray Tracing Gems ch. 7): the
+    discriminant is ``a (1 - |o'_xy - (beta/a) d'_xy|^2)``, accurate for rays from far away, and
+    the roots are ``c/q`` and ``q/a`` with ``q = -beta - sign(beta) sqrt(disc)``. The nearer root
+    in ``(t_min, t_max)`` whose ``z' = o'_z + t d'_z`` lies in [0, 1] is the hit: a ray passing
+    beyond an end of the near wall may hit the inside of the far wall. A ray parallel to the axis
+    (``a = 0``) misses.
+    """
+    o64, d64 = ray_to_object(to_object, o, d)
+    zero = wp.float64(0.0)
+    one = wp.float64(1.0)
+    fx = o64[0]
+    fy = o64[1]
+    dx = d64[0]
+    dy = d64[1]
+    a = dx * dx + dy * dy
+    if a == zero:
+        return t_max
+    beta = fx * dx + fy * dy
+    gx = fx - (beta / a) * dx
+    gy = fy - (beta / a) * dy
+    disc = a * (one - (gx * gx + gy * gy))
+    if disc < zero:
+        return t_max
+    root = wp.sqrt(disc)
+    q = -beta - root
+    if beta < zero:
+        q = -beta + root
+    if q == zero:
+        return t_max
+    t0 = (fx * fx + fy * fy - one) / q
+    t1 = q / a
+    t_near = wp.min(t0, t1)
+    t_far = wp.max(t0, t1)
+    z = o64[2] + t_near * d64[2]
+    t = wp.float32(t_near)
+    if t > t_min and t < t_max and z >= zero and z <= one:
+        return t
+    z = o64[2] + t_far * d64[2]
+    t = wp.float32(t_far)
+    if t > t_min and t < t_max and z >= zero and z <= one:
+        return t
     return t_max
 
 

@@ -7,14 +7,19 @@ mirror direction of ``wi`` and ``wo``), ``MIRROR`` (perfect specular, ``reflecta
 ``roughness`` alpha with the constant Fresnel factor ``reflectance``, ``wrt.kernels.microfacet``) and
 ``EMITTER`` (the surface of an area or sphere light: reflects nothing). Any type may emit
 ``emission`` (W/(m^2 sr)) from its front side. ``base_color`` is what the raycast integrator shows.
+A material that is not ``two_sided`` (one-sided, as Mitsuba 3's diffuse and conductors) reflects
+nothing on its back side, the side its surface's normal points away from.
 
 The BSDF interface (pbrt-v4's ``BSDF::f / Sample_f / PDF / Flags``, Mitsuba 3's ``eval / sample /
 pdf / flags``): integrators ask these functions and never test a material's type.
 
 - ``bsdf_flags(materials, m)``: the lobes, a combination of ``BSDF_REFLECTION``,
   ``BSDF_TRANSMISSION``, ``BSDF_DIFFUSE``, ``BSDF_GLOSSY`` and ``BSDF_SPECULAR`` (a delta lobe); 0 for
-  a surface that scatters nothing (``EMITTER``). ``non_specular(flags)``: the BSDF has lobes that
-  ``bsdf_eval`` sees, so light sampling (next-event estimation) pays there.
+  a surface that scatters nothing (``EMITTER``). ``bsdf_flags_from(materials, m, front)``: the same
+  for a ray arriving on the front side or the back, 0 on the back of a one-sided material: what
+  integrators ask at a hit, and then call the functions below only where it is not 0.
+  ``non_specular(flags)``: the BSDF has lobes that ``bsdf_eval`` sees, so light sampling
+  (next-event estimation) pays there.
 - ``bsdf_eval(materials, m, n, wo, wi)``: f (1/sr) of the non-specular lobes, 0 for delta lobes.
 - ``bsdf_pdf(materials, m, n, wo, wi)``: the solid-angle density with which ``bsdf_sample`` draws
   ``wi`` from the non-specular lobes.
@@ -76,6 +81,7 @@ class MaterialData:
     priority: wp.array(dtype=wp.int32)
     roughness: wp.array(dtype=float)  # GGX alpha
     emission: wp.array(dtype=wp.vec3)
+    two_sided: wp.array(dtype=wp.int32)  # 1: both sides reflect; 0: the back side reflects nothing
 
 
 @wp.struct
@@ -111,6 +117,17 @@ def bsdf_flags(materials: MaterialData, m: wp.int32) -> wp.int32:
     if kind == DIELECTRIC:
         return BSDF_REFLECTION | BSDF_TRANSMISSION | BSDF_SPECULAR
     return 0
+
+
+@wp.func
+def bsdf_flags_from(materials: MaterialData, m: wp.int32, front: bool) -> wp.int32:
+    """``bsdf_flags`` for a ray arriving on the front side of material ``m`` (``front``: travelling
+    against the surface's unflipped normal, ``Hit.entering``) or on its back: 0 on the back of a
+    one-sided material. A front hit costs a compare more than ``bsdf_flags``, a back hit a load."""
+    if not front:
+        if materials.two_sided[m] == 0:
+            return 0
+    return bsdf_flags(materials, m)
 
 
 @wp.func

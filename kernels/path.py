@@ -10,6 +10,8 @@ Per camera sample one path is traced:
   Phong, GGX visible normals for glossy);
 - mirrors reflect; dielectrics reflect with probability F (exact Fresnel) or refract, with
   Beer-Lambert absorption and the nested-media rules of ``wrt.kernels.media``;
+- the back side of a one-sided material (``two_sided = false``) reflects nothing: the path ends
+  there, without next-event estimation;
 - emission is added where the path hits an emitter's front: fully after the camera or a specular
   bounce, MIS-weighted after a BSDF sample when the emitter is a light that NEE also samples
   (emissive materials of shapes are found by BSDF sampling only); paths leaving the scene see the
@@ -39,7 +41,7 @@ from .materials import (
     BSDF_TRANSMISSION,
     MaterialData,
     bsdf_eval,
-    bsdf_flags,
+    bsdf_flags_from,
     bsdf_pdf,
     bsdf_sample,
     non_specular,
@@ -182,6 +184,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
         d = ray.d
         t = ray.t
         prim = ray.prim
+        inst = ray.inst
         radiance = wp.vec3(0.0)
         beta = wp.vec3(1.0)
         depth = int(1)
@@ -201,8 +204,8 @@ def make_path_radiance(record: bool, features: Features = ALL):
         for _segment in range(4 * settings.max_depth + 16):
             # Trace the next segment (the camera ray's is traced already)
             if not traced:
-                t, prim, current = trace_segment(
-                    geometry, rec, ray, segment_kind, o, d, t_from, t_last, beta, depth, current
+                t, prim, inst, current = trace_segment(
+                    geometry, rec, ray, segment_kind, o, d, t_from, wp.inf, t_last, beta, depth, current
                 )
             traced = False
 
@@ -217,7 +220,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
                 break
 
             # Emission at the front of what was hit, MIS-weighted against light sampling
-            hit = surface_hit(geometry, materials, o, d, t, prim, ray.time)
+            hit = surface_hit(geometry, materials, o, d, t, prim, inst, ray.time)
             emission = materials.emission[hit.material]
             if hit.entering and max_component(emission) > 0.0:
                 mis = float(1.0)
@@ -225,7 +228,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
                     light = hit.shape - geometry.num_shapes
                     mis = power_heuristic(prev_pdf, emitter_pdf(lights, light, prev_p, d, wp.length(hit.p - prev_p)))
                 radiance += wp.cw_mul(beta, emission) * mis
-            flags = bsdf_flags(materials, hit.material)
+            flags = bsdf_flags_from(materials, hit.material, hit.entering)
             if flags == 0:
                 break
 

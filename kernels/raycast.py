@@ -31,7 +31,7 @@ def raycast_radiance(
     """``base_color * |dot(n, d)|`` at the camera ray's hit, black on a miss."""
     if ray.prim == NO_HIT:
         return wp.vec3(0.0)
-    hit = surface_hit(geometry, materials, ray.o, ray.d, ray.t, ray.prim, ray.time)
+    hit = surface_hit(geometry, materials, ray.o, ray.d, ray.t, ray.prim, ray.inst, ray.time)
     return materials.base_color[hit.material] * wp.abs(wp.dot(hit.n, ray.d))
 
 

@@ -44,7 +44,7 @@ are dropped (a truncated recording), and their children still name them as paren
 
 import warp as wp
 
-from .traverse import NO_HIT, GeometryData, prim_shape, surface_point
+from .traverse import NO_HIT, GeometryData, hit_point, hit_shape
 
 CAMERA = wp.constant(0)
 SHADOW_LIT = wp.constant(1)
@@ -106,12 +106,13 @@ def record_ray(
     d: wp.vec3,
     t: float,
     prim: wp.int32,
+    inst: wp.int32,
     time: float,
     throughput: wp.vec3,
     depth: wp.int32,
     parent: wp.int32,
 ) -> wp.int32:
-    """Append the segment of unit ray ``o + s d`` (at ray time ``time``) that ended at ``(t, prim)``
+    """Append the segment of unit ray ``o + s d`` (at ray time ``time``) that ended at ``(t, prim, inst)``
     as a trace returned it; returns its buffer index.
 
     ``prim == NO_HIT`` with finite ``t``: the ray ran its whole interval (a shadow ray reaching its
@@ -132,10 +133,10 @@ def record_ray(
         s.shape = -1
         s.normal = wp.vec3(0.0)
         if prim != NO_HIT:
-            end, normal, _err = surface_point(geometry, prim, o, d, t, time)
+            end, normal, _err = hit_point(geometry, prim, inst, o, d, t, time)
             s.end = end
             s.normal = normal
-            s.shape = prim_shape(geometry, prim)
+            s.shape = hit_shape(geometry, prim, inst)
             s.flags = HIT
             if wp.dot(d, s.normal) < 0.0:
                 s.flags = HIT | ENTERING

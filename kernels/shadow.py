@@ -25,7 +25,7 @@ from .materials import BSDF_TRANSMISSION, MaterialData, bsdf_flags
 from .media import beer_lambert, max_component
 from .record import SHADOW_BLOCKED, SHADOW_LIT, RayRecord, record_ray
 from .spawn import spawn_origin
-from .traverse import NO_HIT, GeometryData, Traversal, prim_shape, surface_point
+from .traverse import NO_HIT, GeometryData, Traversal, hit_point, prim_shape
 
 SHADOW_CROSSINGS = wp.constant(16)  # dielectric surfaces a filtered shadow ray may pass
 
@@ -50,17 +50,17 @@ def make_shadow_ray(record: bool, trace: Traversal):
     ):
         """Follow a filtered shadow ray ``o + s w``, starting in a medium of absorption ``sigma``,
         through the dielectrics on its way: ``(transmittance, t, prim)``, with ``(t, prim)`` the
-        surface that stopped it (``NO_HIT`` when it reached ``t_max``)."""
+        surface that stopped it (``NO_HIT`` when it reached ``t_max``) and the instance it was hit through."""
         out = wp.vec3(1.0)
         t_total = float(0.0)
         sigma_now = sigma
         for _k in range(SHADOW_CROSSINGS):
-            t, prim = trace.closest_hit(geometry, o, w, time, 0.0, t_max)
+            t, prim, inst = trace.closest_hit(geometry, o, w, time, 0.0, t_max)
             if prim == NO_HIT:
-                return wp.cw_mul(out, beer_lambert(sigma_now, t)), t_total + t, prim
+                return wp.cw_mul(out, beer_lambert(sigma_now, t)), t_total + t, prim, inst
             if not passes(geometry, materials, prim):
-                return wp.vec3(0.0), t_total + t, prim
-            p, n, err = surface_point(geometry, prim, o, w, t, time)
+                return wp.vec3(0.0), t_total + t, prim, inst
+            p, n, err = hit_point(geometry, prim, inst, o, w, t, time)
             m = materials.shape_material[prim_shape(geometry, prim)]
             if wp.dot(w, n) > 0.0:  # leaving: the segment just travelled was inside this dielectric
                 out = wp.cw_mul(out, beer_lambert(materials.sigma[m], t))
@@ -72,7 +72,7 @@ def make_shadow_ray(record: bool, trace: Traversal):
             t_max = t_max - t
             t_total += t
             o = o_next
-        return wp.vec3(0.0), t_total + t_max, NO_HIT
+        return wp.vec3(0.0), t_total + t_max, NO_HIT, -1
 
     @wp.func
     def shadow_ray(
@@ -100,8 +100,9 @@ def make_shadow_ray(record: bool, trace: Traversal):
         visible = wp.vec3(0.0)
         t_stop = float(t_max)
         prim_stop = int(NO_HIT)
+        inst_stop = int(-1)
         if is_filtered:
-            visible, t_stop, prim_stop = filtered(geometry, materials, o, w, t_max, time, sigma)
+            visible, t_stop, prim_stop, inst_stop = filtered(geometry, materials, o, w, t_max, time, sigma)
         elif not trace.any_hit(geometry, o, w, time, 0.0, t_max):
             visible = beer_lambert(sigma, t_max)
         if wp.static(record):
@@ -116,6 +117,7 @@ def make_shadow_ray(record: bool, trace: Traversal):
                     w,
                     t_max,
                     NO_HIT,
+                    -1,
                     time,
                     wp.cw_mul(throughput, visible),
                     depth,
@@ -123,7 +125,7 @@ def make_shadow_ray(record: bool, trace: Traversal):
                 )
             else:
                 if not is_filtered:  # the any-hit query does not say where the blocker is
-                    t_stop, prim_stop = trace.closest_hit(geometry, o, w, time, 0.0, t_max)
+                    t_stop, prim_stop, inst_stop = trace.closest_hit(geometry, o, w, time, 0.0, t_max)
                 record_ray(
                     rec,
                     geometry,
@@ -134,6 +136,7 @@ def make_shadow_ray(record: bool, trace: Traversal):
                     w,
                     t_stop,
                     prim_stop,
+                    inst_stop,
                     time,
                     wp.vec3(0.0),
                     depth,

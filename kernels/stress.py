@@ -8,10 +8,11 @@ The suite checks on the host that none of them falls back onto the surface it le
 
 import warp as wp
 
+from . import traverse
 from .optics import reflect, refract
 from .sample_warps import frame
 from .spawn import spawn_origin
-from .traverse import NO_HIT, GeometryData, any_hit, closest_hit, surface_point
+from .traverse import NO_HIT, GeometryData, any_hit, closest_hit
 
 NOT_TRACED = wp.constant(-2)  # a secondary ray that does not exist (no first hit, or total internal reflection)
 
@@ -52,7 +53,7 @@ def trace_spawned(
     i = wp.tid()
     o = origins[i]
     d = directions[i]
-    t, prim = closest_hit(geometry, o, d, 0.0, 0.0, wp.inf)
+    t, prim, inst = closest_hit(geometry, o, d, 0.0, 0.0, wp.inf)
     hit_t[i] = t
     hit_prim[i] = prim
     shadow_hit[i] = NOT_TRACED
@@ -60,7 +61,7 @@ def trace_spawned(
     refract_prim[i] = NOT_TRACED
     if prim == NO_HIT:
         return
-    p, n, err = surface_point(geometry, prim, o, d, t, 0.0)
+    p, n, err = traverse.hit_point(geometry, prim, inst, o, d, t, 0.0)
     entering = wp.dot(d, n) < 0.0
     n_facing = n
     eta = 1.0 / ior
@@ -80,7 +81,7 @@ def trace_spawned(
     o_reflect = spawn_origin(p, n, err, wr)
     reflect_origin[i] = o_reflect
     reflect_dir[i] = wr
-    tr, pr = closest_hit(geometry, o_reflect, wr, 0.0, 0.0, wp.inf)
+    tr, pr, _ir = closest_hit(geometry, o_reflect, wr, 0.0, 0.0, wp.inf)
     reflect_t[i] = tr
     reflect_prim[i] = pr
     ok, wt = refract(d, n_facing, eta)
@@ -88,6 +89,6 @@ def trace_spawned(
         o_refract = spawn_origin(p, n, err, wt)
         refract_origin[i] = o_refract
         refract_dir[i] = wt
-        tt, pt = closest_hit(geometry, o_refract, wt, 0.0, 0.0, wp.inf)
+        tt, pt, _it = closest_hit(geometry, o_refract, wt, 0.0, 0.0, wp.inf)
         refract_t[i] = tt
         refract_prim[i] = pt

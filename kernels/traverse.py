@@ -1,8 +1,9 @@
 """The device-side scene (``GeometryData``) and its BVH traversal: closest hit and any hit.
 
 Primitives are referred to by a packed id ``(index << KIND_BITS) | kind`` with ``kind`` one of
-``SPHERE``, ``TRIANGLE``, ``POLYGON`` (bounded, in the BVH) and ``PLANE`` (unbounded, tested
-outside the tree); ``index`` counts within that kind's arrays (up to 2^28 per kind). ``NO_HIT`` (-1) marks a miss.
+``SPHERE``, ``TRIANGLE``, ``POLYGON``, ``DISK``, ``CYLINDER`` (bounded, in the BVH) and ``PLANE``
+(unbounded, tested outside the tree); ``index`` counts within that kind's arrays (up to 2^28 per
+kind; disks and cylinders share the ``quadric_*`` arrays, which hold both). ``NO_HIT`` (-1) marks a miss.
 
 The BVH is the 4-wide tree of ``wrt.kernels.bvh``; a leaf lists entries of ``prims``, the packed ids
 in leaf order. Closest hit tests a node's four child boxes together (``child_entry``), descends
@@ -25,6 +26,8 @@ from .features import ALL, Features, geometry_features
 from .intersect import (
     INV_ZERO,
     RayShear,
+    intersect_cylinder,
+    intersect_disk,
     intersect_plane,
     intersect_polygon_sheared,
     intersect_sphere,
@@ -40,6 +43,9 @@ SPHERE = wp.constant(0)
 TRIANGLE = wp.constant(1)
 POLYGON = wp.constant(2)
 PLANE = wp.constant(3)
+DISK = wp.constant(4)
+CYLINDER = wp.constant(5)
+INSTANCE = wp.constant(6)  # an instance of a group: its own BVH in the group's object space
 NO_HIT = wp.constant(-1)
 StackInt = wp.types.vector(length=STACK_SIZE, dtype=wp.int32)
 StackFloat = wp.types.vector(length=STACK_SIZE, dtype=wp.float32)
@@ -68,6 +74,16 @@ class GeometryData:
     num_shapes: wp.int32  # surfaces from here on are the surfaces of lights (see wrt.geometry)
     surface_velocity: wp.array(dtype=wp.vec3)  # per surface (shapes, then lights); world units per unit time
     moving: wp.int32  # 1 when any surface has a nonzero velocity
+    top_count: wp.int32  # entries of ``prims`` in the scene's own tree; the groups' trees list theirs after
+    inst_to_object: wp.array(dtype=wp.mat44)  # per instance: world -> its group's object space (affine)
+    inst_to_world: wp.array(dtype=wp.mat44)  # object -> world
+    inst_root: wp.array(dtype=wp.int32)  # the node of its group's BVH in ``nodes``
+    inst_shape: wp.array(dtype=wp.int32)  # its [[shape]] index (object_id, velocity)
+    inst_entries: wp.array(dtype=wp.vec2i)  # (first, count): its group's primitives in ``prims``
+    quadric_to_object: wp.array(dtype=wp.mat44)  # per disk or cylinder: world -> object space (affine)
+    quadric_to_world: wp.array(dtype=wp.mat44)  # object -> world: the unit disk or tube placed
+    quadric_normal: wp.array(dtype=wp.mat33)  # object normal -> world normal (up to length; see wrt.geometry)
+    quadric_shape: wp.array(dtype=wp.int32)
 
 
 @wp.func
@@ -84,7 +100,20 @@ def prim_shape(geometry: GeometryData, prim: wp.int32) -> wp.int32:
         return geometry.sphere_shape[i]
     if kind == POLYGON:
         return geometry.poly_shape[i]
+    if kind == DISK or kind == CYLINDER:
+        return geometry.quadric_shape[i]
+    if kind == INSTANCE:
+        return geometry.inst_shape[i]
     return geometry.plane_shape[i]
+
+
+@wp.func
+def hit_shape(geometry: GeometryData, prim: wp.int32, inst: wp.int32) -> wp.int32:
+    """The surface a hit ``(prim, inst)`` of ``closest_hit`` is on, as the scene numbers them
+    (``prim_shape``): an instance's own ``[[shape]]`` index for a primitive hit through it."""
+    if inst >= 0:
+        return geometry.inst_shape[inst]
+    return prim_shape(geometry, prim)
 
 
 @wp.func
@@ -134,7 +163,14 @@ def _leaf_entry(features: Features):
     """``leaf_entry(scene, k)``: the packed id of primitive-list entry ``k``. With a single
     primitive kind the k-th entry is the k-th primitive of that kind (``wrt.geometry.build``
     reorders each kind to leaf order), so the id is computed, not loaded."""
-    kinds = [(features.spheres, SPHERE), (features.triangles, TRIANGLE), (features.polygons, POLYGON)]
+    kinds = [
+        (features.spheres, SPHERE),
+        (features.triangles, TRIANGLE),
+        (features.polygons, POLYGON),
+        (features.disks, DISK),
+        (features.cylinders, CYLINDER),
+        (features.instances, INSTANCE),
+    ]
     present = [kind for flag, kind in kinds if flag]
     only = present[0] if len(present) == 1 else -1
 
@@ -150,7 +186,7 @@ def _leaf_entry(features: Features):
 def _intersect_prim(features: Features):
     """``intersect_prim`` compiled for the primitive kinds ``features`` has (and ray motion only
     when something moves)."""
-    kinds = [features.spheres, features.triangles, features.polygons]
+    kinds = [features.spheres, features.triangles, features.polygons, features.disks, features.cylinders]
     single = sum(kinds) == 1
 
     @wp.func
@@ -187,32 +223,56 @@ def _intersect_prim(features: Features):
             if wp.static(single) or kind == SPHERE:
                 return intersect_sphere(o_rel, d, geometry.sphere_center[i], geometry.sphere_radius[i], t_min, t_max)
         if wp.static(features.polygons):
-            return intersect_polygon_sheared(
-                o_rel,
-                d,
-                shear,
-                geometry.poly_normal[i],
-                geometry.poly_offset[i],
-                geometry.poly_verts,
-                geometry.poly_start[i],
-                geometry.poly_count[i],
-                t_min,
-                t_max,
-            )
+            if wp.static(single) or kind == POLYGON:
+                return intersect_polygon_sheared(
+                    o_rel,
+                    d,
+                    shear,
+                    geometry.poly_normal[i],
+                    geometry.poly_offset[i],
+                    geometry.poly_verts,
+                    geometry.poly_start[i],
+                    geometry.poly_count[i],
+                    t_min,
+                    t_max,
+                )
+        if wp.static(features.disks):
+            if wp.static(single) or kind == DISK:
+                return intersect_disk(o_rel, d, geometry.quadric_to_object[i], t_min, t_max)
+        if wp.static(features.cylinders):
+            if wp.static(single) or kind == CYLINDER:
+                return intersect_cylinder(o_rel, d, geometry.quadric_to_object[i], t_min, t_max)
         return t_max
 
     return intersect_prim
 
 
-def _closest_hit(features: Features, log_visits: bool):
+@wp.func
+def to_object(geometry: GeometryData, inst: wp.int32, o: wp.vec3, d: wp.vec3, time: float):
+    """The ray ``o + t d`` at ray time ``time`` in the object space of instance ``inst``: ``(o', d')``
+    with ``d'`` not renormalised, so that ``t`` measures the same points in both spaces."""
+    if geometry.moving != 0:
+        o = o - time * geometry.surface_velocity[geometry.inst_shape[inst]]
+    m = geometry.inst_to_object[inst]
+    return wp.transform_point(m, o), wp.transform_vector(m, d)
+
+
+def _closest_hit(features: Features, log_visits: bool, top: bool = True):
     """The closest-hit traversal for ``features``' primitive kinds, appending every wide node it
-    visits to row ``row`` of ``log`` when ``log_visits`` (compiled out otherwise)."""
+    visits to row ``row`` of ``log`` when ``log_visits`` (compiled out otherwise).
+
+    ``top``: the scene's own tree, with its planes; a leaf entry that is an instance continues in
+    its group's tree, built by this factory with ``top=False`` (the group's object space, no
+    planes, no instances), with the ray taken into the group's object space."""
     intersect_prim = _intersect_prim(features)
     leaf_entry = _leaf_entry(features)
+    instances = top and features.instances
+    closest_in_group = _closest_hit(features, log_visits, top=False) if instances else None
 
     @wp.func
     def closest_hit_logged(
         geometry: GeometryData,
+        root: wp.int32,
         o: wp.vec3,
         d: wp.vec3,
         time: float,
@@ -221,16 +281,19 @@ def _closest_hit(features: Features, log_visits: bool):
         log: VisitLog,
         row: wp.int32,
     ):
-        t_max, hit = closest_plane(geometry, o, d, time, t_min, t_max)
-        if geometry.nodes.shape[0] == 0:
-            return t_max, hit
+        hit = int(NO_HIT)
+        hit_inst = int(-1)
+        if wp.static(top):
+            t_max, hit = closest_plane(geometry, o, d, time, t_min, t_max)
+            if geometry.nodes.shape[0] == 0:
+                return t_max, hit, hit_inst
         inv_d = safe_inverse(d)
         moves = inv_d[0] != INV_ZERO and inv_d[1] != INV_ZERO and inv_d[2] != INV_ZERO
         shear = ray_shear(d)
         stack = StackInt()
         stack_t = StackFloat()
         sp = int(0)
-        ref = int(0)
+        ref = root
         while True:
             if ref >= 0:
                 if wp.static(log_visits):
@@ -273,10 +336,23 @@ def _closest_hit(features: Features, log_visits: bool):
                 start = leaf_start(ref)
                 for k in range(start, start + leaf_count(ref)):
                     prim = leaf_entry(geometry, k)
+                    if wp.static(instances):
+                        if prim & KIND_MASK == INSTANCE:
+                            inst = prim >> KIND_BITS
+                            o_obj, d_obj = to_object(geometry, inst, o, d, time)
+                            t, inner, _none = closest_in_group(
+                                geometry, geometry.inst_root[inst], o_obj, d_obj, time, t_min, t_max, log, row
+                            )
+                            if t < t_max:
+                                t_max = t
+                                hit = inner
+                                hit_inst = inst
+                            continue
                     t = intersect_prim(geometry, prim, o, d, shear, time, t_min, t_max)
                     if t < t_max:
                         t_max = t
                         hit = prim
+                        hit_inst = -1
             # pop the nearest pending child that can still hold a closer hit
             found = bool(False)
             while sp > 0 and not found:
@@ -286,40 +362,43 @@ def _closest_hit(features: Features, log_visits: bool):
                     found = True
             if not found:
                 break
-        return t_max, hit
+        return t_max, hit, hit_inst
 
     return closest_hit_logged
 
 
-def _any_hit(features: Features):
-    """The any-hit traversal for ``features``' primitive kinds."""
+def _any_hit(features: Features, top: bool = True):
+    """The any-hit traversal for ``features``' primitive kinds (``top`` as for ``_closest_hit``)."""
     intersect_prim = _intersect_prim(features)
     leaf_entry = _leaf_entry(features)
+    instances = top and features.instances
+    any_in_group = _any_hit(features, top=False) if instances else None
 
     @wp.func
-    def any_hit(geometry: GeometryData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float) -> bool:
-        """Whether anything lies in ``(t_min, t_max)`` along the ray at ray time ``time`` (for shadow
-        rays); stops at the first hit."""
-        for i in range(geometry.plane_point.shape[0]):
-            if (
-                intersect_plane(
-                    ray_origin_at(geometry, (i << KIND_BITS) | PLANE, o, time),
-                    d,
-                    geometry.plane_point[i],
-                    geometry.plane_normal[i],
-                    t_min,
-                    t_max,
-                )
-                < t_max
-            ):
-                return True
-        if geometry.nodes.shape[0] == 0:
-            return False
+    def any_hit_from(
+        geometry: GeometryData, root: wp.int32, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float
+    ) -> bool:
+        if wp.static(top):
+            for i in range(geometry.plane_point.shape[0]):
+                if (
+                    intersect_plane(
+                        ray_origin_at(geometry, (i << KIND_BITS) | PLANE, o, time),
+                        d,
+                        geometry.plane_point[i],
+                        geometry.plane_normal[i],
+                        t_min,
+                        t_max,
+                    )
+                    < t_max
+                ):
+                    return True
+            if geometry.nodes.shape[0] == 0:
+                return False
         inv_d = safe_inverse(d)
         moves = inv_d[0] != INV_ZERO and inv_d[1] != INV_ZERO and inv_d[2] != INV_ZERO
         shear = ray_shear(d)
         stack = StackInt()
-        stack[0] = 0
+        stack[0] = root
         sp = int(1)
         while sp > 0:
             sp -= 1
@@ -334,11 +413,19 @@ def _any_hit(features: Features):
             else:
                 start = leaf_start(ref)
                 for k in range(start, start + leaf_count(ref)):
-                    if intersect_prim(geometry, leaf_entry(geometry, k), o, d, shear, time, t_min, t_max) < t_max:
+                    prim = leaf_entry(geometry, k)
+                    if wp.static(instances):
+                        if prim & KIND_MASK == INSTANCE:
+                            inst = prim >> KIND_BITS
+                            o_obj, d_obj = to_object(geometry, inst, o, d, time)
+                            if any_in_group(geometry, geometry.inst_root[inst], o_obj, d_obj, time, t_min, t_max):
+                                return True
+                            continue
+                    if intersect_prim(geometry, prim, o, d, shear, time, t_min, t_max) < t_max:
                         return True
         return False
 
-    return any_hit
+    return any_hit_from
 
 
 class Traversal:
@@ -346,18 +433,40 @@ class Traversal:
 
     def __init__(self, features: Features):
         self.features = features
-        self.closest_hit_logged = _closest_hit(features, log_visits=True)
+        closest_hit_logged = _closest_hit(features, log_visits=True)
         closest_hit_unlogged = _closest_hit(features, log_visits=False)
+        any_hit_from = _any_hit(features)
+
+        @wp.func
+        def closest_hit_visits(
+            geometry: GeometryData,
+            o: wp.vec3,
+            d: wp.vec3,
+            time: float,
+            t_min: float,
+            t_max: float,
+            log: VisitLog,
+            row: wp.int32,
+        ):
+            """``closest_hit``, logging the wide nodes it visits in row ``row`` of ``log``."""
+            return closest_hit_logged(geometry, 0, o, d, time, t_min, t_max, log, row)
 
         @wp.func
         def closest_hit(geometry: GeometryData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float):
-            """Nearest intersection in ``(t_min, t_max)`` at ray time ``time``: returns ``(t, prim)``;
-            ``prim == NO_HIT`` on a miss."""
-            t, prim = closest_hit_unlogged(geometry, o, d, time, t_min, t_max, VisitLog(), 0)
-            return t, prim
+            """Nearest intersection in ``(t_min, t_max)`` at ray time ``time``: returns
+            ``(t, prim, inst)``; ``prim == NO_HIT`` on a miss; ``inst`` the instance the primitive
+            was hit through (its group's primitive ``prim``), -1 for the scene's own primitives."""
+            return closest_hit_unlogged(geometry, 0, o, d, time, t_min, t_max, VisitLog(), 0)
 
+        @wp.func
+        def any_hit(geometry: GeometryData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float) -> bool:
+            """Whether anything lies in ``(t_min, t_max)`` along the ray at ray time ``time`` (for
+            shadow rays); stops at the first hit."""
+            return any_hit_from(geometry, 0, o, d, time, t_min, t_max)
+
+        self.closest_hit_logged = closest_hit_visits
         self.closest_hit = closest_hit
-        self.any_hit = _any_hit(features)
+        self.any_hit = any_hit
 
 
 @functools.cache
@@ -376,16 +485,31 @@ _intersect_any_kind = _intersect_prim(ALL)
 
 @wp.func
 def closest_hit_brute_force(geometry: GeometryData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float):
-    """Reference for ``closest_hit``: every primitive tested, no tree. Same return values."""
+    """Reference for ``closest_hit``: every primitive tested, no tree (an instance: every
+    primitive of its group, in the group's object space). Same return values."""
     t_max, hit = closest_plane(geometry, o, d, time, t_min, t_max)
+    hit_inst = int(-1)
     shear = ray_shear(d)
-    for k in range(geometry.prims.shape[0]):
+    for k in range(geometry.top_count):
         prim = geometry.prims[k]
-        t = _intersect_any_kind(geometry, prim, o, d, shear, time, t_min, t_max)
-        if t < t_max:
-            t_max = t
-            hit = prim
-    return t_max, hit
+        if prim & KIND_MASK == INSTANCE:
+            inst = prim >> KIND_BITS
+            o_obj, d_obj = to_object(geometry, inst, o, d, time)
+            shear_obj = ray_shear(d_obj)
+            entries = geometry.inst_entries[inst]
+            for j in range(entries[0], entries[0] + entries[1]):
+                t = _intersect_any_kind(geometry, geometry.prims[j], o_obj, d_obj, shear_obj, time, t_min, t_max)
+                if t < t_max:
+                    t_max = t
+                    hit = geometry.prims[j]
+                    hit_inst = inst
+        else:
+            t = _intersect_any_kind(geometry, prim, o, d, shear, time, t_min, t_max)
+            if t < t_max:
+                t_max = t
+                hit = prim
+                hit_inst = -1
+    return t_max, hit, hit_inst
 
 
 @wp.func
@@ -397,13 +521,17 @@ def surface_point(geometry: GeometryData, prim: wp.int32, o: wp.vec3, d: wp.vec3
     ``o + t d`` carries the rounding of wherever the ray started (1e4 units away, several
     hundredths of a unit), so it is only the first guess: spheres reproject it onto the sphere,
     ``c + r (q - c) / |q - c|``; triangles, polygons and planes project it onto their plane,
-    ``q - (n . (q - a)) n`` (pbrt-v4 and Mitsuba 3 do the same). What is left is the rounding of
-    that recomputation, a few ulps of the point and of the primitive's own coordinates, however
-    far the ray came from.
+    ``q - (n . (q - a)) n`` (pbrt-v4 and Mitsuba 3 do the same); disks and cylinders take it to
+    their object space (float64), set ``z' = 0`` (disk) or scale ``(x', y')`` to unit length
+    (tube), and map it back with ``quadric_to_world``. What is left is the rounding of that
+    recomputation, a few ulps of the point and of the primitive's own coordinates (a quadric's:
+    its translation plus the reach of its axes, as the float32 ``quadric_to_world`` is the inverse
+    of ``quadric_to_object`` to an ulp of those), however far the ray came from.
 
     Normals: spheres outward; triangles ``cross(v1 - v0, v2 - v0)`` (the winding normal);
     polygons and planes the normal given in the scene (polygons: by Newell's method from the
-    winding).
+    winding); disks and cylinders their object normal (+z; the radial direction, outward) by
+    ``quadric_normal``, the inverse transpose of the placement (negated for inward normals).
     """
     kind = prim & KIND_MASK
     i = prim >> KIND_BITS
@@ -419,6 +547,24 @@ def surface_point(geometry: GeometryData, prim: wp.int32, o: wp.vec3, d: wp.vec3
         n = wp.normalize(q - c)
         q = c + r * n
         extent = max_abs(c) + r
+    elif kind == DISK or kind == CYLINDER:
+        to_world = geometry.quadric_to_world[i]
+        local = wp.transform_point(wp.mat44d(geometry.quadric_to_object[i]), wp.vec3d(q))
+        n_local = wp.vec3(0.0, 0.0, 1.0)
+        reach = wp.abs(wp.vec3(to_world[0, 0], to_world[1, 0], to_world[2, 0])) + wp.abs(
+            wp.vec3(to_world[0, 1], to_world[1, 1], to_world[2, 1])
+        )
+        if kind == DISK:
+            local[2] = wp.float64(0.0)
+        else:
+            radial = wp.sqrt(local[0] * local[0] + local[1] * local[1])
+            local[0] = local[0] / radial
+            local[1] = local[1] / radial
+            n_local = wp.vec3(wp.float32(local[0]), wp.float32(local[1]), 0.0)
+            reach += wp.abs(wp.vec3(to_world[0, 2], to_world[1, 2], to_world[2, 2]))
+        q = wp.vec3(wp.transform_point(wp.mat44d(to_world), local))
+        n = wp.normalize(geometry.quadric_normal[i] * n_local)
+        extent = max_abs(wp.vec3(to_world[0, 3], to_world[1, 3], to_world[2, 3])) + max_abs(reach)
     else:
         if kind == TRIANGLE:
             a = geometry.tri_verts[3 * i]
@@ -439,6 +585,32 @@ def surface_point(geometry: GeometryData, prim: wp.int32, o: wp.vec3, d: wp.vec3
     return p, n, point_error(p, max_abs(q) + extent)
 
 
+@wp.func
+def hit_point(geometry: GeometryData, prim: wp.int32, inst: wp.int32, o: wp.vec3, d: wp.vec3, t: float, time: float):
+    """``surface_point`` of a hit ``(t, prim, inst)`` from ``closest_hit``: for a primitive hit
+    through instance ``inst``, found in the group's object space and taken back to the world,
+    the normal by the inverse transpose. Its error bound adds the rounding of the two transforms:
+    the object-space bound stretched by at most the Frobenius norm of the linear part, plus a few
+    ulps of the world point and translation."""
+    if inst < 0:
+        return surface_point(geometry, prim, o, d, t, time)
+    o_obj, d_obj = to_object(geometry, inst, o, d, time)
+    p_obj, n_obj, err_obj = surface_point(geometry, prim, o_obj, d_obj, t, time)
+    to_world = geometry.inst_to_world[inst]
+    shift = wp.vec3(0.0)
+    if geometry.moving != 0:
+        shift = time * geometry.surface_velocity[geometry.inst_shape[inst]]
+    p = wp.transform_point(to_world, p_obj) + shift
+    n = wp.normalize(wp.transform_vector(wp.transpose(geometry.inst_to_object[inst]), n_obj))
+    stretch = wp.sqrt(  # the Frobenius norm of the linear part: its columns' squared lengths
+        wp.length_sq(wp.transform_vector(to_world, wp.vec3(1.0, 0.0, 0.0)))
+        + wp.length_sq(wp.transform_vector(to_world, wp.vec3(0.0, 1.0, 0.0)))
+        + wp.length_sq(wp.transform_vector(to_world, wp.vec3(0.0, 0.0, 1.0)))
+    )
+    translation = wp.vec3(to_world[0, 3], to_world[1, 3], to_world[2, 3])
+    return p, n, stretch * err_obj + point_error(p, max_abs(translation) + stretch * max_abs(p_obj))
+
+
 def _trace_kernels(trace: Traversal, module: str | None):
     @wp.kernel(module=module)
     def trace_closest(
@@ -450,16 +622,18 @@ def _trace_kernels(trace: Traversal, module: str | None):
         brute_force: wp.int32,
         out_t: wp.array(dtype=float),
         out_prim: wp.array(dtype=wp.int32),
+        out_inst: wp.array(dtype=wp.int32),
     ):
         """Closest hit of a batch of rays at time 0 (tests, stress suite, benchmarks); ``brute_force != 0``
         skips the BVH."""
         i = wp.tid()
         if brute_force != 0:
-            t, prim = closest_hit_brute_force(geometry, origins[i], directions[i], 0.0, t_min, t_max)
+            t, prim, inst = closest_hit_brute_force(geometry, origins[i], directions[i], 0.0, t_min, t_max)
         else:
-            t, prim = trace.closest_hit(geometry, origins[i], directions[i], 0.0, t_min, t_max)
+            t, prim, inst = trace.closest_hit(geometry, origins[i], directions[i], 0.0, t_min, t_max)
         out_t[i] = t
         out_prim[i] = prim
+        out_inst[i] = inst
 
     @wp.kernel(module=module)
     def trace_any(

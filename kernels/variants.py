@@ -32,29 +32,27 @@ def relevant(integrator: str, features: Features) -> Features:
     """``features`` with the flags that do not pay for a variant of ``integrator`` set: each
     variant costs a compilation (seconds) the first time it is used, so only flags that remove
     measurable work are specialised on (see docs/performance.md): the geometry (primitive kinds,
-    moving surfaces) and the lens and shutter sampling of the pixel loop for every integrator;
-    lights and the branch stack for whitted; lights and dielectrics for path (its mirror test is
-    a load and a compare: path ignores ``specular``)."""
-    geometry = {
+    moving surfaces) and the pixel loop's camera (lens, orthographic) and shutter sampling for
+    every integrator; lights and the branch stack for whitted; lights and dielectrics for path
+    (its mirror test is a load and a compare: path ignores ``specular``)."""
+    every_integrator = {
+        "lens": features.lens,
+        "orthographic": features.orthographic,
+        "motion": features.motion,
         "moving": features.moving,
         "spheres": features.spheres,
         "triangles": features.triangles,
         "polygons": features.polygons,
+        "disks": features.disks,
+        "cylinders": features.cylinders,
     }
     if integrator == "raycast":
-        return Features(lens=features.lens, motion=features.motion, **geometry)
+        return Features(**every_integrator)
     if integrator == "whitted":
         return Features(
-            lights=features.lights,
-            specular=features.specular,
-            dielectric=features.dielectric,
-            lens=features.lens,
-            motion=features.motion,
-            **geometry,
+            lights=features.lights, specular=features.specular, dielectric=features.dielectric, **every_integrator
         )
-    return Features(
-        lights=features.lights, dielectric=features.dielectric, lens=features.lens, motion=features.motion, **geometry
-    )
+    return Features(lights=features.lights, dielectric=features.dielectric, **every_integrator)
 
 
 def render_kernel(integrator: str, features: Features):

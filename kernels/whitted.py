@@ -10,6 +10,8 @@ Per camera ray, a ray tree is traced depth first with an explicit stack of pendi
 - dielectrics: a reflected branch weighted by the exact Fresnel reflectance F and a refracted
   branch weighted by 1 - F (Snell's law), or only the reflected one under total internal
   reflection; absorption inside follows Beer-Lambert over the distance travelled;
+- the back side of a one-sided material (``two_sided = false``) adds nothing, not even
+  ``ambient``, and the path ends there;
 - emission on any material is added where a ray hits its front side; rays that leave the scene
   see ``background``.
 
@@ -57,7 +59,7 @@ from .materials import (
     BSDF_TRANSMISSION,
     MaterialData,
     bsdf_eval,
-    bsdf_flags,
+    bsdf_flags_from,
     non_specular,
     specular_lobes,
 )
@@ -181,6 +183,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
         d = ray.d
         t = ray.t
         prim = ray.prim
+        inst = ray.inst
         radiance = wp.vec3(0.0)
         throughput = wp.vec3(1.0)
         depth = int(1)
@@ -213,8 +216,8 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
         for _segment in range(MAX_SEGMENTS):
             # Trace the next segment (the camera ray's is traced already)
             if not traced:
-                t, prim, current = trace_segment(
-                    geometry, rec, ray, segment_kind, o, d, t_from, t_last, throughput, depth, segment_parent
+                t, prim, inst, current = trace_segment(
+                    geometry, rec, ray, segment_kind, o, d, t_from, wp.inf, t_last, throughput, depth, segment_parent
                 )
             traced = False
 
@@ -227,10 +230,10 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                 radiance += wp.cw_mul(throughput, settings.background)
             else:
                 # Emission at the front of what was hit
-                hit = surface_hit(geometry, materials, o, d, t, prim, ray.time)
+                hit = surface_hit(geometry, materials, o, d, t, prim, inst, ray.time)
                 if hit.entering:
                     radiance += wp.cw_mul(throughput, materials.emission[hit.material])
-                flags = bsdf_flags(materials, hit.material)
+                flags = bsdf_flags_from(materials, hit.material, hit.entering)
 
                 # Local shading at non-specular surfaces: ambient plus the delta lights
                 if non_specular(flags):

@@ -39,9 +39,9 @@ material = "red"
 """  # a small valid scene file that the bad-input tests break one key at a time
 
 
-def make_scene(shapes, render=None, camera=None, materials=None, lights=None, scene_dir="."):
+def make_scene(shapes, render=None, camera=None, materials=None, lights=None, scene_dir=".", groups=None):
     """A validated ``Scene`` from inline tables, with a default camera and render settings."""
-    doc = {"camera": camera or CAMERA, "shape": shapes, "light": lights or []}
+    doc = {"camera": camera or CAMERA, "shape": shapes, "light": lights or [], "group": groups or []}
     if render:
         doc["render"] = render
     if materials:
@@ -72,8 +72,8 @@ class Tracer(PrimitiveTracer):
         super().__init__(scene, **{"device": wp.get_device(), **kwargs})
 
     def closest(self, origins, directions, t_min=0.0, t_max=np.inf, brute_force=False):
-        t, prim = super().closest(origins, directions, t_min, t_max, brute_force)
-        return t, self.prims.shape_of(prim)
+        t, prim, inst = super().closest_instanced(origins, directions, t_min, t_max, brute_force)
+        return t, self.prims.shape_of(prim, inst)
 
 
 @pytest.fixture

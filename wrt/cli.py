@@ -99,7 +99,14 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
         "aborts without writing).",
     )
     r.add_argument("scene", help="scene file: .toml (docs/scene-format.md) or Mitsuba 3 .xml (docs/mitsuba.md)")
-    r.add_argument("--strict", action="store_true", help="Mitsuba XML: unsupported elements are errors, not warnings")
+    fidelity = r.add_mutually_exclusive_group()
+    fidelity.add_argument(
+        "--approximate",
+        action="store_true",
+        help="Mitsuba XML: convert what wrt cannot render exactly as Mitsuba anyway (listed on stderr and in the "
+        "EXR metadata 'approximations'); by default such a scene is refused",
+    )
+    fidelity.add_argument("--strict", action="store_true", help="Mitsuba XML: refuse inexact conversions (the default)")
     r.add_argument("-o", "--output", required=True, help="output image, .exr or .png (written atomically)")
     r.add_argument(
         "--spp", type=int_in(1, MAX_SPP, "--spp", "spp"), help="samples per pixel (default: the scene's [render] spp)"
@@ -283,7 +290,7 @@ def _render(args) -> int:
     if args.device.startswith("cuda") and messages:
         print(messages, end="", file=sys.stderr)
     scene = override_render(
-        load_scene(args.scene, strict=args.strict),
+        load_scene(args.scene, approximate=args.approximate),
         width=args.width,
         height=args.height,
         spp=args.spp,
@@ -303,6 +310,8 @@ def _render(args) -> int:
             "device": result.device,
             "render_time_s": result.render_time_s,
         }
+        if scene.approximations:  # what an --approximate Mitsuba import rendered differently
+            metadata["approximations"] = "\n".join(scene.approximations)
         aovs = {k: result.aovs[k] for k in args.aov}
         if args.target_error is not None and ext == ".exr":
             aovs["spp"] = result.aovs["spp"].astype("float32")  # counts are exact in float32

@@ -138,6 +138,17 @@ def upload_geometry(p: Primitives, device) -> GeometryData:
     s.num_shapes = p.num_shapes
     s.surface_velocity = _vec3(p.surface_velocity, device)
     s.moving = int(np.any(p.surface_velocity != 0.0))
+    s.top_count = p.top_count
+    s.inst_to_world = wp.array(p.inst_to_world.astype(np.float32), dtype=wp.mat44, device=device)
+    s.inst_to_object = wp.array(np.linalg.inv(p.inst_to_world).astype(np.float32), dtype=wp.mat44, device=device)
+    s.inst_root = _int(p.inst_root, device)
+    s.inst_shape = _int(p.inst_shape, device)
+    s.inst_entries = wp.array(p.inst_entries.astype(np.int32), dtype=wp.vec2i, device=device)
+    to_object, to_world, normal = p.quadric_transforms()
+    s.quadric_to_object = wp.array(to_object, dtype=wp.mat44, device=device)
+    s.quadric_to_world = wp.array(to_world.astype(np.float32), dtype=wp.mat44, device=device)
+    s.quadric_normal = wp.array(normal, dtype=wp.mat33, device=device)
+    s.quadric_shape = _int(p.quadric_shape, device)
     return s
 
 
@@ -152,9 +163,10 @@ def _base_color(mat) -> tuple:
 
 
 def surface_materials(scene: Scene) -> tuple[list[int], list[Material]]:
-    """Material index of every surface (the shapes, then the surfaces of area and sphere lights)
-    and the material list they index: the scene's, then one black emitter per surface light,
-    emitting the light's radiance from its front."""
+    """Material index of every surface (the shapes, the surfaces of area and sphere lights, then
+    the shapes of the groups, group by group: ``wrt.geometry``'s numbering) and the material list
+    they index: the scene's, then one black emitter per surface light, emitting the light's
+    radiance from its front."""
     materials = list(scene.materials)
     surfaces = [shape.material for shape in scene.shapes]
     for k, light in enumerate(scene.lights):
@@ -163,6 +175,7 @@ def surface_materials(scene: Scene) -> tuple[list[int], list[Material]]:
             materials.append(
                 Material(name=f"light[{k}]", type="emitter", albedo=(0.0, 0.0, 0.0), emission=light.radiance)
             )
+    surfaces += [shape.material for group in scene.groups for shape in group.shapes]
     return surfaces, materials
 
 
@@ -183,6 +196,7 @@ def upload_materials(scene: Scene, device) -> MaterialData:
     m.priority = _int([mat.priority for mat in mats], device)
     m.roughness = _float([mat.roughness for mat in mats], device)
     m.emission = _vec3([mat.emission for mat in mats], device)
+    m.two_sided = _int([mat.two_sided for mat in mats], device)
     return m
 
 
@@ -236,12 +250,15 @@ def upload_lights(scene: Scene, device) -> LightData:
 
 
 def camera_media(scene: Scene) -> list[int]:
-    """The dielectric spheres and meshes the camera origin lies inside (shape indices, the
-    largest first, as a ray from outside would have entered them), where camera rays start: their
-    absorption applies from the first segment on. A mesh holds the origin when a ray from it
-    crosses the mesh an odd number of times (float64). Triangles and polygons bound no volume
-    alone; a moving shape is taken at time 0; a thin lens is taken at its centre."""
-    o = np.asarray(scene.camera.origin, dtype=np.float64)
+    """The dielectric spheres and meshes the camera rays start inside (shape indices, the largest
+    first, as a ray from outside would have entered them): their absorption applies from the
+    first segment on. They are found at one point, where the image's central ray starts,
+    ``origin + near_clip forward``, and taken for every camera ray (those of an orthographic camera
+    or a thin lens start elsewhere on the camera plane, or its near clip plane). A mesh holds the
+    point when a ray from it crosses the mesh an odd number of times (float64). Triangles,
+    polygons, disks and (open) cylinders bound no volume alone; a moving shape is taken at time 0."""
+    forward, _, _ = scene.camera.basis()
+    o = np.asarray(scene.camera.origin, dtype=np.float64) + scene.camera.near_clip * forward
     inside = []
     for index, shape in enumerate(scene.shapes):
         if scene.materials[shape.material].type != "dielectric":
@@ -314,6 +331,11 @@ def camera_data(camera: Camera, render: RenderSettings, width: int, height: int)
         else float(np.linalg.norm(np.subtract(camera.look_at, camera.origin)))
     )
     c.aspect = width / height
+    c.orthographic = int(camera.type == "orthographic")
+    if camera.type == "orthographic":
+        c.half_width = camera.width / 2.0
+        c.half_height = camera.width / 2.0 / c.aspect
+    c.near_clip, c.far_clip = camera.near_clip, camera.far_clip
     c.width, c.height = width, height
     c.filter = FILTER_CODES[render.filter]
     c.shutter_open, c.shutter_close = camera.shutter

@@ -1,24 +1,29 @@
 """Scene shapes flattened into primitive arrays (host, float64), and their BVH, ready for upload.
 
-Every ``[[shape]]`` becomes primitives of one kind: a sphere, a plane, a triangle, a polygon, or
-a mesh's triangles; each primitive remembers its surface: the shape's index (the ``object_id``),
-or for the surface of light k (a parallelogram is a polygon, a sphere light a sphere)
-``n_shapes + k``. Bounded
-primitives go into one BVH with mixed kinds (built on the render device, ``wrt.bvh``); planes are
-unbounded and stay outside it. After the build each kind's arrays are reordered to the order the
-leaves list them, for memory locality.
+Every ``[[shape]]`` becomes primitives of one kind: a sphere, a plane, a triangle, a polygon, a
+disk or cylinder (its unit shape's transforms), or a mesh's triangles; each primitive remembers
+its surface: the shape's index (the ``object_id``), or for the surface of light k (a
+parallelogram is a polygon, a sphere light a sphere) ``n_shapes + k``. Bounded primitives go into
+one BVH with mixed kinds (built on the render device, ``wrt.bvh``); planes are unbounded and stay
+outside it. After the build each kind's arrays are reordered to the order the leaves list them,
+for memory locality.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import dataclasses
+from dataclasses import dataclass, field
 
 import numpy as np
+import warp as wp
 
-from wrt.kernels.traverse import KIND_BITS, KIND_MASK, PLANE, POLYGON, SPHERE, TRIANGLE
+from wrt.kernels.bvh import LEAF_COUNT_BITS, LEAF_COUNT_MASK, WideNode
+from wrt.kernels.traverse import CYLINDER, DISK, INSTANCE, KIND_BITS, KIND_MASK, PLANE, POLYGON, SPHERE, TRIANGLE
 
 from .bvh import DeviceBvh, build_bvh
-from .scene import AreaLight, Mesh, Plane, Polygon, Scene, Sphere, SphereLight, Triangle
+from .scene import AreaLight, Cylinder, Disk, Instance, Mesh, Plane, Polygon, Scene, Sphere, SphereLight, Triangle
+
+FLOAT32_EPS = float(np.finfo(np.float32).eps)
 
 
 @dataclass
@@ -37,23 +42,47 @@ class Primitives:
     plane_point: np.ndarray  # (L, 3)
     plane_normal: np.ndarray  # (L, 3) unit
     plane_shape: np.ndarray
+    quadric_to_world: np.ndarray  # (Q, 4, 4) float64: disks and cylinders, their unit shape placed (wrt.scene)
+    quadric_kind: np.ndarray  # (Q,) DISK or CYLINDER
+    quadric_flip: np.ndarray  # (Q,) bool: normals inward
+    quadric_shape: np.ndarray
     surface_velocity: np.ndarray | None = None  # (shapes + lights, 3): scene units per unit time
     num_shapes: int = 0  # surfaces numbered from here on belong to lights
     bvh: DeviceBvh | None = None  # over the bounded primitives, on the render device
     prims: np.ndarray | None = None  # (N,) packed ids in leaf order
+    # instances of groups (wrt.scene.Instance); each group's primitives follow the scene's own in
+    # the arrays above, in its object space, with a tree of its own after the scene's in bvh.nodes
+    inst_to_world: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))  # (I, 4, 4) float64
+    inst_shape: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int32))  # its [[shape]] index
+    inst_group: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int32))
+    inst_lo: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), dtype=np.float32))  # world boxes
+    inst_hi: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), dtype=np.float32))
+    inst_root: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int32))  # its group's root node
+    inst_entries: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int32))  # (first, count)
+    top_count: int = 0  # entries of prims in the scene's own tree
 
     def bounded_ids(self) -> np.ndarray:
-        """Packed ids ``(index << KIND_BITS) | kind`` of spheres, then triangles, then polygons."""
+        """Packed ids ``(index << KIND_BITS) | kind`` of spheres, then triangles, then polygons,
+        then disks and cylinders (``quadric_*`` order), then instances."""
         return np.concatenate(
             [
                 (np.arange(len(self.sphere_radius)) << KIND_BITS) | SPHERE,
                 (np.arange(len(self.tri_shape)) << KIND_BITS) | TRIANGLE,
                 (np.arange(len(self.poly_verts)) << KIND_BITS) | POLYGON,
+                (np.arange(len(self.quadric_kind)) << KIND_BITS) | self.quadric_kind,
+                (np.arange(len(self.inst_shape)) << KIND_BITS) | INSTANCE,
             ]
         ).astype(np.int64)
 
-    def shape_of(self, packed: np.ndarray) -> np.ndarray:
-        """Shape index (``object_id``) of each packed primitive id; -1 where the id is -1 (no hit)."""
+    def shape_of(self, packed: np.ndarray, inst: np.ndarray | None = None) -> np.ndarray:
+        """Shape index (``object_id``) of each packed primitive id; -1 where the id is -1 (no hit);
+        with ``inst`` (from ``closest_instanced``), the instance's where a primitive was hit
+        through one."""
+        if inst is not None:
+            inst = np.asarray(inst)
+            return np.where(
+                inst >= 0, self.inst_shape[np.maximum(inst, 0)] if len(self.inst_shape) else -1, self.shape_of(packed)
+            )
         packed = np.asarray(packed, dtype=np.int64)
         kind, index = packed & KIND_MASK, packed >> KIND_BITS
         out = np.full(packed.shape, -1, dtype=np.int32)
@@ -61,7 +90,10 @@ class Primitives:
             (SPHERE, self.sphere_shape),
             (TRIANGLE, self.tri_shape),
             (POLYGON, self.poly_shape),
+            (DISK, self.quadric_shape),
+            (CYLINDER, self.quadric_shape),
             (PLANE, self.plane_shape),
+            (INSTANCE, self.inst_shape),
         ):
             hit = (packed >= 0) & (kind == k)
             out[hit] = table[index[hit]]
@@ -71,23 +103,58 @@ class Primitives:
         """float32 boxes (N, 3) holding each bounded primitive as the device holds it (float32
         values), in ``bounded_ids`` order, over the times of ``shutter``: a moving primitive's box
         covers its whole sweep. Triangle and polygon boxes are exact; sphere boxes and sweeps are
-        computed in float64 and rounded outward."""
+        computed in float64 and rounded outward; so are the exact boxes of disks and tubes (per axis,
+        an ellipse ``c + u cos + v sin`` spans ``c +- sqrt(u^2 + v^2)``; a tube, its two end rims)."""
         center, radius = _f32(self.sphere_center), _f32(self.sphere_radius)[:, None]
         sphere_lo, sphere_hi = round_outward(center - radius, center + radius)
+        to_world = self.quadric_transforms()[1]
+        rim = np.sqrt(to_world[:, :3, 0] ** 2 + to_world[:, :3, 1] ** 2)
+        axis = np.where((self.quadric_kind == CYLINDER)[:, None], to_world[:, :3, 2], 0.0)
+        origin = to_world[:, :3, 3]
+        quadric_lo, quadric_hi = round_outward(origin - rim + np.minimum(axis, 0.0), origin + rim + np.maximum(axis, 0))
         polys = [v.astype(np.float32) for v in self.poly_verts]
         tri = self.tri_verts
         tri_lo = np.minimum(np.minimum(tri[:, 0], tri[:, 1]), tri[:, 2])  # 5x faster than min(axis=1) on (T, 3, 3)
         tri_hi = np.maximum(np.maximum(tri[:, 0], tri[:, 1]), tri[:, 2])
-        lo = np.concatenate([sphere_lo, tri_lo] + [v.min(axis=0, keepdims=True) for v in polys])
-        hi = np.concatenate([sphere_hi, tri_hi] + [v.max(axis=0, keepdims=True) for v in polys])
+        lo = np.concatenate(
+            [sphere_lo, tri_lo] + [v.min(axis=0, keepdims=True) for v in polys] + [quadric_lo, self.inst_lo]
+        )
+        hi = np.concatenate(
+            [sphere_hi, tri_hi] + [v.max(axis=0, keepdims=True) for v in polys] + [quadric_hi, self.inst_hi]
+        )
         moving_surface = np.any(self.surface_velocity != 0.0, axis=1) & (shutter[0] != 0.0 or shutter[1] != 0.0)
         if moving_surface.any():
-            shapes = np.concatenate([self.sphere_shape, self.tri_shape, self.poly_shape])
+            shapes = np.concatenate(
+                [self.sphere_shape, self.tri_shape, self.poly_shape, self.quadric_shape, self.inst_shape]
+            )
             moving = np.flatnonzero(moving_surface[shapes])
             v = self.surface_velocity[shapes[moving]]
             sweep = [v * shutter[0], v * shutter[1]]
             lo[moving], hi[moving] = round_outward(lo[moving] + np.minimum(*sweep), hi[moving] + np.maximum(*sweep))
         return lo, hi
+
+    def quadric_transforms(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The transforms of the disks and cylinders as the device holds them: ``to_object`` (Q, 4,
+        4) float32, world -> object, which the ray tests apply, so it defines the float32 surface;
+        ``to_world`` (Q, 4, 4) float64, its exact inverse (to float64 rounding); and the normal
+        matrix (Q, 3, 3) float32: ``to_object``'s 3x3 part transposed (the inverse transpose of
+        ``to_world``), scaled to a largest entry of 1 so that normals normalise in float32 at any
+        scale, negated where normals point inward."""
+        to_object = _affine_inverse(self.quadric_to_world).astype(np.float32)
+        linear = to_object[:, :3, :3].astype(np.float64).transpose(0, 2, 1)
+        sign = np.where(self.quadric_flip, -1.0, 1.0)[:, None, None]
+        normal = sign * linear / np.abs(linear).max(axis=(1, 2), keepdims=True)
+        return to_object, _affine_inverse(to_object.astype(np.float64)), normal.astype(np.float32)
+
+
+def _affine_inverse(m: np.ndarray) -> np.ndarray:
+    """Inverses (float64) of a stack of invertible affine 4x4 matrices, last row exactly 0 0 0 1."""
+    linear = np.linalg.inv(m[:, :3, :3])
+    out = np.zeros(m.shape)
+    out[:, :3, :3] = linear
+    out[:, :3, 3] = -np.einsum("qij,qj->qi", linear, m[:, :3, 3])
+    out[:, 3, 3] = 1.0
+    return out
 
 
 def round_outward(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -106,7 +173,7 @@ def _f32(a: np.ndarray) -> np.ndarray:
 
 def flatten(scene: Scene) -> Primitives:
     """Collect the primitives of every shape, tagged with the shape's index in file order."""
-    spheres, tris, polys, planes = [], [], [], []
+    spheres, tris, polys, planes, quadrics, insts = [], [], [], [], [], []
     tri_blocks, tri_shape_blocks = [], []
     for i, shape in enumerate(scene.shapes):
         if isinstance(shape, Sphere):
@@ -120,6 +187,12 @@ def flatten(scene: Scene) -> Primitives:
         elif isinstance(shape, Mesh):
             tri_blocks.append(shape.vertices.astype(np.float32)[shape.faces])
             tri_shape_blocks.append(np.full(len(shape.faces), i, dtype=np.int32))
+        elif isinstance(shape, Disk):
+            quadrics.append((shape.to_world, DISK, False, i))
+        elif isinstance(shape, Cylinder):
+            quadrics.append((shape.to_world, CYLINDER, shape.flip_normals, i))
+        elif isinstance(shape, Instance):
+            insts.append((shape.matrix, i, shape.group))
     for k, light in enumerate(scene.lights):
         surface = len(scene.shapes) + k
         if isinstance(light, SphereLight):
@@ -128,7 +201,8 @@ def flatten(scene: Scene) -> Primitives:
             c, u, v = (np.asarray(x, dtype=np.float64) for x in (light.corner, light.edge_u, light.edge_v))
             normal = np.cross(u, v)
             polys.append(([c, c + u, c + u + v, c + v], tuple(normal / np.linalg.norm(normal)), surface))
-    velocity = [shape.velocity for shape in scene.shapes] + [(0.0, 0.0, 0.0)] * len(scene.lights)
+    members = sum(len(group.shapes) for group in scene.groups)  # their surfaces follow the lights'
+    velocity = [shape.velocity for shape in scene.shapes] + [(0.0, 0.0, 0.0)] * (len(scene.lights) + members)
     tri_blocks.insert(0, np.asarray([v for v, _ in tris], dtype=np.float32).reshape(-1, 3, 3))
     tri_shape_blocks.insert(0, np.asarray([s for _, s in tris], dtype=np.int32))
     return Primitives(
@@ -143,8 +217,15 @@ def flatten(scene: Scene) -> Primitives:
         plane_point=np.asarray([p for p, _, _ in planes], dtype=np.float64).reshape(-1, 3),
         plane_normal=np.asarray([n for _, n, _ in planes], dtype=np.float64).reshape(-1, 3),
         plane_shape=np.asarray([s for _, _, s in planes], dtype=np.int32),
+        quadric_to_world=np.asarray([m for m, _, _, _ in quadrics], dtype=np.float64).reshape(-1, 4, 4),
+        quadric_kind=np.asarray([k for _, k, _, _ in quadrics], dtype=np.int32),
+        quadric_flip=np.asarray([f for _, _, f, _ in quadrics], dtype=bool),
+        quadric_shape=np.asarray([s for _, _, _, s in quadrics], dtype=np.int32),
         surface_velocity=np.asarray(velocity, dtype=np.float64).reshape(-1, 3),
         num_shapes=len(scene.shapes),
+        inst_to_world=np.asarray([m for m, _, _ in insts], dtype=np.float64).reshape(-1, 4, 4),
+        inst_shape=np.asarray([s for _, s, _ in insts], dtype=np.int32),
+        inst_group=np.asarray([g for _, _, g in insts], dtype=np.int32),
     )
 
 
@@ -154,35 +235,132 @@ def _joined(blocks: list[np.ndarray]) -> np.ndarray:
     return full[0] if len(full) == 1 else np.concatenate(blocks)
 
 
-def _leaf_order(kind: int, ids: np.ndarray) -> np.ndarray:
-    """Input indices of one kind's primitives in the order the BVH leaves list them."""
-    return ids[(ids & KIND_MASK) == kind] >> KIND_BITS
+INDEX_SPACES = ((SPHERE,), (TRIANGLE,), (POLYGON,), (DISK, CYLINDER), (INSTANCE,))
+"""The kinds whose packed ids index one set of arrays (disks and cylinders: ``quadric_*``)."""
 
 
 def build(scene: Scene, device) -> Primitives:
-    """Flatten ``scene``, build the BVH over its bounded primitives on ``device`` (a Warp device)
-    and reorder to leaf order."""
+    """Flatten ``scene``, build the BVH over its bounded primitives (and instances) on ``device``
+    (a Warp device) and reorder to leaf order; then append the instanced groups, each with a BVH
+    of its own in its object space."""
     p = flatten(scene)
-    bvh = build_bvh(*p.bounds(scene.camera.shutter), device)
+    groups = _build_groups(scene, device) if len(p.inst_shape) else []
+    if groups:
+        p.inst_lo, p.inst_hi = _instance_boxes(p.inst_to_world, [g.bounds() for g in groups], p.inst_group)
+    _build_tree(p, scene.camera.shutter, device)
+    p.top_count = len(p.prims)
+    if groups:
+        _append_groups(p, groups, device)
+    return p
+
+
+def _build_tree(p: Primitives, shutter: tuple[float, float], device) -> None:
+    """Build the BVH over ``p``'s bounded primitives and reorder each kind to leaf order."""
+    bvh = build_bvh(*p.bounds(shutter), device)
     order = bvh.order.numpy()
-    counts = (len(p.sphere_radius), len(p.tri_shape), len(p.poly_verts))
-    if max(counts) == len(order):  # one kind (a mesh, say): the leaf order is that kind's order
-        kind = int(np.argmax(counts))
-        s = t = g = order
+    counts = (len(p.sphere_radius), len(p.tri_shape), len(p.poly_verts), len(p.quadric_kind), len(p.inst_shape))
+    if max(counts) == len(order):  # one index space (a mesh, say): the leaf order is its order
+        space = INDEX_SPACES[int(np.argmax(counts))]
+        s = t = g = q = i = order
+        kind = p.quadric_kind[order] if len(space) > 1 else space[0]
         new_ids = (np.arange(len(order), dtype=np.int32) << KIND_BITS) | kind
     else:
         ids = p.bounded_ids()[order]
-        s, t, g = (_leaf_order(kind, ids) for kind in (SPHERE, TRIANGLE, POLYGON))
-        # renumber the packed ids: the k-th primitive of a kind in leaf order now has index k
+        kind = ids & KIND_MASK
+        # renumber the packed ids: the k-th primitive of an index space in leaf order now has index k
         new_ids = np.empty(len(ids), dtype=np.int32)
-        for kind in (SPHERE, TRIANGLE, POLYGON):
-            mask = (ids & KIND_MASK) == kind
-            new_ids[mask] = (np.arange(mask.sum()) << KIND_BITS) | kind
+        leaf_order = []
+        for space in INDEX_SPACES:
+            mask = np.isin(kind, space)
+            leaf_order.append(ids[mask] >> KIND_BITS)
+            new_ids[mask] = (np.arange(mask.sum()) << KIND_BITS) | kind[mask]
+        s, t, g, q, i = leaf_order
     if counts[0]:
         p.sphere_center, p.sphere_radius, p.sphere_shape = p.sphere_center[s], p.sphere_radius[s], p.sphere_shape[s]
     if counts[1]:
         p.tri_verts, p.tri_shape = p.tri_verts[t], p.tri_shape[t]
     if counts[2]:
         p.poly_verts, p.poly_normal, p.poly_shape = [p.poly_verts[k] for k in g], p.poly_normal[g], p.poly_shape[g]
+    if counts[3]:
+        p.quadric_to_world, p.quadric_kind = p.quadric_to_world[q], p.quadric_kind[q]
+        p.quadric_flip, p.quadric_shape = p.quadric_flip[q], p.quadric_shape[q]
+    if counts[4]:
+        p.inst_to_world, p.inst_shape, p.inst_group = p.inst_to_world[i], p.inst_shape[i], p.inst_group[i]
+        p.inst_lo, p.inst_hi = p.inst_lo[i], p.inst_hi[i]
     p.bvh, p.prims = bvh, new_ids
-    return p
+
+
+def _build_groups(scene: Scene, device) -> list[Primitives]:
+    """Each group's primitives (object space) with its BVH, in leaf order; their surfaces are
+    numbered after the shapes' and lights', group by group (``wrt.device.surface_materials``)."""
+    groups = []
+    first = len(scene.shapes) + len(scene.lights)
+    for group in scene.groups:
+        g = flatten(dataclasses.replace(scene, shapes=group.shapes, lights=(), groups=()))
+        for table in (g.sphere_shape, g.tri_shape, g.poly_shape, g.quadric_shape):
+            table += first
+        first += len(group.shapes)
+        _build_tree(g, (0.0, 0.0), device)
+        groups.append(g)
+    return groups
+
+
+def _instance_boxes(to_world: np.ndarray, group_bounds: list, group: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """float32 world boxes of instances: the eight corners of their group's box through their
+    ``to_world`` (float64), widened by the rounding of the float32 transforms the device applies
+    to rays (a few ulps of the corners and of the transform's scale times the group's extent)."""
+    lo, hi = np.zeros((len(group), 3)), np.zeros((len(group), 3))
+    for k, (g_lo, g_hi) in enumerate(group_bounds):
+        box_lo, box_hi = g_lo.min(axis=0).astype(np.float64), g_hi.max(axis=0).astype(np.float64)
+        corners = np.array([[(box_lo, box_hi)[(c >> a) & 1][a] for a in range(3)] for c in range(8)])
+        mine = np.flatnonzero(group == k)
+        m = to_world[mine]
+        world = np.einsum("nij,cj->nci", m[:, :3, :3], corners) + m[:, None, :3, 3]
+        extent = np.abs(world).max(axis=(1, 2)) + np.linalg.norm(m[:, :3, :3], axis=(1, 2)) * np.abs(corners).max()
+        margin = 16 * FLOAT32_EPS * extent[:, None]
+        lo[mine], hi[mine] = world.min(axis=1) - margin, world.max(axis=1) + margin
+    return round_outward(lo, hi)
+
+
+def _append_groups(p: Primitives, groups: list[Primitives], device) -> None:
+    """Append the groups' primitives to ``p``'s arrays, their trees to its nodes (references
+    moved to the new positions) and their leaf entries to its primitive list; point each instance
+    at its group's root node and entries."""
+    nodes, prims = [p.bvh.nodes.numpy()], [p.prims]
+    node_count, prim_count = len(nodes[0]), len(p.prims)
+    roots, entries = [], []
+    for g in groups:
+        quadrics = len(p.quadric_kind)
+        offset = {SPHERE: len(p.sphere_radius), TRIANGLE: len(p.tri_shape), POLYGON: len(p.poly_verts)}
+        offset.update({DISK: quadrics, CYLINDER: quadrics})
+        ids = g.prims.astype(np.int64)
+        kind, index = ids & KIND_MASK, ids >> KIND_BITS
+        for k, first in offset.items():
+            index[kind == k] += first
+        prims.append(((index << KIND_BITS) | kind).astype(np.int32))
+        tree = g.bvh.nodes.numpy()
+        child = tree["child"]
+        leaf = child < 0
+        start, count = (-1 - child[leaf]) >> LEAF_COUNT_BITS, (-1 - child[leaf]) & LEAF_COUNT_MASK
+        child[leaf] = -1 - (((start + prim_count) << LEAF_COUNT_BITS) | count)
+        child[~leaf] += node_count  # unused lanes (0, with an empty box) move too: never entered
+        nodes.append(tree)
+        roots.append(node_count)
+        entries.append((prim_count, len(ids)))
+        node_count, prim_count = node_count + len(tree), prim_count + len(ids)
+        p.sphere_center = np.concatenate([p.sphere_center, g.sphere_center])
+        p.sphere_radius = np.concatenate([p.sphere_radius, g.sphere_radius])
+        p.sphere_shape = np.concatenate([p.sphere_shape, g.sphere_shape])
+        p.tri_verts = _joined([p.tri_verts, g.tri_verts])
+        p.tri_shape = _joined([p.tri_shape, g.tri_shape])
+        p.poly_verts = p.poly_verts + g.poly_verts
+        p.poly_normal = np.concatenate([p.poly_normal, g.poly_normal])
+        p.poly_shape = np.concatenate([p.poly_shape, g.poly_shape])
+        p.quadric_to_world = np.concatenate([p.quadric_to_world, g.quadric_to_world])
+        p.quadric_kind = np.concatenate([p.quadric_kind, g.quadric_kind])
+        p.quadric_flip = np.concatenate([p.quadric_flip, g.quadric_flip])
+        p.quadric_shape = np.concatenate([p.quadric_shape, g.quadric_shape])
+    p.bvh = dataclasses.replace(p.bvh, nodes=wp.array(np.concatenate(nodes), dtype=WideNode, device=device))
+    p.prims = np.concatenate(prims)
+    p.inst_root = np.asarray(roots, dtype=np.int32)[p.inst_group]
+    p.inst_entries = np.asarray(entries, dtype=np.int32).reshape(-1, 2)[p.inst_group]

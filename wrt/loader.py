@@ -20,6 +20,7 @@ import tomllib
 from .errors import MeshFileError, SceneError, WrtError
 from .meshio import apply_transform, load_mesh, transform_matrix
 from .scene import (
+    CAMERA_TYPES,
     DIELECTRIC_SHADOWS,
     FILTERS,
     INTEGRATORS,
@@ -28,8 +29,12 @@ from .scene import (
     STILL,
     AreaLight,
     Camera,
+    Cylinder,
     DirectionalLight,
+    Disk,
     EnvironmentLight,
+    Group,
+    Instance,
     Material,
     Mesh,
     Plane,
@@ -44,8 +49,9 @@ from .scene import (
 )
 
 UTF8_BOM = b"\xef\xbb\xbf"
-TOP_LEVEL = ("render", "camera", "material", "shape", "light")
-SHAPE_TYPES = ("sphere", "plane", "triangle", "polygon", "mesh")
+TOP_LEVEL = ("render", "camera", "material", "group", "shape", "light")
+SHAPE_TYPES = ("sphere", "plane", "triangle", "polygon", "mesh", "disk", "cylinder", "instance")
+GROUP_SHAPE_TYPES = ("sphere", "triangle", "polygon", "mesh", "disk", "cylinder")  # bounded: what a [[group]] holds
 LIGHT_TYPES = ("point", "directional", "spot", "area", "sphere", "environment")
 DEFAULT_MATERIAL = Material(name="default", type="diffuse", albedo=(0.5, 0.5, 0.5))
 MAX_IMAGE_SIDE = 16384
@@ -101,6 +107,12 @@ class _Table:
                 key, f"must be in {'(' if lo_open else '['}{_g(lo)}, {_g(hi)}{')' if hi_open else ']'}", value
             )
         return int(value) if integer else float(value)
+
+    def boolean(self, key: str, default=_REQUIRED) -> bool:
+        value = self.get(key, default)
+        if not isinstance(value, bool):
+            raise self.error(key, "must be true or false", value)
+        return value
 
     def string(self, key: str, default=_REQUIRED, choices=None) -> str:
         value = self.get(key, default)
@@ -210,14 +222,35 @@ def _render(file: str, data) -> RenderSettings:
     return settings
 
 
+# keys of one camera type only
+_CAMERA_KEYS = {"perspective": ("fov", "aperture_radius", "focus_distance"), "orthographic": ("width",)}
+MIN_ORTHOGRAPHIC_WIDTH = 2 * MAX_IMAGE_SIDE * FLOAT32_TINY
+"""Smallest orthographic ``width``: half the view's height, ``width / (2 aspect)``, is a normal
+float32 at any aspect."""
+
+
 def _camera(file: str, data) -> Camera:
     t = _Table(file, "camera", data)
+    kind = t.string("type", Camera.type, CAMERA_TYPES)
+    for other, keys in _CAMERA_KEYS.items():
+        for key in keys:
+            if other != kind and key in t.data:
+                raise t.error(key, f"applies to {other} cameras only, not to a {kind} one", t.data[key])
     origin = t.vec3("origin")
     look_at = t.vec3("look_at")
     up = t.vec3("up", Camera.up, nonzero=True)
-    fov = t.number("fov", Camera.fov, lo=0.0, hi=180.0, lo_open=True, hi_open=True)
-    aperture = t.number("aperture_radius", 0.0, lo=0.0)
-    focus = t.number("focus_distance", None, lo=0.0, lo_open=True)
+    if kind == "perspective":
+        projection = {
+            "fov": t.number("fov", Camera.fov, lo=0.0, hi=180.0, lo_open=True, hi_open=True),
+            "aperture_radius": t.number("aperture_radius", 0.0, lo=0.0),
+            "focus_distance": t.number("focus_distance", None, lo=0.0, lo_open=True),
+        }
+    else:
+        projection = {"width": t.number("width", lo=MIN_ORTHOGRAPHIC_WIDTH)}
+    near_clip = t.number("near_clip", Camera.near_clip, lo=0.0)
+    far_clip = t.number("far_clip", Camera.far_clip)
+    if not far_clip > near_clip:
+        raise t.error("far_clip", f"must be greater than near_clip = {near_clip:g}", far_clip)
     shutter = t.get("shutter", Camera.shutter)
     if shutter is not Camera.shutter:
         if (
@@ -257,17 +290,24 @@ def _camera(file: str, data) -> Camera:
             list(up),
         )
     return Camera(
-        origin=origin, look_at=look_at, up=up, fov=fov, aperture_radius=aperture, focus_distance=focus, shutter=shutter
+        origin=origin,
+        look_at=look_at,
+        up=up,
+        shutter=shutter,
+        type=kind,
+        near_clip=near_clip,
+        far_clip=far_clip,
+        **projection,
     )
 
 
 # keys each material type reads, besides name, type and emission
 _MATERIAL_KEYS = {
-    "diffuse": ("albedo",),
-    "phong": ("albedo", "specular", "exponent"),
-    "mirror": ("reflectance",),
+    "diffuse": ("albedo", "two_sided"),
+    "phong": ("albedo", "specular", "exponent", "two_sided"),
+    "mirror": ("reflectance", "two_sided"),
     "dielectric": ("ior", "transmittance", "priority"),
-    "glossy": ("roughness", "reflectance"),
+    "glossy": ("roughness", "reflectance", "two_sided"),
 }
 
 
@@ -284,9 +324,14 @@ def _material(file: str, index: int, data) -> Material:
         "transmittance": lambda: t.vec3("transmittance", Material.transmittance, lo=0.0, hi=1.0),
         "priority": lambda: t.number("priority", Material.priority, integer=True, lo=-1000, hi=1000),
         "roughness": lambda: t.number("roughness", Material.roughness, lo=1e-3, hi=1.0),
+        "two_sided": lambda: t.boolean("two_sided", Material.two_sided),
     }
     for key in _MATERIAL_KEYS[kind]:
         values[key] = readers[key]()
+    if "two_sided" in t.data and "two_sided" not in values:
+        raise t.error(
+            "two_sided", f"does not apply to a {kind}: it reflects and refracts on both sides", t.data["two_sided"]
+        )
     t.finish()
     material = Material(**values)
     if kind == "phong" and any(a + s > 1.0 for a, s in zip(material.albedo, material.specular)):
@@ -313,8 +358,9 @@ def _newell_normal(t: _Table, vertices: tuple) -> tuple[float, float, float]:
     return tuple(float(c) for c in n)
 
 
-def _mesh(t: _Table, scene_dir: str, material: int) -> Mesh:
-    name = t.string("file")
+def _transform(t: _Table) -> np.ndarray:
+    """The object-to-world matrix of a shape's ``transform`` table (translate, rotate, scale,
+    matrix; ``wrt.meshio.transform_matrix``), identity when absent."""
     transform = t.get("transform", {})
     tt = _Table(t.file, f"{t.name}.transform", transform)
     translate = tt.vec3("translate", (0.0, 0.0, 0.0))
@@ -335,20 +381,97 @@ def _mesh(t: _Table, scene_dir: str, material: int) -> Mesh:
         except ValueError as e:
             raise tt.error("matrix", str(e).removeprefix("matrix "), matrix) from None
     tt.finish()
+    return transform_matrix(translate=translate, scale=scale, rotate=rotate, matrix=matrix)
+
+
+def _frame(axis: np.ndarray) -> np.ndarray:
+    """A 3x3 rotation whose columns ``(u, v, axis)`` are a right-handed orthonormal frame around the
+    unit vector ``axis`` (Duff et al. 2017, "Building an Orthonormal Basis, Revisited")."""
+    x, y, z = axis
+    sign = math.copysign(1.0, z)
+    a = -1.0 / (sign + z)
+    b = x * y * a
+    u = [1.0 + sign * x * x * a, sign * b, -sign * x]
+    v = [b, sign + y * y * a, -y]
+    return np.column_stack([u, v, axis])
+
+
+def _placed(t: _Table, kind: str, placement: np.ndarray) -> np.ndarray:
+    """The object-to-world matrix of a disk or cylinder: its own ``placement`` of the unit shape,
+    then its ``transform`` table; a disk's z column made its unit front normal (``wrt.scene.Disk``).
+    Refuses a shape whose world-to-object map float32 cannot hold, or whose world coordinates
+    go beyond ``MAX_MAGNITUDE``."""
+    to_world = _transform(t) @ placement
+    if kind == "disk":
+        u, v = (to_world[:3, k] / np.linalg.norm(to_world[:3, k]) for k in (0, 1))
+        normal = np.cross(u, v)
+        with np.errstate(invalid="ignore"):
+            to_world[:3, 2] = np.sign(np.dot(normal, to_world[:3, 2])) * normal / np.linalg.norm(normal)
+    key = "transform" if "transform" in t.data else "radius"
+    try:
+        with np.errstate(all="ignore"):
+            to_object = np.linalg.inv(to_world).astype(np.float32)
+    except np.linalg.LinAlgError:
+        to_object = np.full((4, 4), np.nan, dtype=np.float32)
+    if not np.all(np.isfinite(to_object)):
+        raise t.error(
+            key, f"makes the {kind} too small or too thin for float32 (its world-to-object map overflows)", t.data[key]
+        )
+    reach = np.abs(to_world[:3, 3]) + np.abs(to_world[:3, :3]).sum(axis=1)
+    if not np.all(reach <= MAX_MAGNITUDE):
+        raise t.error(key, f"places points of the {kind} that {BEYOND_FLOAT32}", t.data[key])
+    return to_world
+
+
+def _disk_to_world(t: _Table) -> np.ndarray:
+    """``to_world`` of a ``disk`` table: ``center``, ``normal`` (its front side), ``radius``."""
+    center, normal = np.asarray(t.vec3("center")), np.asarray(t.vec3("normal", nonzero=True))
+    radius = t.number("radius", lo=0.0, lo_open=True)
+    placement = np.eye(4)
+    placement[:3, :3] = _frame(normal / np.linalg.norm(normal)) @ np.diag([radius, radius, 1.0])
+    placement[:3, 3] = center
+    return _placed(t, "disk", placement)
+
+
+def _cylinder_to_world(t: _Table) -> np.ndarray:
+    """``to_world`` of a ``cylinder`` table: the tube of ``radius`` from ``p0`` to ``p1``."""
+    p0, p1 = np.asarray(t.vec3("p0")), np.asarray(t.vec3("p1"))
+    radius = t.number("radius", lo=0.0, lo_open=True)
+    length = np.linalg.norm(p1 - p0)
+    if length == 0.0:
+        raise t.error("p1", "must differ from p0 (the cylinder has no length)", t.data["p1"])
+    placement = np.eye(4)
+    placement[:3, :3] = _frame((p1 - p0) / length) @ np.diag([radius, radius, length])
+    placement[:3, 3] = p0
+    return _placed(t, "cylinder", placement)
+
+
+def _mesh(t: _Table, scene_dir: str, material: int) -> Mesh:
+    name = t.string("file")
+    matrix = _transform(t)
     path = os.path.join(scene_dir, name)
     try:
         vertices, faces = load_mesh(path)
     except MeshFileError as e:
         raise t.error("file", str(e), name) from None
-    vertices = apply_transform(vertices, translate=translate, scale=scale, rotate=rotate, matrix=matrix)
+    vertices = apply_transform(vertices, matrix=matrix)
     if not np.all(np.abs(vertices) <= MAX_MAGNITUDE):
         raise t.error("file", f"vertices (after the transform) {BEYOND_FLOAT32}", name)
     return Mesh(file=path, vertices=vertices, faces=faces, material=material)
 
 
-def _shape(file: str, index: int, data, material_index: Mapping[str, int], scene_dir: str):
-    t = _Table(file, f"shape[{index}]", data)
-    kind = t.string("type", choices=SHAPE_TYPES)
+def _shape(
+    file: str,
+    name: str,
+    data,
+    material_index: Mapping[str, int],
+    scene_dir: str,
+    group_index: Mapping[str, int] | None = None,
+):
+    """The shape of table ``name`` (``shape[3]``, or ``group[0].shape[1]`` without ``group_index``:
+    a group's shapes are bounded, still and not instances)."""
+    t = _Table(file, name, data)
+    kind = t.string("type", choices=SHAPE_TYPES if group_index is not None else GROUP_SHAPE_TYPES)
     name = t.get("material", None)
     if name is None:
         material = material_index[DEFAULT_MATERIAL.name]
@@ -367,11 +490,37 @@ def _shape(file: str, index: int, data, material_index: Mapping[str, int], scene
     elif kind == "polygon":
         vertices = t.vectors("vertices", min_count=3)
         shape = Polygon(vertices=vertices, normal=_newell_normal(t, vertices), material=material)
-    else:
+    elif kind == "mesh":
         shape = _mesh(t, scene_dir, material)
-    velocity = t.vec3("velocity", STILL)
+    elif kind == "disk":
+        shape = Disk(to_world=_disk_to_world(t), material=material)
+    elif kind == "cylinder":
+        flip = t.boolean("flip_normals", Cylinder.flip_normals)
+        shape = Cylinder(to_world=_cylinder_to_world(t), flip_normals=flip, material=material)
+    else:
+        if name is not None:
+            raise t.error("material", "is not for an instance: the group's shapes keep their own materials", name)
+        group = t.string("group")
+        if group not in group_index:
+            known = ", ".join(group_index) or "none defined"
+            raise t.error("group", f"no [[group]] with this name (known: {known})", group)
+        shape = Instance(group=group_index[group], matrix=_transform(t), material=material)
+    velocity = t.vec3("velocity", STILL) if group_index is not None else STILL
     t.finish()
     return dataclasses.replace(shape, velocity=velocity) if velocity != STILL else shape
+
+
+def _group(file: str, index: int, data, material_index: Mapping[str, int], scene_dir: str) -> Group:
+    t = _Table(file, f"group[{index}]", data)
+    name = t.string("name")
+    tables = t.get("shape", None)
+    if not isinstance(tables, list) or not tables or not all(isinstance(x, dict) for x in tables):
+        raise t.error("shape", "must be a non-empty array of tables, written [[group.shape]]", tables)
+    shapes = tuple(
+        _shape(file, f"group[{index}].shape[{j}]", table, material_index, scene_dir) for j, table in enumerate(tables)
+    )
+    t.finish()
+    return Group(name=name, shapes=shapes)
 
 
 def _unit(t: _Table, key: str) -> tuple[float, float, float]:
@@ -441,7 +590,15 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
         material_index[m.name] = i
     material_index[DEFAULT_MATERIAL.name] = len(materials)
     materials.append(DEFAULT_MATERIAL)
-    shapes = [_shape(file, i, s, material_index, scene_dir) for i, s in enumerate(_array_of_tables(file, doc, "shape"))]
+    groups = [_group(file, i, g, material_index, scene_dir) for i, g in enumerate(_array_of_tables(file, doc, "group"))]
+    group_index: dict[str, int] = {}
+    for i, group in enumerate(groups):
+        if group_index.setdefault(group.name, i) != i:
+            raise SceneError(file, f"group[{i}]", "name", "is already used", group.name)
+    shapes = [
+        _shape(file, f"shape[{i}]", s, material_index, scene_dir, group_index)
+        for i, s in enumerate(_array_of_tables(file, doc, "shape"))
+    ]
     longest_time = max(abs(c) for c in camera.shutter)
     for i, shape in enumerate(shapes):  # a moving shape's displacement is a coordinate too
         displacement = float(np.linalg.norm(shape.velocity)) * longest_time
@@ -467,33 +624,44 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
                     light.type,
                 )
     return Scene(
-        render=render, camera=camera, materials=tuple(materials), shapes=tuple(shapes), lights=tuple(lights), path=file
+        render=render,
+        camera=camera,
+        materials=tuple(materials),
+        shapes=tuple(shapes),
+        lights=tuple(lights),
+        path=file,
+        groups=tuple(groups),
     )
 
 
-def load_scene(path: str | os.PathLike, *, strict: bool = False) -> Scene:
+def load_scene(path: str | os.PathLike, *, approximate: bool = False) -> Scene:
     """Read and validate a scene file: TOML, or Mitsuba 3 XML (``.xml``, the subset of
-    ``wrt.mitsuba``; unsupported elements are warned about on stderr, or with ``strict`` are
-    errors).
+    ``wrt.mitsuba``, converted faithfully or refused; with ``approximate``, converted anyway: the
+    approximations are printed on stderr and kept in ``Scene.approximations``).
 
     Raises
     ------
     WrtError
-        The file cannot be read.
+        The file cannot be read, or (XML) has an element wrt cannot convert exactly.
     SceneError
-        It is not valid TOML, or a table, key or value is wrong (the message names them).
+        It is not valid TOML, or a table, key or value is wrong (the message names them; for XML,
+        the element they were converted from).
     """
     path = os.fspath(path)
     if path.lower().endswith(".xml"):
-        from .mitsuba import load_mitsuba
+        from .mitsuba.scene import convert_file
 
         try:
-            doc, warnings = load_mitsuba(path, strict=strict)
+            converted = convert_file(path, approximate=approximate)
         except RecursionError:
             raise SceneError(path, None, None, "elements nested too deeply") from None
-        for warning in warnings:
-            print(f"wrt: warning: {warning}", file=sys.stderr)
-        return parse_scene(doc, file=path, scene_dir=os.path.dirname(os.path.abspath(path)))
+        for warning in converted.approximations:
+            print(f"wrt: warning: approximated: {warning}", file=sys.stderr)
+        try:
+            scene = parse_scene(converted.doc, file=path, scene_dir=os.path.dirname(os.path.abspath(path)))
+        except SceneError as e:
+            raise converted.locate(e) from None
+        return dataclasses.replace(scene, approximations=tuple(converted.approximations))
     try:
         with open(path, "rb") as f:
             data = f.read()

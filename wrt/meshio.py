@@ -119,7 +119,7 @@ def _affine(matrix) -> np.ndarray:
     """``matrix`` (16 numbers, row-major, or 4 rows of 4) as an invertible affine 4x4 matrix, or
     a ValueError saying what is wrong."""
     shape = "matrix must be 16 numbers (row-major) or 4 rows of 4 numbers"
-    rows = matrix if isinstance(matrix, (list, tuple)) and len(matrix) == 4 else [matrix]
+    rows = matrix if isinstance(matrix, (list, tuple, np.ndarray)) and len(matrix) == 4 else [matrix]
     entries = [x for row in rows if isinstance(row, (list, tuple, np.ndarray)) for x in row]
     if len(entries) != 16 or not all(
         isinstance(x, (int, float, np.number)) and not isinstance(x, bool) for x in entries

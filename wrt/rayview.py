@@ -17,7 +17,8 @@ hits        the hit points, point data ``normal`` (unit geometric normal), ``fac
             to the side the ray came from), ``kind``, ``shape``, ``entering``, ``row``
 lights      point and spot lights as points (vertices); directional lights as a line along the
             direction they travel
-camera      the camera position and its view pyramid (lines to the image corners)
+camera      the rays through the image corners and the view's outline: a pyramid from the camera
+            position, or a box from the camera plane (orthographic)
 bvh         with ``trace_rays(..., bvh=True)``: the box of every BVH node a segment's closest-hit
             query visited, as 12 edge lines each, cell data ``node`` and ``row`` (the segment)
 =========== ======================================================================================
@@ -41,7 +42,10 @@ from .errors import WrtError
 from .loader import load_scene
 from .rays import DEFAULT_CAPACITY, RayTree, grid_pixels, trace_rays
 from .scene import (
+    Cylinder,
     DirectionalLight,
+    Disk,
+    Instance,
     Mesh,
     Plane,
     PointLight,
@@ -60,6 +64,7 @@ LIGHT_COLOR = "#ffd000"
 BVH_COLOR = "#7f8c9a"
 MISS_FRACTION = 0.25  # misses are drawn this fraction of the scene's size long
 HIT_FRACTION = 0.006  # radius of the hit spheres
+QUADRIC_SIDES = 96  # vertices of the rims of disks and tubes
 NORMAL_FRACTION = 0.06  # length of the normal arrows
 BACKGROUND = "white"
 
@@ -82,16 +87,31 @@ def _bounds(tree: RayTree) -> tuple[np.ndarray, np.ndarray]:
     """World-space box around the camera, every segment end that is not a miss, and the bounded shapes."""
     points = [np.asarray(tree.scene.camera.origin, dtype=np.float64)[None], tree.origin, tree.end[~tree.escaped]]
     for shape in tree.scene.shapes:
-        if isinstance(shape, Sphere):
-            c = np.asarray(shape.center)
-            points.append(np.stack([c - shape.radius, c + shape.radius]))
-        elif isinstance(shape, (Triangle, Polygon, Mesh)):
-            points.append(np.asarray(shape.vertices, dtype=np.float64).reshape(-1, 3))
+        if isinstance(shape, Instance):  # its group's shapes through its transform
+            m = shape.matrix
+            points += [_shape_points(s) @ m[:3, :3].T + m[:3, 3] for s in tree.scene.groups[shape.group].shapes]
+        else:
+            points.append(_shape_points(shape))
     points = np.concatenate([np.asarray(p, dtype=np.float64).reshape(-1, 3) for p in points])
     return points.min(axis=0), points.max(axis=0)
 
 
-def _shape_mesh(shape, centre: np.ndarray, size: float) -> pv.PolyData:
+def _shape_points(shape) -> np.ndarray:
+    """Points (n, 3) whose box holds a bounded shape; none for a plane."""
+    if isinstance(shape, Sphere):
+        c = np.asarray(shape.center)
+        return np.stack([c - shape.radius, c + shape.radius])
+    if isinstance(shape, (Triangle, Polygon, Mesh)):
+        return np.asarray(shape.vertices, dtype=np.float64).reshape(-1, 3)
+    if isinstance(shape, (Disk, Cylinder)):
+        return shape.triangles(QUADRIC_SIDES)[0]
+    return np.zeros((0, 3))
+
+
+def _shape_mesh(shape, centre: np.ndarray, size: float, scene) -> pv.PolyData:
+    if isinstance(shape, Instance):
+        members = [_shape_mesh(member, centre, size, scene) for member in scene.groups[shape.group].shapes]
+        return pv.merge(members).transform(shape.matrix, inplace=False)
     if isinstance(shape, Sphere):
         return pv.Sphere(radius=shape.radius, center=shape.center, theta_resolution=48, phi_resolution=32)
     if isinstance(shape, Plane):
@@ -101,6 +121,9 @@ def _shape_mesh(shape, centre: np.ndarray, size: float) -> pv.PolyData:
     if isinstance(shape, Mesh):
         faces = np.hstack([np.full((len(shape.faces), 1), 3), shape.faces]).ravel()
         return pv.PolyData(np.asarray(shape.vertices, dtype=np.float64), faces)
+    if isinstance(shape, (Disk, Cylinder)):
+        vertices, triangles = shape.triangles(QUADRIC_SIDES)
+        return pv.PolyData(vertices, np.hstack([np.full((len(triangles), 1), 3), triangles]).ravel())
     verts = np.asarray(shape.vertices, dtype=np.float64)  # triangle or polygon (non-convex: triangulated)
     return pv.PolyData(verts, np.concatenate([[len(verts)], np.arange(len(verts))])).triangulate()
 
@@ -140,7 +163,7 @@ def ray_blocks(tree: RayTree) -> pv.MultiBlock:
 
     geometry = pv.MultiBlock()
     for i, shape in enumerate(scene.shapes):
-        mesh = _shape_mesh(shape, centre, 1.2 * size)
+        mesh = _shape_mesh(shape, centre, 1.2 * size, tree.scene)
         mesh.cell_data["color"] = np.tile(_material_color(scene, shape), (mesh.n_cells, 1))
         geometry[f"shape[{i}] {type(shape).__name__.lower()}"] = mesh
 
@@ -182,18 +205,10 @@ def ray_blocks(tree: RayTree) -> pv.MultiBlock:
             lines=np.array(lines, dtype=np.int64),
         )
 
-    cam = scene.camera
-    forward, right, up = cam.basis()
-    half_h = np.tan(np.radians(cam.fov) / 2)
-    half_w = half_h * scene.render.width / scene.render.height
-    depth = 0.08 * size
-    origin = np.asarray(cam.origin, dtype=np.float64)
-    corners = [
-        origin + depth * (forward + sx * half_w * right + sy * half_h * up)
-        for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))
-    ]
-    pyramid = np.array([origin, *corners])
-    camera = pv.PolyData(pyramid, lines=np.array([2, 0, 1, 2, 0, 2, 2, 0, 3, 2, 0, 4, 5, 1, 2, 3, 4, 1]))
+    starts, directions = scene.camera.corner_rays(scene.render.width / scene.render.height)
+    view = np.concatenate([starts, starts + 0.08 * size * directions])  # a pyramid, or a box (orthographic)
+    edges = [[k, 4 + k] for k in range(4)] + [[ring + k, ring + (k + 1) % 4] for ring in (0, 4) for k in range(4)]
+    camera = pv.PolyData(view, lines=np.column_stack([np.full(len(edges), 2), edges]).ravel())
 
     blocks = pv.MultiBlock()
     blocks["geometry"] = geometry

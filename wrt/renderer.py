@@ -47,7 +47,7 @@ from .errors import WrtError
 from .geometry import build
 from .host import default_threads
 from .loader import override_render
-from .scene import AreaLight, Mesh, Polygon, Scene, Sphere, SphereLight, Triangle
+from .scene import AreaLight, Cylinder, Disk, Instance, Mesh, Polygon, Scene, Sphere, SphereLight, Triangle
 
 TILE_PIXELS = 4096  # pixels per CPU launch: small enough to balance two threads, large enough to amortise a launch
 PASS_SECONDS = 1.0  # wall seconds a pass of a progressive render aims at
@@ -60,20 +60,25 @@ ADAPTIVE_FLOOR = 0.01  # luminance below which an adaptive pixel's error is meas
 
 def scene_features(scene: Scene) -> Features:
     """The ``wrt.kernels.features.Features`` ``scene`` needs: its kernels are specialised on them."""
-    used = {scene.materials[shape.material] for shape in scene.shapes}
+    members = [shape for group in scene.groups for shape in group.shapes]
+    used = {scene.materials[shape.material] for shape in (*scene.shapes, *members)}
     kinds = {m.type for m in used}
     moving = any(any(shape.velocity) for shape in scene.shapes)
-    shapes = {type(shape) for shape in scene.shapes} | {type(light) for light in scene.lights}
+    shapes = {type(shape) for shape in (*scene.shapes, *members)} | {type(light) for light in scene.lights}
     return Features(
         lights=bool(scene.lights),
         specular=bool(kinds & {"mirror", "dielectric"}),
         dielectric="dielectric" in kinds,
         lens=scene.camera.aperture_radius > 0.0,
+        orthographic=scene.camera.type == "orthographic",
         motion=moving and scene.camera.shutter[1] > scene.camera.shutter[0],
         moving=moving,
         spheres=bool(shapes & {Sphere, SphereLight}),
         triangles=bool(shapes & {Triangle, Mesh}),
         polygons=bool(shapes & {Polygon, AreaLight}),
+        disks=Disk in shapes,
+        cylinders=Cylinder in shapes,
+        instances=Instance in shapes,
     )
 
 
@@ -81,7 +86,8 @@ def scene_features(scene: Scene) -> Features:
 class RenderResult:
     """A rendered image (linear float32 RGB, row 0 at the top) and its AOVs.
 
-    ``aovs``: ``depth`` (H, W) float32, distance along the unit camera ray, inf on a miss;
+    ``aovs``: ``depth`` (H, W) float32, distance along the unit camera ray from where it starts
+    (the camera, or its near clip plane), inf on a miss;
     ``normal`` (H, W, 3) world space, facing the camera; ``object_id`` (H, W) int32, -1 on a miss;
     ``position`` (H, W, 3) world space. ``spp``: the samples per pixel in ``rgb`` (fewer than asked
     when a progress callback stopped the render). Times are wall seconds: ``build_time_s`` for the

@@ -7,6 +7,7 @@ validates; code downstream trusts them.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,6 +16,7 @@ INTEGRATORS = ("raycast", "whitted", "path")
 SAMPLERS = ("independent", "stratified", "sobol")
 FILTERS = ("box", "tent", "gaussian")
 DIELECTRIC_SHADOWS = ("opaque", "filtered")
+CAMERA_TYPES = ("perspective", "orthographic")
 
 
 @dataclass(frozen=True)
@@ -41,10 +43,14 @@ class RenderSettings:
 
 @dataclass(frozen=True)
 class Camera:
-    """``[camera]``: ``fov`` is the VERTICAL field of view in degrees; a thin lens of
-    ``aperture_radius`` (world units, 0 = pinhole) focused at ``focus_distance`` from the lens
-    along the viewing direction (None: the distance to ``look_at``); camera samples are taken at
-    times uniform in ``shutter`` = (open, close), in the time unit of shape velocities."""
+    """``[camera]``: a ``perspective`` camera (``fov`` is the VERTICAL field of view in degrees; a
+    thin lens of ``aperture_radius`` (world units, 0 = pinhole) focused at ``focus_distance`` from
+    the lens along the viewing direction, None: the distance to ``look_at``) or an
+    ``orthographic`` one (parallel rays along the viewing direction from the plane through
+    ``origin`` perpendicular to it; ``width``: the view's extent along ``right``, world units).
+    Camera rays start ``near_clip`` and end ``far_clip`` world units from the camera plane,
+    measured along the viewing direction; camera samples are taken at times uniform in
+    ``shutter`` = (open, close), in the time unit of shape velocities."""
 
     origin: tuple[float, float, float]
     look_at: tuple[float, float, float]
@@ -53,6 +59,10 @@ class Camera:
     aperture_radius: float = 0.0
     focus_distance: float | None = None
     shutter: tuple[float, float] = (0.0, 0.0)
+    type: str = "perspective"
+    width: float | None = None  # orthographic only
+    near_clip: float = 0.0
+    far_clip: float = math.inf
 
     def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(forward, right, up')`` unit vectors (float64) of the camera convention."""
@@ -61,6 +71,22 @@ class Camera:
         right = np.cross(forward, np.asarray(self.up, dtype=np.float64))
         right /= np.linalg.norm(right)
         return forward, right, np.cross(right, forward)
+
+    def corner_rays(self, aspect: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(starts, directions)``, (4, 3) float64 each: the rays through the image corners
+        (bottom left, bottom right, top right, top left; ``aspect`` = image width / height),
+        before clipping. ``dot(direction, forward) = 1``, so ``start + s direction`` is ``s`` from
+        the camera plane along the view: the origin and the pinhole rays (perspective), or the
+        corners of the view on the camera plane and ``forward`` (orthographic)."""
+        forward, right, up = self.basis()
+        sx, sy = np.array([-1.0, 1.0, 1.0, -1.0])[:, None], np.array([-1.0, -1.0, 1.0, 1.0])[:, None]
+        if self.type == "orthographic":
+            half = self.width / 2
+            return self.origin + sx * half * right + sy * (half / aspect) * up, np.tile(forward, (4, 1))
+        t = math.tan(math.radians(self.fov) / 2)
+        return np.tile(
+            np.asarray(self.origin, dtype=np.float64), (4, 1)
+        ), forward + sx * t * aspect * right + sy * t * up
 
 
 MATERIAL_TYPES = ("diffuse", "phong", "mirror", "dielectric", "glossy")
@@ -74,7 +100,9 @@ class Material:
     energy-normalised Phong lobe; ``reflectance``: mirror colour, or the constant Fresnel factor
     of a glossy (GGX) conductor of ``roughness`` alpha; ``ior``, ``transmittance``
     (fraction left after one scene unit inside, Beer-Lambert) and ``priority`` (which medium wins
-    where dielectrics overlap): dielectric; ``emission``: radiance in W/(m^2 sr) leaving the front side.
+    where dielectrics overlap): dielectric; ``emission``: radiance in W/(m^2 sr) leaving the front side;
+    ``two_sided``: both sides reflect (diffuse, phong, mirror, glossy; a dielectric always does), else
+    the back side (facing away from the surface's normal) reflects nothing, as Mitsuba 3's one-sided BSDFs.
     """
 
     name: str
@@ -88,6 +116,7 @@ class Material:
     priority: int = 0
     roughness: float = 0.2
     emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    two_sided: bool = True
 
 
 STILL = (0.0, 0.0, 0.0)
@@ -137,6 +166,77 @@ class Mesh:
     file: str
     vertices: np.ndarray  # (V, 3) float64, world space
     faces: np.ndarray  # (F, 3) int32
+    material: int
+    velocity: tuple[float, float, float] = STILL
+
+
+@dataclass(frozen=True, eq=False)
+class Disk:
+    """The unit disk (radius 1 in the plane z = 0, front side +z) placed by ``to_world``, an
+    invertible affine object-to-world transform (4x4, float64): an ellipse under a non-uniform
+    scale. Its z column is the unit front normal (the loader sets it; the disk does not depend on
+    it), which the inverse transpose of ``to_world`` gives too."""
+
+    to_world: np.ndarray
+    material: int
+    velocity: tuple[float, float, float] = STILL
+
+    def triangles(self, sides: int) -> tuple[np.ndarray, np.ndarray]:
+        """World-space vertices (V, 3) and triangles (F, 3) of the disk, its rim a polygon of
+        ``sides`` vertices on the ellipse (for drawing it: the geometry oracle, ``wrt rays``)."""
+        return _placed_triangles(self.to_world, sides, tube=False)
+
+
+@dataclass(frozen=True, eq=False)
+class Cylinder:
+    """The open tube (no caps) of radius 1 around the z axis, 0 <= z <= 1, placed by
+    ``to_world``, an invertible affine object-to-world transform (4x4, float64). Normals point
+    outward (by the inverse transpose of ``to_world``), inward with ``flip_normals``."""
+
+    to_world: np.ndarray
+    material: int
+    flip_normals: bool = False
+    velocity: tuple[float, float, float] = STILL
+
+    def triangles(self, sides: int) -> tuple[np.ndarray, np.ndarray]:
+        """World-space vertices (V, 3) and triangles (F, 3) of the tube, its rims polygons of
+        ``sides`` vertices on the ellipses (for drawing it: the geometry oracle, ``wrt rays``)."""
+        return _placed_triangles(self.to_world, sides, tube=True)
+
+
+def _placed_triangles(to_world: np.ndarray, sides: int, tube: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The unit disk (a fan around its centre) or the unit tube (a band between its rims) with
+    rims of ``sides`` vertices, through ``to_world``."""
+    phi = 2 * np.pi * np.arange(sides) / sides
+    rim = np.column_stack([np.cos(phi), np.sin(phi), np.zeros(sides)])
+    k, k1 = np.arange(sides), (np.arange(sides) + 1) % sides
+    if tube:
+        local = np.concatenate([rim, rim + [0.0, 0.0, 1.0]])
+        faces = np.concatenate([np.column_stack([k, k1, sides + k1]), np.column_stack([k, sides + k1, sides + k])])
+    else:
+        local = np.concatenate([[[0.0, 0.0, 0.0]], rim])
+        faces = np.column_stack([np.zeros(sides, dtype=int), 1 + k, 1 + k1])
+    return local @ to_world[:3, :3].T + to_world[:3, 3], faces.astype(np.int64)
+
+
+@dataclass(frozen=True, eq=False)
+class Group:
+    """``[[group]]``: shapes in their own object space, drawn only where ``instance`` shapes place
+    them (Mitsuba's ``shapegroup``); stored once, however many instances there are. Its shapes
+    are bounded and still (no planes, instances or velocities) and keep their own materials."""
+
+    name: str
+    shapes: tuple
+
+
+@dataclass(frozen=True, eq=False)
+class Instance:
+    """``[[shape]] type = "instance"``: ``Scene.groups[group]`` placed by ``matrix``, an invertible
+    affine object-to-world transform (4x4, float64); normals follow by its inverse transpose. The
+    instance is one shape (one ``object_id``); ``material`` is unused, the group's shapes keep theirs."""
+
+    group: int
+    matrix: np.ndarray
     material: int
     velocity: tuple[float, float, float] = STILL
 
@@ -208,12 +308,13 @@ SURFACE_LIGHTS = (AreaLight, SphereLight)
 DELTA_LIGHTS = (PointLight, DirectionalLight, SpotLight)
 
 
-Shape = Sphere | Plane | Triangle | Polygon | Mesh
+Shape = Sphere | Plane | Triangle | Polygon | Mesh | Disk | Cylinder | Instance
 
 
 @dataclass(frozen=True, eq=False)
 class Scene:
-    """A whole scene. ``shapes`` keep file order: a shape's index is its ``object_id``."""
+    """A whole scene. ``shapes`` keep file order: a shape's index is its ``object_id``;
+    ``approximations`` lists what an ``--approximate`` Mitsuba import rendered differently."""
 
     render: RenderSettings
     camera: Camera
@@ -221,3 +322,5 @@ class Scene:
     shapes: tuple[Shape, ...]
     lights: tuple = ()
     path: str = "<memory>"
+    approximations: tuple[str, ...] = ()
+    groups: tuple[Group, ...] = ()

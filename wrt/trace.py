@@ -50,12 +50,21 @@ class Tracer:
     def closest(self, origins, directions, t_min: float = 0.0, t_max: float = np.inf, brute_force: bool = False):
         """``(t, packed primitive id)`` per ray in ``(t_min, t_max)``; ``t = t_max`` and id -1 on a
         miss. ``brute_force`` tests every primitive instead of walking the BVH (a reference)."""
+        t, prim, _inst = self.closest_instanced(origins, directions, t_min, t_max, brute_force)
+        return t, prim
+
+    def closest_instanced(
+        self, origins, directions, t_min: float = 0.0, t_max: float = np.inf, brute_force: bool = False
+    ):
+        """``closest``, with the instance each primitive was hit through (-1: the scene's own;
+        the primitive is then its group's, in the group's object space)."""
         o, d = vec3_array(origins, self.device), vec3_array(directions, self.device)
         t = wp.zeros(len(o), dtype=float, device=self.device)
         prim = wp.zeros(len(o), dtype=wp.int32, device=self.device)
-        inputs = [self.data, o, d, float(t_min), float(t_max), int(brute_force), t, prim]
+        inst = wp.zeros(len(o), dtype=wp.int32, device=self.device)
+        inputs = [self.data, o, d, float(t_min), float(t_max), int(brute_force), t, prim, inst]
         wp.launch(self.closest_kernel, dim=len(o), inputs=inputs, device=self.device)
-        return t.numpy(), prim.numpy()
+        return t.numpy(), prim.numpy(), inst.numpy()
 
     def occluded(self, origins, directions, t_min: float = 0.0, t_max: float = np.inf):
         """Whether anything lies in ``(t_min, t_max)`` along each ray."""

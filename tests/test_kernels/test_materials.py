@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 import warp as wp
 import wrt.kernels  # noqa: F401
+from conftest import make_scene
 from wrt.kernels.materials import (
     BSDF_DIFFUSE,
     BSDF_GLOSSY,
@@ -15,6 +16,7 @@ from wrt.kernels.materials import (
     MaterialData,
     bsdf_eval,
     bsdf_flags,
+    bsdf_flags_from,
     bsdf_pdf,
     bsdf_sample,
     non_specular,
@@ -101,6 +103,87 @@ def test_flags_describe_each_material(materials):
         "glass": BSDF_REFLECTION | BSDF_TRANSMISSION | BSDF_SPECULAR,
         "glossy": BSDF_REFLECTION | BSDF_GLOSSY,
     }
+
+
+@wp.kernel
+def flags_from(materials: MaterialData, front: bool, out: wp.array(dtype=wp.int32)):
+    out[wp.tid()] = bsdf_flags_from(materials, wp.tid(), front)
+
+
+ONE_SIDED = ["diffuse", "phong", "mirror", "glossy"]  # the types that may be one-sided (two_sided = false)
+
+
+def test_the_back_of_a_one_sided_material_scatters_nothing(device):
+    """``bsdf_flags_from``: every material's front and a two-sided one's back have its BSDF's
+    flags, the back of a one-sided one none."""
+    tables = [{"name": name, **params} for name, params in MATERIALS.items()]
+    tables += [{"name": f"{name}, one-sided", **MATERIALS[name], "two_sided": False} for name in ONE_SIDED]
+    scene = wrt.parse_scene({"camera": {"origin": [0, 0, 5], "look_at": [0, 0, 0]}, "material": tables})
+    materials = upload_materials(scene, device)
+    seen = {}
+    for front in (True, False):
+        out = wp.zeros(len(tables), dtype=wp.int32, device=device)
+        wp.launch(flags_from, dim=len(tables), inputs=[materials, front, out], device=device)
+        seen[front] = out.numpy().tolist()
+    flags = wp.zeros(len(tables), dtype=wp.int32, device=device)
+    wp.launch(flags_of, dim=len(tables), inputs=[materials, flags], device=device)
+    flags = flags.numpy().tolist()
+    assert seen[True] == flags and 0 not in flags
+    assert seen[False] == flags[: len(MATERIALS)] + [0] * len(ONE_SIDED)
+
+
+SQUARE = {"type": "polygon", "vertices": [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]]}  # its front faces +z
+
+
+def square_render(integrator, side, material, lights, **render):
+    """The square seen from its front (``side`` 1: the camera at z = 3) or its back (-1), 16 x 16
+    pixels at 1 sample (the pixel centres)."""
+    settings = {"width": 16, "height": 16, "integrator": integrator, "spp": 1, "max_depth": 2, **render}
+    camera = {"origin": [0, 0, 3 * side], "look_at": [0, 0, 0], "fov": 40}
+    scene = make_scene(
+        [{**SQUARE, "material": "m"}],
+        render=settings,
+        camera=camera,
+        materials=[{"name": "m", **material}],
+        lights=lights,
+    )
+    r = wrt.render(scene)
+    on = r.aovs["object_id"] == 0
+    assert on.sum() > 150
+    return r, on
+
+
+@pytest.mark.parametrize("integrator", ["whitted", "path"])
+@pytest.mark.parametrize("side", [1, -1], ids=["front", "back"])
+@pytest.mark.parametrize("two_sided", [True, False], ids=["two-sided", "one-sided"])
+def test_a_one_sided_diffuse_square_is_black_from_behind(integrator, side, two_sided):
+    """A diffuse square under a point light on the camera's side shows albedo/pi I cos / d^2
+    (exact: path at max_depth 2 is next-event estimation alone), except from behind a one-sided
+    square, which is black. The AOVs see the surface either way (normal: facing the camera)."""
+    albedo, intensity, light = np.array([0.5, 0.6, 0.7]), [4.0, 5.0, 6.0], np.array([0.3, 0.2, side])
+    point = {"type": "point", "position": light.tolist(), "intensity": intensity}
+    material = {"albedo": albedo.tolist(), "two_sided": two_sided}
+    r, on = square_render(integrator, side, material, [point])
+    to_light = light - r.aovs["position"][on].astype(np.float64)
+    d2 = (to_light**2).sum(axis=1)
+    expected = albedo / np.pi * np.asarray(intensity) * (to_light[:, 2] * side / d2**1.5)[:, None]
+    np.testing.assert_allclose(r.rgb[on], expected if side > 0 or two_sided else 0.0, rtol=1e-4, atol=0.0)
+    np.testing.assert_allclose(r.aovs["normal"][on], np.broadcast_to([0, 0, side], (on.sum(), 3)), atol=1e-6)
+
+
+@pytest.mark.parametrize("integrator", ["whitted", "path"])
+@pytest.mark.parametrize("name", ["phong", "mirror", "glossy"])
+def test_one_sided_phong_mirror_glossy_are_black_from_behind(integrator, name):
+    """Seen from behind under a point light and a grey sky (whitted: ``background``), a two-sided
+    square is lit at every pixel (the mirror reflects the sky), a one-sided one black at every pixel."""
+    lights = [{"type": "point", "position": [0.3, 0.2, -1.0], "intensity": [4.0, 4.0, 4.0]}]
+    sky = {"background": [0.5, 0.5, 0.5]}
+    if integrator == "path":
+        lights, sky = [*lights, {"type": "environment", "radiance": [0.5, 0.5, 0.5]}], {}
+    for two_sided in (True, False):
+        r, on = square_render(integrator, -1, {**MATERIALS[name], "two_sided": two_sided}, lights, **sky)
+        lit = r.rgb[on].min(axis=1)
+        assert lit.min() > 0.0 if two_sided else r.rgb[on].max() == 0.0
 
 
 @pytest.mark.parametrize("name", ["diffuse", "phong", "glossy"])

@@ -1,6 +1,8 @@
 """Kernels specialised on a scene's features (kernels/features.py, kernels/variants.py) render
 exactly what the all-features kernels render: specialisation only removes unreachable code."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from conftest import CAMERA, make_scene
@@ -16,6 +18,8 @@ MIRROR = {"name": "mirror", "type": "mirror"}
 FLOOR = {"type": "plane", "point": [0, -1, 0], "normal": [0, 1, 0], "material": "white"}
 POINT = {"type": "point", "position": [2, 3, 3], "intensity": [10, 10, 10]}
 AREA = {"type": "area", "corner": [-1, 3, -1], "edge_u": [2, 0, 0], "edge_v": [0, 0, 2], "radiance": [4, 4, 4]}
+DISK = {"type": "disk", "center": [1, -0.5, 0], "normal": [0, 1, 0.5], "radius": 0.7, "material": "white"}
+CYLINDER = {"type": "cylinder", "p0": [-1, -1, 0], "p1": [-0.8, 0.5, 0.3], "radius": 0.5, "material": "white"}
 
 
 def test_features_follow_the_scene():
@@ -25,11 +29,15 @@ def test_features_follow_the_scene():
         specular=False,
         dielectric=False,
         lens=False,
+        orthographic=False,
         motion=False,
         moving=False,
         spheres=False,
         triangles=False,
         polygons=False,
+        disks=False,
+        cylinders=False,
+        instances=False,
     )
     mesh = make_scene([{"type": "mesh", "file": "examples/meshes/tetra.obj"}], scene_dir=".")
     assert (scene_features(mesh).triangles, scene_features(mesh).spheres, scene_features(mesh).polygons) == (
@@ -42,12 +50,16 @@ def test_features_follow_the_scene():
             FLOOR,
             {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "glass", "velocity": [1, 0, 0]},
             {"type": "triangle", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "material": "white"},
+            DISK,
+            CYLINDER,
         ],
         materials=DIFFUSE + [GLASS],
         lights=[AREA],
         camera={**CAMERA, "aperture_radius": 0.1, "shutter": [0, 1]},
     )
-    assert scene_features(rich) == ALL
+    assert scene_features(rich) == dataclasses.replace(ALL, orthographic=False, instances=False)  # a lens: perspective
+    flat = make_scene([FLOOR], materials=DIFFUSE, camera={**CAMERA, "type": "orthographic", "width": 2.0})
+    assert scene_features(flat).orthographic and not scene_features(flat).lens
     still = make_scene(
         [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "velocity": [1, 0, 0]}],
         camera={**CAMERA, "shutter": [2, 2]},
@@ -111,6 +123,18 @@ SCENES = {
         {"shutter": [0, 1]},
         "path",
     ),
+    "path disk and cylinder": ([FLOOR, DISK, CYLINDER], DIFFUSE, [AREA], {}, "path"),
+    "path instances, one moving": (
+        [
+            FLOOR,
+            {"type": "instance", "group": "pair", "transform": {"translate": [-0.8, 0, 0], "scale": [1, 1.5, 1]}},
+            {"type": "instance", "group": "pair", "transform": {"rotate": [0, 40, 0]}, "velocity": [0.4, 0, 0]},
+        ],
+        DIFFUSE + [GLASS],
+        [AREA],
+        {"shutter": [0, 1]},
+        "path",
+    ),
     "raycast": (
         [FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"}],
         DIFFUSE,
@@ -118,14 +142,38 @@ SCENES = {
         {},
         "raycast",
     ),
+    "path glass, orthographic, clipped": (
+        [FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "glass"}],
+        DIFFUSE + [GLASS],
+        [AREA],
+        {"type": "orthographic", "width": 3.0, "near_clip": 4.5, "far_clip": 12.0},
+        "path",
+    ),
 }
+
+GROUPS = [  # what the instance scenes place; unused by the others
+    {
+        "name": "pair",
+        "shape": [
+            {"type": "sphere", "center": [0.6, 0, 0], "radius": 0.4, "material": "glass"},
+            {"type": "triangle", "vertices": [[-1, -0.5, 0], [0, -0.5, 0], [-0.5, 0.5, 0.2]], "material": "white"},
+        ],
+    }
+]
 
 
 @pytest.mark.parametrize("name", list(SCENES))
 def test_specialised_kernel_renders_the_same_image(name):
     shapes, materials, lights, camera, integrator = SCENES[name]
     render = {"width": 24, "height": 18, "spp": 4, "integrator": integrator, "ambient": [0.1, 0.1, 0.1]}
-    scene = make_scene(shapes, materials=materials, lights=lights, camera={**CAMERA, **camera}, render=render)
+    scene = make_scene(
+        shapes,
+        materials=materials,
+        lights=lights,
+        camera={**CAMERA, **camera},
+        render=render,
+        groups=GROUPS if any(shape["type"] == "instance" for shape in shapes) else None,
+    )
     special, general = wrt.render(scene, specialize=True), wrt.render(scene, specialize=False)
     assert np.array_equal(special.rgb, general.rgb)
     assert special.rgb.max() > 0  # something was rendered

@@ -102,6 +102,13 @@ def test_bad_transform_matrix_is_one_line(tmp_path, capsys, matrix, problem):
     assert err.count("\n") == 1 and "shape[1].transform.matrix" in err and problem in err, err
 
 
+@pytest.mark.parametrize("kind", ["diffuse", "phong", "mirror", "glossy"])
+def test_two_sided_defaults_to_true(tmp_path, kind):
+    for line, expected in (("", True), ("two_sided = true", True), ("two_sided = false", False)):
+        text = GOOD.replace("albedo = [0.8, 0.1, 0.1]", f'type = "{kind}"\n{line}')
+        assert wrt.load_scene(write(tmp_path, text)).materials[0].two_sided is expected
+
+
 def test_lights_are_accepted_and_ignored_by_raycast(tmp_path):
     scene = wrt.load_scene(
         write(tmp_path, GOOD + '\n[[light]]\ntype = "point"\nposition = [0, 3, 0]\nintensity = [10, 10, 10]\n')
@@ -202,6 +209,18 @@ BAD = [
         "unknown key",
     ),
     (
+        "two_sided not a boolean",
+        GOOD.replace('name = "red"', 'name = "red"\ntwo_sided = 0'),
+        "material[0].two_sided = 0",
+        "must be true or false",
+    ),
+    (
+        "two_sided on a dielectric",
+        GOOD.replace('name = "red"\nalbedo = [0.8, 0.1, 0.1]', 'name = "red"\ntype = "dielectric"\ntwo_sided = true'),
+        "material[0].two_sided = True",
+        "does not apply to a dielectric",
+    ),
+    (
         "ior below 1",
         GOOD.replace('name = "red"\nalbedo = [0.8, 0.1, 0.1]', 'name = "red"\ntype = "dielectric"\nior = 0.5'),
         "material[0].ior = 0.5",
@@ -268,6 +287,52 @@ BAD = [
         "close must not come before open",
     ),
     ("shutter of one number", GOOD.replace("[camera]", "[camera]\nshutter = [1]"), "camera.shutter = [1]", "2 numbers"),
+    (
+        "unknown camera type",
+        GOOD.replace("[camera]", '[camera]\ntype = "fisheye"'),
+        "camera.type = 'fisheye'",
+        "one of",
+    ),
+    (
+        "orthographic with fov",
+        GOOD.replace("[camera]", '[camera]\ntype = "orthographic"\nwidth = 3\nfov = 30'),
+        "camera.fov = 30",
+        "perspective cameras only",
+    ),
+    (
+        "orthographic with a lens",
+        GOOD.replace("[camera]", '[camera]\ntype = "orthographic"\nwidth = 3\naperture_radius = 0.1'),
+        "camera.aperture_radius = 0.1",
+        "perspective cameras only",
+    ),
+    (
+        "orthographic with a focus",
+        GOOD.replace("[camera]", '[camera]\ntype = "orthographic"\nwidth = 3\nfocus_distance = 2'),
+        "camera.focus_distance = 2",
+        "perspective cameras only",
+    ),
+    ("perspective with width", GOOD.replace("[camera]", "[camera]\nwidth = 3"), "camera.width = 3", "orthographic"),
+    (
+        "orthographic without width",
+        GOOD.replace("[camera]", '[camera]\ntype = "orthographic"'),
+        "camera.width",
+        "required",
+    ),
+    (
+        "orthographic width 0",
+        GOOD.replace("[camera]", '[camera]\ntype = "orthographic"\nwidth = 0'),
+        "camera.width = 0",
+        "must be in",
+    ),
+    ("negative near clip", GOOD.replace("[camera]", "[camera]\nnear_clip = -1"), "camera.near_clip = -1", "must be in"),
+    (
+        "far clip not beyond near",
+        GOOD.replace("[camera]", "[camera]\nnear_clip = 2\nfar_clip = 2"),
+        "camera.far_clip = 2",
+        "greater than near_clip = 2",
+    ),
+    ("infinite far clip", GOOD.replace("[camera]", "[camera]\nfar_clip = inf"), "camera.far_clip = inf", "finite"),
+    ("huge near clip", GOOD.replace("[camera]", "[camera]\nnear_clip = 1e30"), "camera.near_clip", "at most 1e+18"),
     (
         "velocity with NaN",
         GOOD + '[[shape]]\ntype = "sphere"\ncenter = [0, 0, 0]\nradius = 1\nvelocity = [nan, 0, 0]\n',

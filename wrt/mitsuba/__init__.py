@@ -9,10 +9,10 @@
 parameters with ``$name`` substitution and ``<ref id=...>`` references work as in Mitsuba. The mapping of every element
 and parameter, the conventions that differ, and every warning are listed in ``docs/mitsuba.md``.
 
-Whatever would make wrt render the converted scene differently from Mitsuba in expectation (an
-unsupported element or parameter, a BSDF replaced by its closest match, a one-sided surface
-whose back is visible) is reported as a warning naming the file, the line and the element, or
-raised as a `WrtError` with ``strict=True``. Parameters that change only noise (sampler type,
+Faithful or refused: whatever would make wrt render the converted scene differently from Mitsuba
+in expectation (an unsupported element or parameter, a BSDF replaced by its closest match) is a
+`WrtError` naming the file, the line and the element, or with ``approximate=True`` converted
+anyway and reported, once per cause. Parameters that change only noise (sampler type,
 seed, Russian roulette depth) or the output file (pixel and file formats) convert silently.
 
 Frames and units are Mitsuba's and wrt's alike: right-handed world space, angles in degrees,

@@ -1,5 +1,7 @@
 """Converting Mitsuba's BSDFs into wrt materials: each ``<bsdf>`` once, named when a shape first
-uses it, with the nearest wrt material (and a warning) for what wrt has no exact match for."""
+uses it, with the nearest wrt material (and a warning) for what wrt has no exact match for.
+Mitsuba's one-sided BSDFs (``diffuse``, the conductors, the default BSDF) become materials with
+``two_sided = false``, wrapped in ``twosided`` the same materials two-sided."""
 
 from __future__ import annotations
 
@@ -86,14 +88,19 @@ constant Fresnel factor, so a named conductor converts to this value with a warn
 
 @dataclass
 class Material:
-    """A converted BSDF: its wrt material table and whether Mitsuba shades both of its sides."""
+    """A converted BSDF: its wrt material parameters and whether Mitsuba shades both of its sides."""
 
-    table: dict
+    params: dict  # the [[material]] table but its name and two_sided
     two_sided: bool
 
+    @property
+    def table(self) -> dict:
+        """The ``[[material]]`` table, without a name: ``two_sided = false`` for a one-sided BSDF."""
+        return self.params if self.two_sided else {**self.params, "two_sided": False}
+
     def reflects(self) -> bool:
-        colour = self.table.get("albedo", self.table.get("reflectance", [1.0]))
-        return self.table["type"] == "dielectric" or any(c > 0 for c in colour)
+        colour = self.params.get("albedo", self.params.get("reflectance", [1.0]))
+        return self.params["type"] == "dielectric" or any(c > 0 for c in colour)
 
 
 DEFAULT_BSDF = Material({"type": "diffuse", "albedo": [0.5, 0.5, 0.5]}, False)  # Mitsuba's (one-sided)
@@ -136,7 +143,8 @@ def conductor_reflectance(p: Plugin) -> list[float]:
     the normal-incidence Fresnel reflectance otherwise (with a warning)."""
     scale = p.color("specular_reflectance", 1.0)
     if p.has("eta") or p.has("k"):
-        eta, k = np.array(p.color("eta", 0.0)), np.array(p.color("k", 1.0))
+        eta = np.array(p.color("eta", 0.0, unbounded=True))
+        k = np.array(p.color("k", 1.0, unbounded=True))
         f0 = ((eta - 1) ** 2 + k**2) / ((eta + 1) ** 2 + k**2)
         source = "eta, k"
     else:
@@ -167,19 +175,23 @@ class Materials:
         self.names: dict[int, str] = {}  # names of those that shapes use
         self.ext_iors: list[tuple[float, Element]] = []
 
-    def of(self, element: Element) -> Material:
-        """A BSDF element converted once, however often it is referenced."""
+    def of(self, element: Element | None) -> Material:
+        """A BSDF element converted once, however often it is referenced (None: Mitsuba's default BSDF)."""
+        if element is None:
+            return DEFAULT_BSDF
         if id(element) not in self.converted:
             self.converted[id(element)] = self._convert(element)
         return self.converted[id(element)]
 
-    def name(self, element: Element) -> str:
-        """The name of a BSDF's wrt material, added to ``[[material]]`` when first used."""
+    def name(self, element: Element | None) -> str:
+        """The name of a BSDF's wrt material (None: Mitsuba's default BSDF), added to
+        ``[[material]]`` when first used."""
         if id(element) not in self.names:
             material = self.of(element)
-            self.names[id(element)] = self.add(
-                element.attrs.get("id") or f"{material.table['type']}@{element.line}", material.table
-            )
+            base = "default_bsdf"
+            if element is not None:
+                base = element.attrs.get("id") or f"{material.params['type']}@{element.line}"
+            self.names[id(element)] = self.add(base, material.table)
         return self.names[id(element)]
 
     def add(self, base: str, table: dict) -> str:
@@ -217,7 +229,10 @@ class Materials:
             if len(inner) > 1 and inner[1] is not inner[0]:
                 self.doc.warn(inner[1], "a different BSDF on the back side is not supported: both sides use the first")
             p.finish()
-            return Material(self._convert(inner[0]).table, True)
+            front = self._convert(inner[0])
+            if front.params["type"] == "dielectric":
+                raise self.doc.error(inner[0], "a twosided BSDF cannot nest a BSDF that transmits (Mitsuba rejects it)")
+            return Material(front.params, True)
         if p.type == "diffuse":
             material = Material({"type": "diffuse", "albedo": p.color("reflectance", 0.5)}, False)
         elif p.type == "conductor":

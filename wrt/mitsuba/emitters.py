@@ -15,22 +15,26 @@ def emitter(doc: Document, element: Element) -> dict | None:
     matrix, _ = p.transform("to_world")
     if p.type == "point":
         position = p.vector("position", matrix[:3, 3])
-        light = {"type": "point", "position": as_list(position), "intensity": p.color("intensity", 1.0)}
+        light = {"type": "point", "position": as_list(position), "intensity": p.color("intensity", 1.0, emission=True)}
     elif p.type == "spot":
         cutoff = p.number("cutoff_angle", 20.0)
         light = {
             "type": "spot",
             "position": as_list(matrix[:3, 3]),
             "direction": as_list(matrix[:3, 2]),
-            "intensity": p.color("intensity", 1.0),
+            "intensity": p.color("intensity", 1.0, emission=True),
             "cutoff_angle": cutoff,
             "beam_width": p.number("beam_width", 0.75 * cutoff),
         }
     elif p.type == "directional":
         direction = p.vector("direction", matrix[:3, 2])
-        light = {"type": "directional", "direction": as_list(direction), "irradiance": p.color("irradiance", 1.0)}
+        light = {
+            "type": "directional",
+            "direction": as_list(direction),
+            "irradiance": p.color("irradiance", 1.0, emission=True),
+        }
     elif p.type == "constant":
-        light = {"type": "environment", "radiance": p.color("radiance", 1.0)}
+        light = {"type": "environment", "radiance": p.color("radiance", 1.0, emission=True)}
     else:
         doc.warn(element, "emitter type not supported: ignored")
         return None
@@ -43,7 +47,7 @@ def area_radiance(doc: Document, element: Element) -> list[float]:
     p = Plugin(doc, element)
     if p.type != "area":
         doc.warn(element, "only area emitters can be attached to shapes: converted as area")
-    radiance = p.color("radiance", 1.0)
+    radiance = p.color("radiance", 1.0, emission=True)
     p.finish()
     return radiance
 

@@ -7,9 +7,11 @@ import math
 
 import numpy as np
 
+from ..loader import MAX_MAGNITUDE
 from .transforms import as_list, mirrors, vertical_fov
 from .xml import Document, Element, Plugin, parse_number
 
+SENSORS = ("perspective", "thinlens", "orthographic")
 MAX_DEPTH = 1024
 """wrt's largest ``max_depth``: what Mitsuba's ``max_depth = -1`` (unbounded) becomes."""
 
@@ -28,15 +30,57 @@ SAMPLERS = {
 
 
 def sensor(doc: Document, element: Element) -> tuple[dict, dict]:
-    """``(render, camera)`` tables from a ``perspective`` or ``thinlens`` sensor with its film and sampler."""
+    """``(render, camera)`` tables from a ``perspective``, ``thinlens`` or ``orthographic`` sensor
+    with its film and sampler."""
     p = Plugin(doc, element)
-    if p.type not in ("perspective", "thinlens"):
-        raise doc.error(element, "only perspective and thinlens sensors can be converted")
+    if p.type not in SENSORS:
+        raise doc.error(element, f"only {', '.join(SENSORS)} sensors can be converted")
     films = p.children("film")
     render = film(doc, films[0] if films else Element("film", {"type": "hdrfilm"}, element.line))
     samplers = p.children("sampler")
     render.update(sampler(doc, samplers[0] if samplers else Element("sampler", {"type": "independent"}, element.line)))
+    matrix, lookat = p.transform("to_world")
+    camera = camera_pose(doc, element, matrix, lookat)
+    if p.type == "orthographic":
+        film_scale, depth_scale = orthographic_scales(doc, element, matrix[:3, :3])
+        camera.update(type="orthographic", width=2.0 * film_scale)  # the film spans [-1, 1] before to_world
+    else:
+        if np.abs(matrix[:3, :3] @ matrix[:3, :3].T - np.eye(3)).max() > 1e-3:  # Mitsuba's Transform::has_scale
+            raise doc.error(element, f"the to_world transform scales: Mitsuba refuses this for a {p.type} sensor")
+        depth_scale = 1.0
+        camera["fov"] = perspective_fov(doc, element, p, render)
+        for name in ("principal_point_offset_x", "principal_point_offset_y"):
+            if p.number(name, 0.0) != 0.0:
+                doc.warn(p.params[name], f"'{name}' is not supported: the principal point stays at the image centre")
 
+    # Clip planes: Mitsuba measures them along the view from the camera plane, as wrt does; an
+    # orthographic camera starts its rays at to_world(x, y, near_clip) (depth scaled by to_world)
+    # and traces them for far_clip - near_clip
+    near_clip = p.number("near_clip", 1e-2, above=0.0)  # Mitsuba's defaults
+    far_clip = p.number("far_clip", 1e4)
+    if not far_clip > near_clip:
+        raise doc.error(
+            p.params.get("far_clip", element),
+            f"'far_clip' = {far_clip:g} must be greater than 'near_clip' = {near_clip:g}",
+        )
+    camera["near_clip"] = near_clip * depth_scale
+    if far_clip < MAX_MAGNITUDE:  # else no clip: nothing of a scene wrt takes is that far
+        camera["far_clip"] = far_clip + near_clip * (depth_scale - 1.0)
+
+    if p.has("shutter_open") or p.has("shutter_close"):
+        camera["shutter"] = [p.number("shutter_open", 0.0), p.number("shutter_close", 0.0)]
+    if p.type == "thinlens":
+        if not p.has("aperture_radius"):
+            raise doc.error(element, "a thinlens sensor needs aperture_radius")
+        camera["aperture_radius"] = p.number("aperture_radius", None)
+        camera["focus_distance"] = p.number("focus_distance", far_clip)  # Mitsuba's default: far_clip
+    p.finish()
+    return render, camera
+
+
+def perspective_fov(doc: Document, element: Element, p: Plugin, render: dict) -> float:
+    """wrt's vertical ``fov`` (degrees) of a perspective or thinlens sensor: its ``fov`` along
+    ``fov_axis``, or its ``focal_length``, on the film of ``render``'s size."""
     if p.has("fov") and p.has("focal_length"):
         raise doc.error(element, "give either fov or focal_length, not both")
     if p.has("fov"):
@@ -59,34 +103,31 @@ def sensor(doc: Document, element: Element) -> tuple[dict, dict]:
     if not 0.0 < fov < 180.0:  # a fov just inside (0, 180), or a tiny focal length, rounded to an end
         value = source.attrs.get("value", "")
         raise doc.error(source, f"'{name}' = {value!r} gives a vertical field of view of {fov:g} degrees")
+    return fov
 
-    matrix, lookat = p.transform("to_world")
-    camera = camera_pose(doc, element, matrix, lookat)
-    camera["fov"] = fov
-    for name in ("near_clip", "far_clip"):
-        if p.has(name):
-            doc.warn(p.params[name], f"'{name}' is ignored: wrt cameras have no clip planes")
-    far_clip = p.number("far_clip", 1e4)
-    for name in ("principal_point_offset_x", "principal_point_offset_y"):
-        if p.number(name, 0.0) != 0.0:
-            doc.warn(p.params[name], f"'{name}' is not supported: the principal point stays at the image centre")
-    if p.has("shutter_open") or p.has("shutter_close"):
-        camera["shutter"] = [p.number("shutter_open", 0.0), p.number("shutter_close", 0.0)]
-    if p.type == "thinlens":
-        if not p.has("aperture_radius"):
-            raise doc.error(element, "a thinlens sensor needs aperture_radius")
-        camera["aperture_radius"] = p.number("aperture_radius", None)
-        camera["focus_distance"] = p.number("focus_distance", far_clip)  # Mitsuba's default: far_clip
-    p.finish()
-    return render, camera
+
+def orthographic_scales(doc: Document, element: Element, basis: np.ndarray) -> tuple[float, float]:
+    """``(film, depth)``: the lengths to which the 3x3 ``basis`` of an orthographic sensor's
+    to_world stretches the unit x and y axes (the film's; they must agree: wrt's pixels are
+    square) and the z axis (the view's). Axes that are not perpendicular (a shear) are refused."""
+    scales = np.linalg.norm(basis, axis=0)
+    cosines = (basis.T @ basis) / np.outer(scales, scales)
+    if np.abs(cosines - np.eye(3)).max() > 1e-9:
+        raise doc.error(element, "the to_world transform shears the film (its x, y and z axes are not perpendicular)")
+    if abs(scales[0] - scales[1]) > 1e-9 * scales[0]:
+        raise doc.error(
+            element,
+            f"the to_world transform scales the film's x and y axes differently ({scales[0]:g} and {scales[1]:g}): "
+            "wrt's orthographic camera has square pixels",
+        )
+    return float(scales[0]), float(scales[2])
 
 
 def camera_pose(doc: Document, element: Element, matrix: np.ndarray, lookat) -> dict:
-    """origin / look_at / up from a camera-to-world matrix (local +z forward, +y up)."""
+    """origin / look_at / up from a camera-to-world matrix (local +z forward, +y up), whatever the
+    lengths of its axes."""
     basis = matrix[:3, :3]
     norms = np.linalg.norm(basis, axis=0)
-    if np.any(np.abs(norms - 1.0) > 1e-4):
-        doc.warn(element, "the to_world transform scales (Mitsuba refuses this): its scale is dropped")
     if mirrors(basis):
         doc.warn(element, "the to_world transform mirrors the image (negative determinant): wrt renders it unmirrored")
     if lookat is not None:
@@ -151,17 +192,34 @@ def sampler(doc: Document, element: Element) -> dict:
     return render
 
 
+INTEGRATORS = ("path", "volpath", "direct", "moment")
+"""Mitsuba integrators converted exactly: ``path`` (``volpath`` without media is ``path``; a
+medium is refused where it appears), ``direct`` (path with ``max_depth = 2``: emitters seen
+directly plus direct light), ``moment`` (its nested integrator: the moments are extra channels)."""
+
+
 def integrator(doc: Document, element: Element | None) -> dict:
-    """``integrator`` and ``max_depth`` of the ``[render]`` table (Mitsuba's ``path``)."""
+    """``integrator`` and ``max_depth`` of the ``[render]`` table."""
     if element is None:
         return {"integrator": "path", "max_depth": MAX_DEPTH}
     p = Plugin(doc, element)
-    if p.type not in ("path", "volpath"):
+    if p.type == "moment":
+        inner = p.children("integrator")
+        if len(inner) != 1:
+            raise doc.error(element, "a moment integrator wraps exactly one integrator")
+        p.finish()
+        return integrator(doc, inner[0])
+    if p.type not in INTEGRATORS:
         doc.warn(element, "integrator not supported: converted as path")
         return {"integrator": "path", "max_depth": MAX_DEPTH}
-    depth = p.number("max_depth", -1, integer=True)
     if p.boolean("hide_emitters", False):
         doc.warn(p.params["hide_emitters"], "hide_emitters is not supported: emitters stay visible")
+    if p.type == "direct":
+        for name in ("shading_samples", "emitter_samples", "bsdf_samples"):  # change the noise only
+            p.number(name, 1, integer=True)
+        p.finish()
+        return {"integrator": "path", "max_depth": 2}
+    depth = p.number("max_depth", -1, integer=True)
     if depth == 0:
         doc.warn(p.params["max_depth"], "max_depth = 0 (a black image) becomes 1")
     p.finish()

@@ -1,6 +1,6 @@
 """Converting Mitsuba's shapes into wrt shapes: ``sphere``, ``rectangle`` and ``cube`` (as
-polygons), ``obj`` and ``ply`` meshes, with their BSDF and, for an area emitter on a rectangle or
-sphere, the area or sphere light it becomes."""
+polygons), ``disk`` and ``cylinder``, ``obj`` and ``ply`` meshes, with their BSDF and, for an area
+emitter on a rectangle or sphere, the area or sphere light it becomes."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import os
 
 import numpy as np
 
-from .bsdfs import DEFAULT_BSDF, Materials
+from .bsdfs import Materials
 from .emitters import area_radiance, surface_light
-from .transforms import as_list, mirrors, transform_point
+from .transforms import as_list, coordinate_system, mirrors, transform_point
 from .xml import Document, Element, Plugin
 
 BEYOND_FLOAT64 = "beyond the float64 range (not finite)"
@@ -62,12 +62,15 @@ def shape(doc: Document, materials: Materials, element: Element, shapes: list, l
         if not np.all(np.isfinite(loops)):
             raise doc.error(element, f"to_world places the {p.type} {BEYOND_FLOAT64}")
         tables = [{"type": "polygon", "vertices": [as_list(v) for v in loop]} for loop in loops]
+    elif p.type in ("disk", "cylinder"):
+        tables = [quadric(doc, p, matrix, front, emitters)]
     elif p.type in ("obj", "ply"):
         tables = [mesh(doc, p, matrix)]
     else:
         doc.warn(element, "shape type not supported: ignored")
         return
-    material = materials.of(bsdfs[0]) if bsdfs else DEFAULT_BSDF
+    bsdf = bsdfs[0] if bsdfs else None  # None: Mitsuba's default BSDF
+    material = materials.of(bsdf)
 
     if emitters:
         radiance = area_radiance(doc, emitters[0])
@@ -84,19 +87,14 @@ def shape(doc: Document, materials: Materials, element: Element, shapes: list, l
             lights.append(light)
             p.finish()
             return
-        doc.warn(emitters[0], "an area emitter on this shape becomes emission of its material (front side only)")
-        base = bsdfs[0].attrs.get("id", material.table["type"]) if bsdfs else "default"
+        if p.type not in ("disk", "cylinder"):
+            doc.warn(emitters[0], "an area emitter on this shape becomes emission of its material (front side only)")
+        base = bsdfs[0].attrs.get("id", material.params["type"]) if bsdfs else "default"
         name = materials.add(f"{base}+emission@{emitters[0].line}", {**material.table, "emission": radiance})
     else:
-        if p.type in ("rectangle", "obj", "ply") and not material.two_sided:
-            doc.warn(
-                bsdfs[0] if bsdfs else element,
-                "one-sided BSDF on an open surface: Mitsuba renders its back black, "
-                "wrt shades both sides (wrap it in a twosided BSDF to compare)",
-            )
-        name = materials.name(bsdfs[0]) if bsdfs else None
+        name = materials.name(bsdf)
     for table in tables:
-        shapes.append({**table, "material": name} if name else table)
+        shapes.append({**table, "material": name})
     p.finish()
 
 
@@ -123,7 +121,41 @@ def mesh(doc: Document, p: Plugin, matrix: np.ndarray) -> dict:
     found = doc.find_file(p.element, filename)
     if found is None:
         raise doc.error(p.element, f"no such mesh file {filename!r} {doc.searched(p.element)}")
-    table = {"type": "mesh", "file": os.path.relpath(found, os.path.dirname(doc.path) or ".")}
-    if not np.array_equal(matrix, np.eye(4)):
-        table["transform"] = {"matrix": [x for row in matrix for x in as_list(row)]}  # 16 numbers, row-major
-    return table
+    return placed({"type": "mesh", "file": os.path.relpath(found, os.path.dirname(doc.path) or ".")}, matrix)
+
+
+def quadric(doc: Document, p: Plugin, matrix: np.ndarray, front: float, emitters: list[Element]) -> dict:
+    """The ``disk`` or ``cylinder`` table of a Mitsuba ``disk`` (the unit disk at z = 0, front +z)
+    or ``cylinder`` (the open tube of ``radius`` from ``p0`` to ``p1``, normals outward): the same
+    shape through ``to_world`` as a transform matrix; ``flip_normals`` turns the disk's normal or
+    the tube's normals around. Warns about an emitter on a tube that is not right circular, which
+    Mitsuba samples by a wrong area (it warns about the transform too)."""
+    if p.type == "disk":
+        return placed({"type": "disk", "center": [0.0, 0.0, 0.0], "normal": [0.0, 0.0, front], "radius": 1.0}, matrix)
+    radius = p.number("radius", 1.0, above=0.0)
+    p0, p1 = p.vector("p0", (0.0, 0.0, 0.0)), p.vector("p1", (0.0, 0.0, 1.0))
+    if np.array_equal(p0, p1):
+        raise doc.error(p.element, "p0 and p1 coincide: the cylinder has no length")
+    if emitters:
+        axis = (p1 - p0) / np.linalg.norm(p1 - p0)
+        tangent = coordinate_system(axis)
+        edges = matrix[:3, :3] @ np.column_stack([radius * tangent, radius * np.cross(axis, tangent), p1 - p0])
+        gram = edges.T @ edges
+        lengths = np.sqrt(np.diag(gram))
+        skew = np.abs(gram - np.diag(np.diag(gram))) / np.outer(lengths, lengths)
+        if skew.max() > 1e-6 or abs(lengths[0] - lengths[1]) > 1e-6 * lengths[0]:
+            doc.warn(
+                emitters[0],
+                "Mitsuba samples this emitter as a right circular tube, but to_world shears the cylinder or "
+                "scales its radius unequally: Mitsuba's image of its light is biased, wrt's follows the exact tube",
+            )
+    table = {"type": "cylinder", "p0": as_list(p0), "p1": as_list(p1), "radius": radius}
+    return placed({**table, "flip_normals": True} if front < 0 else table, matrix)
+
+
+def placed(table: dict, matrix: np.ndarray) -> dict:
+    """A shape table with a non-identity ``to_world`` as its ``transform = { matrix = [16
+    numbers, row-major] }``, applied after the table's own placement (docs/scene-format.md)."""
+    if np.array_equal(matrix, np.eye(4)):
+        return table
+    return {**table, "transform": {"matrix": [x for row in matrix for x in as_list(row)]}}

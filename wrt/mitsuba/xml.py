@@ -3,8 +3,8 @@
 
 A ``Document`` is one scene being read: it splices ``<include>``d files in place, keeps the
 ``<path>`` folders files are searched in, resolves attribute values (``<default>`` parameters,
-``params`` given by the caller), references and transforms, and collects the warnings (or, when
-``strict``, raises them). Every element remembers its file and line, so messages name the
+``params`` given by the caller), references and transforms, and refuses approximations (or, when
+read with ``approximate``, records them). Every element remembers its file and line, so messages name the
 fragment a problem is in. A ``Plugin`` is one plugin element's parameters and nested plugins; it
 records which ones a converter read so that ``finish`` can report the rest.
 """
@@ -20,6 +20,7 @@ from xml.parsers import expat
 import numpy as np
 
 from ..errors import WrtError
+from . import spectra
 from .transforms import look_at_matrix, rotation_matrix
 
 VALUE_TAGS = ("float", "integer", "boolean", "string", "rgb", "spectrum", "point", "vector", "transform")
@@ -138,10 +139,10 @@ def read_xml(path: str) -> Element:
 class Document:
     """One Mitsuba scene file being read: attribute values, references, transforms and reports."""
 
-    def __init__(self, path: str, strict: bool, params: dict):
-        self.path, self.strict = path, strict
+    def __init__(self, path: str, approximate: bool, params: dict):
+        self.path, self.approximate = path, approximate
         self.params = {str(k): str(v) for k, v in params.items()}
-        self.warnings: list[str] = []
+        self.approximations: dict[tuple[str, str, str], list[int]] = {}  # (file, element, what) -> lines
         self.ids: dict[str, Element] = {}
         self.search: list[str] = []  # <path> folders, the latest first (as Mitsuba's resolver prepends them)
 
@@ -150,10 +151,23 @@ class Document:
         return WrtError(f"{element.file or self.path}:{element.line}: {element.describe()}: {message}")
 
     def warn(self, element: Element, message: str) -> None:
-        text = f"{element.file or self.path}:{element.line}: {element.describe()}: {message}"
-        if self.strict:
-            raise WrtError(text + " (strict import)")
-        self.warnings.append(text)
+        """An approximation: what wrt would render differently from Mitsuba. Refused (a
+        `WrtError`) unless the document is read with ``approximate``; then recorded, once per
+        cause (file, element, message) with every line it happens on."""
+        if not self.approximate:
+            raise self.error(element, f"{message} (not converted exactly: --approximate converts it anyway)")
+        key = (element.file or self.path, element.describe(), message)
+        self.approximations.setdefault(key, []).append(element.line)
+
+    @property
+    def warnings(self) -> list[str]:
+        """One line per approximation cause, in the order first met: ``FILE:LINE: <element>: what``,
+        with `` (also lines A, B)`` where the same cause recurs."""
+        lines = []
+        for (file, element, message), at in self.approximations.items():
+            also = f" (also line{'s' * (len(at) > 2)} {', '.join(map(str, at[1:]))})" if len(at) > 1 else ""
+            lines.append(f"{file}:{at[0]}: {element}: {message}{also}")
+        return lines
 
     # --- files: <include> and <path> ----------------------------------------------------------
     def expand(self, root: Element, chain: tuple[str, ...] = ()) -> None:
@@ -446,23 +460,68 @@ class Plugin:
         element = self.value(name, ("string",))
         return default if element is None else self.doc.attr(element, "value")
 
-    def color(self, name: str, default: float) -> list[float]:
-        """An RGB parameter given as ``<rgb>``, a constant ``<spectrum>`` or a ``<float>``."""
+    def color(self, name: str, default: float, *, emission: bool = False, unbounded: bool = False) -> list[float]:
+        """An RGB parameter given as ``<rgb>``, ``<float>`` or ``<spectrum>``, in linear sRGB as
+        Mitsuba's RGB variants read it (`spectra` says how a spectrum converts). ``emission``
+        marks a radiance, intensity or irradiance, ``unbounded`` a parameter that may exceed 1 (a
+        conductor's eta and k); a spectrum of any other parameter is a reflectance, within [0, 1]."""
         element = self.value(name, ("rgb", "spectrum", "float", "integer"))
         if element is None:
             return [float(default)] * 3
-        text = self.doc.attr(element, "value", None)
-        if element.tag == "spectrum" and (text is None or ":" in text):
-            pairs = _SPLIT.split(text.strip()) if text else [f"0:{default}"]
-            values = self.doc.numbers(element, name, " ".join(pair.partition(":")[2] for pair in pairs))
-            self.doc.warn(element, f"spectral data for '{name}' is not supported: using its mean {np.mean(values):.4g}")
-            return [float(np.mean(values))] * 3
-        if text is None:
-            raise self.doc.error(element, "attribute 'value' is required")
+        if element.tag == "spectrum":
+            return self._spectrum(element, name, emission, unbounded).tolist()
+        text = self.doc.attr(element, "value")
         values = self.doc.numbers(element, name, text)
         if len(values) not in (1, 3) or (element.tag != "rgb" and len(values) != 1):
             raise self.doc.error(element, f"'{name}' = {text!r} must be one or three numbers")
         return values * 3 if len(values) == 1 else values
+
+    def _spectrum(self, element: Element, name: str, emission: bool, unbounded: bool) -> np.ndarray:
+        """The linear sRGB of a ``<spectrum>``: its ``value`` a constant or wavelength:value pairs,
+        or its ``filename`` a ``.spd`` file (found as `Document.find_file` finds files)."""
+        doc = self.doc
+        unexpected = sorted(set(element.attrs) - {"name", "value", "filename"})
+        if unexpected:
+            raise doc.error(element, f"unexpected attribute '{unexpected[0]}' (a <spectrum> has a value or a filename)")
+        text, filename = doc.attr(element, "value", ""), doc.attr(element, "filename", "")
+        if bool(text) == bool(filename):
+            raise doc.error(element, f"'{name}' needs either a 'value' or a 'filename' (not both)")
+        if text and ":" not in text:
+            return spectra.uniform_to_srgb(doc.number(element, name, text), emission=emission)
+        if text:
+            shown = f"'{name}' = {text!r}"
+            tokens = _SPLIT.split(text.strip())
+            # split at ':' as Mitsuba's tokenizer does, empty parts dropped ("400::1" is 400:1)
+            pairs = [[part for part in token.split(":") if part] for token in tokens]
+            bad = next((token for token, pair in zip(tokens, pairs) if len(pair) != 2), None)
+            if bad is not None:
+                raise doc.error(element, f"{shown}: {bad!r} is not a wavelength:value pair")
+            lines = [("", *pair) for pair in pairs]
+        else:
+            shown = f"'{name}' file {filename!r}"
+            path = doc.find_file(element, filename)
+            if path is None:
+                raise doc.error(element, f"{shown}: no such file {doc.searched(element)}")
+            try:
+                with open(path, encoding="utf-8", errors="replace") as f:
+                    lines = [(f"line {n}: ", *pair) for n, *pair in spectra.spd_lines(f.read())]
+            except OSError as e:
+                raise doc.error(element, f"{shown}: cannot read it ({e.strerror})") from None
+            except ValueError as e:
+                raise doc.error(element, f"{shown}: {e}") from None
+        numbers = []
+        for where, *pair in lines:
+            for word in pair:
+                try:
+                    numbers.append(parse_number(word))
+                except ValueError as e:
+                    raise doc.error(element, f"{shown}: {where}{word!r} {e}") from None
+        try:
+            return spectra.spectrum_to_srgb(
+                numbers[0::2], numbers[1::2], bounded=not (emission or unbounded), d65=not emission
+            )
+        except ValueError as e:
+            raise doc.error(element, f"{shown}: {e}") from None
 
     def vector(self, name: str, default) -> np.ndarray:
         element = self.value(name, ("point", "vector"))
