@@ -85,3 +85,45 @@ def render_mitsuba(xml_path, spp: int | None = None, seed: int = 0, **params) ->
     scene = mi.load_file(os.fspath(xml_path), **{k: str(v) for k, v in params.items()})
     image = mi.render(scene, spp=spp or 0, seed=seed)
     return np.array(image, dtype=np.float32)[..., :3]
+
+
+SRGB_TO_XYZ = np.array([[0.412453, 0.357580, 0.180423], [0.212671, 0.715160, 0.072169], [0.019334, 0.119193, 0.950227]])
+"""Linear sRGB -> CIE XYZ, the matrix of Mitsuba's ``Bitmap`` conversion (its render tests compare in XYZ)."""
+
+
+def render_mitsuba_moments(xml_path, spp: int, seed: int = 0, **params) -> tuple[np.ndarray, np.ndarray]:
+    """Mitsuba's render of a scene whose integrator is a ``moment`` integrator, read as Mitsuba's
+    own render tests read their references: ``(mean, variance)``, float64 (H, W, 3) in CIE XYZ,
+    the variance per sample (second moment minus the squared mean). ``params`` as in
+    `render_mitsuba`."""
+    import mitsuba as mi
+
+    mi.set_variant(variant())
+    scene = mi.load_file(os.fspath(xml_path), **{k: str(v) for k, v in params.items()})
+    image = np.array(mi.render(scene, spp=spp, seed=seed), dtype=np.float64)
+    if image.shape[-1] != 9:
+        raise ValueError(f"{xml_path}: not a moment integrator's image ({image.shape[-1]} channels, not 9)")
+    mean, second = image[..., 3:6], image[..., 6:9]
+    return mean, second - mean * mean
+
+
+def mitsuba_z_test(rgb, spp: int, reference, variance, reference_spp: int | None = None, level: float = 0.01):
+    """Mitsuba 3's render-test criterion (``src/render/tests/test_renders.py``): each pixel and
+    XYZ channel of the image ``rgb`` (linear sRGB, ``spp`` samples per pixel) is compared with
+    the reference mean by a Z-test whose per-sample variance is the reference's (at least 1e-4),
+    at the Sidak-corrected level ``1 - (1 - level)^(1 / pixels)``; the image passes when at least
+    99.75% of them pass. ``reference_spp``: a reference rendered at finite spp (in a test) adds its
+    own noise, ``variance / reference_spp``, to the test's ``variance / spp``.
+
+    Returns ``(passed, fraction of pixel channels passing, smallest p-value)``."""
+    from scipy.special import erfc
+
+    xyz = np.asarray(rgb, dtype=np.float64) @ SRGB_TO_XYZ.T
+    per_sample = np.maximum(variance, 1e-4)
+    noise = per_sample / spp + (per_sample / reference_spp if reference_spp else 0.0)
+    z = np.abs(xyz - reference) / np.sqrt(noise)
+    p = erfc(z / np.sqrt(2.0))  # two-sided: 2 (1 - Phi(z))
+    pixels = p.shape[0] * p.shape[1]
+    alpha = 1.0 - (1.0 - level) ** (1.0 / pixels)
+    passing = np.count_nonzero(p > alpha) / p.size
+    return passing >= 0.9975, passing, float(p.min())
