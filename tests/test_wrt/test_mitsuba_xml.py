@@ -582,6 +582,18 @@ def test_scene_errors_name_the_xml_element(tmp_path):
         wrt.load_scene(path)
 
 
+def test_material_errors_name_the_bsdf(tmp_path):
+    path = write(
+        tmp_path,
+        '<bsdf type="diffuse" id="hot">\n<rgb name="reflectance" value="1.5, 0.2, 0.2"/>\n</bsdf>'
+        '\n<shape type="sphere"><ref id="hot"/></shape>',
+    )
+    with pytest.raises(
+        WrtError, match=r'scene.xml:2: <bsdf type="diffuse" id="hot">: albedo = .*converted to material\[0\]'
+    ):
+        wrt.load_scene(path)
+
+
 def test_render_refuses_or_records_approximations(tmp_path, capsys):
     """``wrt render`` refuses an inexact scene with one line and exit code 2, writing nothing;
     ``--approximate`` renders it and keeps the approximations in the EXR's metadata."""

@@ -171,6 +171,7 @@ class Materials:
     def __init__(self, doc: Document):
         self.doc = doc
         self.tables: list[dict] = []
+        self.sources: list[Element | None] = []  # the element each table came from
         self.converted: dict[int, Material] = {}  # by id of the <bsdf> element
         self.names: dict[int, str] = {}  # names of those that shapes use
         self.ext_iors: list[tuple[float, Element]] = []
@@ -191,16 +192,18 @@ class Materials:
             base = "default_bsdf"
             if element is not None:
                 base = element.attrs.get("id") or f"{material.params['type']}@{element.line}"
-            self.names[id(element)] = self.add(base, material.table)
+            self.names[id(element)] = self.add(base, material.table, element)
         return self.names[id(element)]
 
-    def add(self, base: str, table: dict) -> str:
-        """Add a material table under a name made unique from ``base``; returns the name."""
+    def add(self, base: str, table: dict, source: Element | None) -> str:
+        """Add a material table, converted from ``source``, under a name made unique from
+        ``base``; returns the name."""
         names = {m["name"] for m in self.tables}
         name, n = base, 2
         while name in names or name == "default":
             name, n = f"{base}_{n}", n + 1
         self.tables.append({"name": name, **table})
+        self.sources.append(source)
         return name
 
     def exterior_ior(self) -> float:

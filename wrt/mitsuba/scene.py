@@ -125,6 +125,7 @@ def convert(doc: Document, root: Element, sources: dict[str, Element]) -> dict:
             doc.warn(child, "not supported: ignored")
         sources.update({f"shape[{i}]": child for i in range(n_shapes, len(shapes))})
         sources.update({f"light[{i}]": child for i in range(n_lights, len(lights))})
+    sources.update({f"material[{i}]": e for i, e in enumerate(materials.sources) if e is not None})
     exterior = materials.exterior_ior()
     if exterior != 1.0:
         render["exterior_ior"] = exterior

@@ -90,7 +90,9 @@ def shape(doc: Document, materials: Materials, element: Element, shapes: list, l
         if p.type not in ("disk", "cylinder"):
             doc.warn(emitters[0], "an area emitter on this shape becomes emission of its material (front side only)")
         base = bsdfs[0].attrs.get("id", material.params["type"]) if bsdfs else "default"
-        name = materials.add(f"{base}+emission@{emitters[0].line}", {**material.table, "emission": radiance})
+        name = materials.add(
+            f"{base}+emission@{emitters[0].line}", {**material.table, "emission": radiance}, emitters[0]
+        )
     else:
         name = materials.name(bsdf)
     for table in tables:
