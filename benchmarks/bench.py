@@ -60,7 +60,7 @@ from wrt.host import machine_info
 from wrt.imageio import read_image, write_image
 from wrt.loader import load_scene, override_render, parse_scene
 from wrt.mitsuba import load_mitsuba
-from wrt.scene import Mesh, Scene
+from wrt.scene import Scene
 from wrt.tables import text_table
 
 from . import targets, wholeprocess
@@ -165,15 +165,10 @@ def scene_key(scene: Scene) -> str:
         scene, render=dataclasses.replace(scene.render, spp=1, seed=0, sampler=REFERENCE_SAMPLER)
     )
     h = hashlib.sha256(repr((neutral.render, neutral.camera, neutral.materials, neutral.lights)).encode())
-    for shape in neutral.shapes:
-        if isinstance(shape, Mesh):
-            h.update(
-                np.ascontiguousarray(shape.vertices).tobytes()
-                + np.ascontiguousarray(shape.faces).tobytes()
-                + repr((shape.material, shape.velocity)).encode()
-            )
-        else:
-            h.update(repr(shape).encode())
+    for shape in (*neutral.shapes, *(member for group in neutral.groups for member in group.shapes)):
+        for f in dataclasses.fields(shape):  # arrays by their bytes: a repr rounds them to 8 digits
+            value = getattr(shape, f.name)
+            h.update(np.ascontiguousarray(value).tobytes() if isinstance(value, np.ndarray) else repr(value).encode())
     return h.hexdigest()[:16]
 
 
