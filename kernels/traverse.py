@@ -11,6 +11,13 @@ into the nearest child hit and keeps the others on a fixed-size stack with their
 nearest on top; popped entries that lie beyond the closest hit found so far are skipped. Any hit
 stops at the first hit, in no particular order.
 
+Instances (two levels, as Embree and OptiX do it): an ``INSTANCE`` leaf entry of the scene's tree
+names an instance of a group; the ray is taken into the group's object space (``to_object``, its
+direction not renormalised so that ``t`` is unchanged) and the same traversal, without planes or
+instances, continues from the group's root node, with a stack of its own. The group's primitives
+sit after the scene's in the kind arrays and its tree after the scene's in ``nodes``; a hit through
+an instance is ``(t, prim, inst)``, and ``hit_point`` takes it back to world space.
+
 The traversal is compiled per set of geometry features (``traversal``): the leaf test of a
 scene with triangles only has no sphere or polygon branch, and rays are moved into the frames of
 moving primitives only when something moves. ``closest_hit`` and ``any_hit`` below handle every
