@@ -87,8 +87,8 @@ def shape(doc: Document, materials: Materials, element: Element, shapes: list, l
             lights.append(light)
             p.finish()
             return
-        if p.type not in ("disk", "cylinder"):
-            doc.warn(emitters[0], "an area emitter on this shape becomes emission of its material (front side only)")
+        # emission of the material, from the front side as Mitsuba's area emitter: the same expected
+        # image (wrt finds it by BSDF sampling only, with more noise)
         base = bsdfs[0].attrs.get("id", material.params["type"]) if bsdfs else "default"
         name = materials.add(
             f"{base}+emission@{emitters[0].line}", {**material.table, "emission": radiance}, emitters[0]
