@@ -4,7 +4,8 @@ Each integrator's kernel is built per distinct ``Features`` value by a factory w
 bodies test the flags with ``wp.static``, so a feature the scene does not use is not in the
 generated code at all: no shadow rays or light sampling without lights, no branch stack,
 Fresnel or media bookkeeping without mirrors and dielectrics, no lens or shutter-time sampling
-with a pinhole camera or nothing moving, no orthographic projection with a perspective camera;
+with a pinhole camera or nothing moving, no orthographic projection with a perspective camera,
+no shading-normal interpolation without smooth-shaded meshes;
 and in the traversal (``wrt.kernels.traverse``) no test of a primitive kind the scene lacks, and no
 per-primitive ray motion when no surface moves. ``ALL`` (every flag set) is the all-features
 kernel that renders any scene (its flags say what a scene MAY have: it tests the camera's type,
@@ -33,6 +34,7 @@ class Features:
     disks: bool = True
     cylinders: bool = True
     instances: bool = True  # instances of groups: a two-level traversal
+    smooth: bool = True  # smooth-shaded meshes: shading normals interpolated from vertex normals
 
     def __post_init__(self):
         if self.dielectric and not self.specular:

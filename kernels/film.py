@@ -5,7 +5,8 @@ AOVs (arbitrary output variables) describe the primary ray through the pixel CEN
 (u = v = 0.5), whatever the spp, so they are exact and deterministic:
 
 - ``depth``     distance t along the unit camera ray to the first hit (world units), +inf on a miss
-- ``normal``    unit geometric normal at the hit, world space, flipped to face the camera; 0 on a miss
+- ``normal``    unit shading normal at the hit (the geometric normal, or on a smooth-shaded mesh the
+  interpolated one), world space, on the side of the surface the camera sees; 0 on a miss
 - ``object_id`` index of the hit shape in the scene file's ``[[shape]]`` list, -1 on a miss,
   ``-2 - k`` on the surface of light k (area and sphere lights are not shapes)
 - ``position``  world-space hit point; 0 on a miss
@@ -13,7 +14,7 @@ AOVs (arbitrary output variables) describe the primary ray through the pixel CEN
 
 import warp as wp
 
-from .traverse import NO_HIT, GeometryData, hit_point, hit_shape
+from .traverse import NO_HIT, GeometryData, hit_point, hit_shape, shading_normal
 
 LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)  # Y of linear Rec. 709 RGB (host code reads them too)
 
@@ -61,8 +62,9 @@ def write_aovs(
         film.position[pixel] = wp.vec3(0.0)
     else:
         p, n, _err = hit_point(geometry, prim, inst, o, d, t, time)
+        ns = shading_normal(geometry, prim, inst, p, n, time)
         film.depth[pixel] = t
-        film.normal[pixel] = wp.where(wp.dot(n, d) > 0.0, -n, n)  # facing the camera
+        film.normal[pixel] = wp.where(wp.dot(n, d) > 0.0, -ns, ns)  # on the side the camera sees
         surface = hit_shape(geometry, prim, inst)
         if surface >= geometry.num_shapes:  # the surface of light k is not a shape: -2 - k
             surface = geometry.num_shapes - 2 - surface

@@ -8,7 +8,7 @@ mirror direction of ``wi`` and ``wo``), ``MIRROR`` (perfect specular, ``reflecta
 ``EMITTER`` (the surface of an area or sphere light: reflects nothing). Any type may emit
 ``emission`` (W/(m^2 sr)) from its front side. ``base_color`` is what the raycast integrator shows.
 A material that is not ``two_sided`` (one-sided, as Mitsuba 3's diffuse and conductors) reflects
-nothing on its back side, the side its surface's normal points away from.
+nothing on its back side, the side its surface's shading normal points away from (``wrt.kernels.hit``).
 
 The BSDF interface (pbrt-v4's ``BSDF::f / Sample_f / PDF / Flags``, Mitsuba 3's ``eval / sample /
 pdf / flags``): integrators ask these functions and never test a material's type.
@@ -30,7 +30,8 @@ pdf / flags``): integrators ask these functions and never test a material's type
   the ray tree deterministically (Whitted): ``SpecularLobes`` with the reflected and transmitted
   directions and weights.
 
-Conventions: world space; ``n`` is the unit geometric normal on ``wo``'s side (``dot(n, wo) >= 0``);
+Conventions: world space; ``n`` is the unit shading normal on ``wo``'s side (``dot(n, wo) >= 0``;
+``Hit.n_facing``: the geometric normal, or a smooth-shaded mesh's interpolated one);
 ``wo`` (toward the viewer) and ``wi`` (toward the light, or the sampled direction) are unit vectors
 pointing away from the surface; ``eta = n1 / n2`` is the ratio of the indices of refraction on
 ``wo``'s side and across the surface (``wrt.kernels.media``; 1 for opaque materials). ``uc`` chooses
@@ -122,7 +123,7 @@ def bsdf_flags(materials: MaterialData, m: wp.int32) -> wp.int32:
 @wp.func
 def bsdf_flags_from(materials: MaterialData, m: wp.int32, front: bool) -> wp.int32:
     """``bsdf_flags`` for a ray arriving on the front side of material ``m`` (``front``: travelling
-    against the surface's unflipped normal, ``Hit.entering``) or on its back: 0 on the back of a
+    against the surface's unflipped shading normal, ``Hit.front``) or on its back: 0 on the back of a
     one-sided material. A front hit costs a compare more than ``bsdf_flags``, a back hit a load."""
     if not front:
         if materials.two_sided[m] == 0:

@@ -32,7 +32,7 @@ import warp as wp
 
 from .emitters import emitter_pdf, sample_emitter
 from .features import ALL, Features
-from .hit import Hit, surface_hit
+from .hit import Hit, make_surface_hit
 from .integrator import CameraRay, IntegratorSettings, make_render_kernel, make_trace_segment
 from .lights import ENVIRONMENT, SPOT, LightData, light_incident
 from .materials import (
@@ -129,7 +129,7 @@ def make_next_event(record: bool, trace: Traversal):
                     geometry,
                     materials,
                     False,
-                    spawn_origin(hit.p, n, hit.err, wi),
+                    spawn_origin(hit.p, hit.n, hit.err, wi),
                     wi,
                     t_max,
                     ray.time,
@@ -168,6 +168,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
     trace = traversal(features)
     trace_segment = make_trace_segment(record, trace)
     next_event = make_next_event(record, trace)
+    surface_hit = make_surface_hit(features.smooth)
 
     @wp.func
     def path_radiance(
@@ -222,13 +223,13 @@ def make_path_radiance(record: bool, features: Features = ALL):
             # Emission at the front of what was hit, MIS-weighted against light sampling
             hit = surface_hit(geometry, materials, o, d, t, prim, inst, ray.time)
             emission = materials.emission[hit.material]
-            if hit.entering and max_component(emission) > 0.0:
+            if hit.front and max_component(emission) > 0.0:
                 mis = float(1.0)
                 if not specular and hit.shape >= geometry.num_shapes:
                     light = hit.shape - geometry.num_shapes
                     mis = power_heuristic(prev_pdf, emitter_pdf(lights, light, prev_p, d, wp.length(hit.p - prev_p)))
                 radiance += wp.cw_mul(beta, emission) * mis
-            flags = bsdf_flags_from(materials, hit.material, hit.entering)
+            flags = bsdf_flags_from(materials, hit.material, hit.front)
             if flags == 0:
                 break
 

@@ -1,10 +1,10 @@
 """The "raycast" integrator: primary rays only, flat shading.
 
 Radiance of a pixel sample is ``base_color * |cos theta|`` of the first surface hit, theta between
-its normal and the ray (a readable picture, not a physical one; lights are ignored), and 0 on a
-miss. ``base_color`` is the albedo of diffuse and Phong materials, the reflectance of mirrors and
-the transmittance of dielectrics. Recording (``raycast_record``) sees only the camera rays,
-which the shared pixel loop records.
+its shading normal (a smooth-shaded mesh's interpolated one) and the ray (a readable picture, not
+a physical one; lights are ignored), and 0 on a miss. ``base_color`` is the albedo of diffuse
+and Phong materials, the reflectance of mirrors and the transmittance of dielectrics. Recording
+(``raycast_record``) sees only the camera rays, which the shared pixel loop records.
 """
 
 import warp as wp
@@ -28,11 +28,11 @@ def raycast_radiance(
     ray: CameraRay,
     rec: RayRecord,
 ) -> wp.vec3:
-    """``base_color * |dot(n, d)|`` at the camera ray's hit, black on a miss."""
+    """``base_color * |dot(n, d)|`` at the camera ray's hit (``n`` its shading normal), black on a miss."""
     if ray.prim == NO_HIT:
         return wp.vec3(0.0)
     hit = surface_hit(geometry, materials, ray.o, ray.d, ray.t, ray.prim, ray.inst, ray.time)
-    return materials.base_color[hit.material] * wp.abs(wp.dot(hit.n, ray.d))
+    return materials.base_color[hit.material] * wp.abs(wp.dot(hit.n_facing, ray.d))
 
 
 raycast = make_render_kernel(raycast_radiance)

@@ -69,6 +69,8 @@ class GeometryData:
     sphere_shape: wp.array(dtype=wp.int32)
     tri_verts: wp.array(dtype=wp.vec3)  # 3 per triangle
     tri_shape: wp.array(dtype=wp.int32)
+    tri_normals: wp.array(dtype=wp.vec3)  # parallel to tri_verts: unit shading normals of smooth triangles, zero
+    # for flat ones; empty when no triangle is smooth (shading_normal)
     poly_normal: wp.array(dtype=wp.vec3)  # unit
     poly_offset: wp.array(dtype=float)  # dot(normal, x) = offset on the polygon's plane
     poly_start: wp.array(dtype=wp.int32)
@@ -616,6 +618,41 @@ def hit_point(geometry: GeometryData, prim: wp.int32, inst: wp.int32, o: wp.vec3
     )
     translation = wp.vec3(to_world[0, 3], to_world[1, 3], to_world[2, 3])
     return p, n, stretch * err_obj + point_error(p, max_abs(translation) + stretch * max_abs(p_obj))
+
+
+@wp.func
+def shading_normal(geometry: GeometryData, prim: wp.int32, inst: wp.int32, p: wp.vec3, n: wp.vec3, time: float):
+    """The unit shading normal at the hit point ``p`` (world space) of ``(prim, inst)`` from
+    ``closest_hit``, whose geometric normal ``hit_point`` gave as ``n``: on a smooth triangle the
+    barycentric interpolation of its corner normals at ``p``, normalised (Mitsuba 3's and pbrt's
+    shading normal), through instance ``inst`` by the inverse transpose as ``hit_point``; ``n``
+    itself on anything else, and where the interpolation vanishes (opposite corner normals).
+    Not turned toward ``n``'s side: where the file's normals face away from the winding, so does
+    the shading normal."""
+    if prim & KIND_MASK != TRIANGLE or geometry.tri_normals.shape[0] == 0:
+        return n
+    i = prim >> KIND_BITS
+    n0 = geometry.tri_normals[3 * i]
+    if n0[0] == 0.0 and n0[1] == 0.0 and n0[2] == 0.0:  # a flat triangle
+        return n
+    q = p  # in the frame of the triangle's vertices
+    if inst >= 0:
+        q, _d = to_object(geometry, inst, p, n, time)
+    else:
+        q = ray_origin_at(geometry, prim, p, time)
+    a = geometry.tri_verts[3 * i]
+    e1 = geometry.tri_verts[3 * i + 1] - a
+    e2 = geometry.tri_verts[3 * i + 2] - a
+    w = q - a
+    m = wp.cross(e1, e2)
+    b1 = wp.dot(wp.cross(w, e2), m) / wp.dot(m, m)
+    b2 = wp.dot(wp.cross(e1, w), m) / wp.dot(m, m)
+    ns = (1.0 - b1 - b2) * n0 + b1 * geometry.tri_normals[3 * i + 1] + b2 * geometry.tri_normals[3 * i + 2]
+    if inst >= 0:
+        ns = wp.transform_vector(wp.transpose(geometry.inst_to_object[inst]), ns)
+    if not (wp.length_sq(ns) > 0.0):  # also NaN (a degenerate triangle)
+        return n
+    return wp.normalize(ns)
 
 
 def _trace_kernels(trace: Traversal, module: str | None):

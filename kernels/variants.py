@@ -33,8 +33,9 @@ def relevant(integrator: str, features: Features) -> Features:
     variant costs a compilation (seconds) the first time it is used, so only flags that remove
     measurable work are specialised on (see docs/performance.md): the geometry (primitive kinds,
     moving surfaces) and the pixel loop's camera (lens, orthographic) and shutter sampling for
-    every integrator; lights and the branch stack for whitted; lights and dielectrics for path
-    (its mirror test is a load and a compare: path ignores ``specular``)."""
+    every integrator; lights, the branch stack and smooth shading for whitted; lights, dielectrics
+    and smooth shading for path (its mirror test is a load and a compare: path ignores
+    ``specular``; raycast's one shading normal per camera ray is not worth one)."""
     every_integrator = {
         "lens": features.lens,
         "orthographic": features.orthographic,
@@ -50,9 +51,13 @@ def relevant(integrator: str, features: Features) -> Features:
         return Features(**every_integrator)
     if integrator == "whitted":
         return Features(
-            lights=features.lights, specular=features.specular, dielectric=features.dielectric, **every_integrator
+            lights=features.lights,
+            specular=features.specular,
+            dielectric=features.dielectric,
+            smooth=features.smooth,
+            **every_integrator,
         )
-    return Features(lights=features.lights, dielectric=features.dielectric, **every_integrator)
+    return Features(lights=features.lights, dielectric=features.dielectric, smooth=features.smooth, **every_integrator)
 
 
 def render_kernel(integrator: str, features: Features):

@@ -51,7 +51,7 @@ C. Schmidt, B. Budge, "Simple Nested Dielectrics in Ray Traced Images", JGT 7(2)
 import warp as wp
 
 from .features import ALL, Features
-from .hit import Hit, surface_hit
+from .hit import Hit, make_surface_hit
 from .integrator import CameraRay, IntegratorSettings, make_render_kernel, make_trace_segment
 from .lights import LightData, light_incident
 from .materials import (
@@ -141,7 +141,7 @@ def make_direct_light(record: bool, trace: Traversal):
                     geometry,
                     materials,
                     settings.filtered_shadows != 0,
-                    spawn_origin(hit.p, n, hit.err, wi),
+                    spawn_origin(hit.p, hit.n, hit.err, wi),
                     wi,
                     dist,
                     ray.time,
@@ -167,6 +167,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
     trace = traversal(features)
     trace_segment = make_trace_segment(record, trace)
     direct_light = make_direct_light(record, trace)
+    surface_hit = make_surface_hit(features.smooth)
 
     @wp.func
     def whitted_radiance(
@@ -231,9 +232,9 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
             else:
                 # Emission at the front of what was hit
                 hit = surface_hit(geometry, materials, o, d, t, prim, inst, ray.time)
-                if hit.entering:
+                if hit.front:
                     radiance += wp.cw_mul(throughput, materials.emission[hit.material])
-                flags = bsdf_flags_from(materials, hit.material, hit.entering)
+                flags = bsdf_flags_from(materials, hit.material, hit.front)
 
                 # Local shading at non-specular surfaces: ambient plus the delta lights
                 if non_specular(flags):

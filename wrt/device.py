@@ -126,6 +126,7 @@ def upload_geometry(p: Primitives, device) -> GeometryData:
     s.sphere_shape = _int(p.sphere_shape, device)
     s.tri_verts = _vec3(p.tri_verts, device)
     s.tri_shape = _int(p.tri_shape, device)
+    s.tri_normals = _vec3(p.tri_normals, device)
     s.poly_normal = _vec3(p.poly_normal, device)
     s.poly_offset = _float(poly_offset, device)
     s.poly_start = _int(np.concatenate(([0], np.cumsum(poly_count)[:-1])), device)

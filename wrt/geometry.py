@@ -36,6 +36,8 @@ class Primitives:
     sphere_shape: np.ndarray
     tri_verts: np.ndarray  # (T, 3, 3) float32: triangle, vertex, xyz
     tri_shape: np.ndarray
+    tri_normals: np.ndarray  # (T, 3, 3) float32 unit shading normals at the corners of smooth triangles, zero
+    # for flat ones; (0, 3, 3) when no triangle is smooth (wrt.scene.Mesh.normals)
     poly_verts: list  # P arrays (n_i, 3)
     poly_normal: np.ndarray  # (P, 3) unit
     poly_shape: np.ndarray
@@ -174,7 +176,7 @@ def _f32(a: np.ndarray) -> np.ndarray:
 def flatten(scene: Scene) -> Primitives:
     """Collect the primitives of every shape, tagged with the shape's index in file order."""
     spheres, tris, polys, planes, quadrics, insts = [], [], [], [], [], []
-    tri_blocks, tri_shape_blocks = [], []
+    tri_blocks, tri_shape_blocks, normal_blocks = [], [], []
     for i, shape in enumerate(scene.shapes):
         if isinstance(shape, Sphere):
             spheres.append((shape.center, shape.radius, i))
@@ -187,6 +189,9 @@ def flatten(scene: Scene) -> Primitives:
         elif isinstance(shape, Mesh):
             tri_blocks.append(shape.vertices.astype(np.float32)[shape.faces])
             tri_shape_blocks.append(np.full(len(shape.faces), i, dtype=np.int32))
+            normal_blocks.append(
+                None if shape.normals is None else _corner_normals(shape.normals[shape.faces], tri_blocks[-1])
+            )
         elif isinstance(shape, Disk):
             quadrics.append((shape.to_world, DISK, False, i))
         elif isinstance(shape, Cylinder):
@@ -205,12 +210,17 @@ def flatten(scene: Scene) -> Primitives:
     velocity = [shape.velocity for shape in scene.shapes] + [(0.0, 0.0, 0.0)] * (len(scene.lights) + members)
     tri_blocks.insert(0, np.asarray([v for v, _ in tris], dtype=np.float32).reshape(-1, 3, 3))
     tri_shape_blocks.insert(0, np.asarray([s for _, s in tris], dtype=np.int32))
+    tri_normals = np.zeros((0, 3, 3), dtype=np.float32)
+    if any(block is not None for block in normal_blocks):
+        blocks = [None, *normal_blocks]  # the [[shape]] triangles' first: flat
+        tri_normals = _joined([np.zeros_like(t) if n is None else n for n, t in zip(blocks, tri_blocks)])
     return Primitives(
         sphere_center=np.asarray([c for c, _, _ in spheres], dtype=np.float64).reshape(-1, 3),
         sphere_radius=np.asarray([r for _, r, _ in spheres], dtype=np.float64),
         sphere_shape=np.asarray([s for _, _, s in spheres], dtype=np.int32),
         tri_verts=_joined(tri_blocks),
         tri_shape=_joined(tri_shape_blocks),
+        tri_normals=tri_normals,
         poly_verts=[np.asarray(v, dtype=np.float64) for v, _, _ in polys],
         poly_normal=np.asarray([n for _, n, _ in polys], dtype=np.float64).reshape(-1, 3),
         poly_shape=np.asarray([s for _, _, s in polys], dtype=np.int32),
@@ -233,6 +243,30 @@ def _joined(blocks: list[np.ndarray]) -> np.ndarray:
     """The blocks end to end; the only non-empty block itself (a large mesh is not copied)."""
     full = [b for b in blocks if len(b)]
     return full[0] if len(full) == 1 else np.concatenate(blocks)
+
+
+def _corner_normals(normals: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """float32 shading normals (T, 3, 3) at the corners of a smooth mesh's triangles: their vertex
+    ``normals`` (T, 3, 3), and where one is zero (the vertex has none) the triangle's unit face
+    normal, from its float32 ``corners`` (T, 3, 3) as traced (zero for a degenerate triangle)."""
+    missing = ~np.any(normals != 0.0, axis=2)
+    if missing.any():
+        c = corners.astype(np.float64)
+        face = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+        length = np.linalg.norm(face, axis=1, keepdims=True)
+        face = np.divide(face, length, out=np.zeros_like(face), where=length > 0.0)
+        normals = np.where(missing[:, :, None], face[:, None, :], normals)
+    return normals.astype(np.float32)
+
+
+def _joined_normals(a: Primitives, b: Primitives) -> np.ndarray:
+    """``tri_normals`` of ``a``'s triangles then ``b``'s: empty if neither has smooth triangles,
+    else zero for the flat ones of each."""
+    if not len(a.tri_normals) and not len(b.tri_normals):
+        return a.tri_normals
+    return np.concatenate(
+        [p.tri_normals if len(p.tri_normals) else np.zeros((len(p.tri_shape), 3, 3), np.float32) for p in (a, b)]
+    )
 
 
 INDEX_SPACES = ((SPHERE,), (TRIANGLE,), (POLYGON,), (DISK, CYLINDER), (INSTANCE,))
@@ -279,6 +313,8 @@ def _build_tree(p: Primitives, shutter: tuple[float, float], device) -> None:
         p.sphere_center, p.sphere_radius, p.sphere_shape = p.sphere_center[s], p.sphere_radius[s], p.sphere_shape[s]
     if counts[1]:
         p.tri_verts, p.tri_shape = p.tri_verts[t], p.tri_shape[t]
+        if len(p.tri_normals):
+            p.tri_normals = p.tri_normals[t]
     if counts[2]:
         p.poly_verts, p.poly_normal, p.poly_shape = [p.poly_verts[k] for k in g], p.poly_normal[g], p.poly_shape[g]
     if counts[3]:
@@ -352,6 +388,7 @@ def _append_groups(p: Primitives, groups: list[Primitives], device) -> None:
         p.sphere_radius = np.concatenate([p.sphere_radius, g.sphere_radius])
         p.sphere_shape = np.concatenate([p.sphere_shape, g.sphere_shape])
         p.tri_verts = _joined([p.tri_verts, g.tri_verts])
+        p.tri_normals = _joined_normals(p, g)
         p.tri_shape = _joined([p.tri_shape, g.tri_shape])
         p.poly_verts = p.poly_verts + g.poly_verts
         p.poly_normal = np.concatenate([p.poly_normal, g.poly_normal])

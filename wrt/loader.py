@@ -18,7 +18,7 @@ import numpy as np
 import tomllib
 
 from .errors import MeshFileError, SceneError, WrtError
-from .meshio import apply_transform, load_mesh, transform_matrix
+from .meshio import apply_transform, load_mesh, transform_matrix, transform_normals, vertex_normals
 from .scene import (
     CAMERA_TYPES,
     DIELECTRIC_SHADOWS,
@@ -52,6 +52,7 @@ UTF8_BOM = b"\xef\xbb\xbf"
 TOP_LEVEL = ("render", "camera", "material", "group", "shape", "light")
 SHAPE_TYPES = ("sphere", "plane", "triangle", "polygon", "mesh", "disk", "cylinder", "instance")
 GROUP_SHAPE_TYPES = ("sphere", "triangle", "polygon", "mesh", "disk", "cylinder")  # bounded: what a [[group]] holds
+MESH_SHADING = ("flat", "smooth")  # a mesh's shading normals: its face normals, or interpolated vertex normals
 LIGHT_TYPES = ("point", "directional", "spot", "area", "sphere", "environment")
 DEFAULT_MATERIAL = Material(name="default", type="diffuse", albedo=(0.5, 0.5, 0.5))
 MAX_IMAGE_SIDE = 16384
@@ -447,17 +448,27 @@ def _cylinder_to_world(t: _Table) -> np.ndarray:
 
 
 def _mesh(t: _Table, scene_dir: str, material: int) -> Mesh:
+    """A ``mesh`` table: its ``file`` placed by its ``transform``; with ``shading = "smooth"`` the
+    file's vertex normals (by the inverse transpose), or Mitsuba 3's computed from the placed
+    vertices when it has none; ``flip_normals`` reverses the winding and turns the normals around."""
     name = t.string("file")
     matrix = _transform(t)
+    smooth = t.string("shading", "flat", choices=MESH_SHADING) == "smooth"
+    flip = t.boolean("flip_normals", False)
     path = os.path.join(scene_dir, name)
     try:
-        vertices, faces = load_mesh(path)
+        vertices, faces, normals = load_mesh(path, return_normals=True) if smooth else (*load_mesh(path), None)
     except MeshFileError as e:
         raise t.error("file", str(e), name) from None
+    if flip:
+        faces = np.ascontiguousarray(faces[:, ::-1])
+        normals = None if normals is None else -normals
     vertices = apply_transform(vertices, matrix=matrix)
     if not np.all(np.abs(vertices) <= MAX_MAGNITUDE):
         raise t.error("file", f"vertices (after the transform) {BEYOND_FLOAT32}", name)
-    return Mesh(file=path, vertices=vertices, faces=faces, material=material)
+    if smooth:
+        normals = vertex_normals(vertices, faces) if normals is None else transform_normals(normals, matrix)
+    return Mesh(file=path, vertices=vertices, faces=faces, material=material, normals=normals)
 
 
 def _shape(

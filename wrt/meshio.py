@@ -1,8 +1,10 @@
 """Triangle-mesh files: loading them as vertex and face arrays, and placing them in the world.
 
-`load_mesh` turns a mesh file into ``(vertices, faces)`` arrays, raising `MeshFileError` with
-a one-line message for any file that cannot be used. `transform_matrix` and `apply_transform`
-implement the scene format's object-to-world convention (scale, then rotate, then translate).
+`load_mesh` turns a mesh file into ``(vertices, faces)`` arrays (and, asked for, the file's vertex
+normals), raising `MeshFileError` with a one-line message for any file that cannot be used.
+`transform_matrix` and `apply_transform` implement the scene format's object-to-world convention
+(scale, then rotate, then translate); `transform_normals` takes vertex normals along, and
+`vertex_normals` computes them where a file has none, as Mitsuba 3 does.
 
 PLY files are parsed here with numpy rather than by VTK: VTK's ``vtkPLYReader`` (VTK 9.7)
 crashes the process with a segmentation fault on a truncated binary PLY file or on a face
@@ -10,7 +12,11 @@ index far out of range, which no Python code can catch. A PLY file of triangles 
 VTK (nor imports pyvista, which takes a fifth of a second): its arrays are checked and returned
 as they are; polygons with more vertices are triangulated by VTK. The PLY header is checked as a
 whole before the body is read, and the body must hold exactly what the header declares. Every other format is read by
-pyvista's VTK readers, with their console output silenced and their errors collected.
+pyvista's VTK readers, with their console output silenced and their errors collected, except an
+OBJ file whose normals are asked for: VTK's OBJ reader splits every vertex per face corner as
+soon as a face names a texture coordinate or a normal, returns unset memory for a normal index
+out of range, and triangulates quads along the other diagonal than Mitsuba, so such a file is
+read here (`_read_obj`), as Mitsuba 3's OBJ loader reads it.
 """
 
 from __future__ import annotations
@@ -28,7 +34,7 @@ MESH_FORMATS = (".ply", ".obj", ".stl", ".vtk", ".vtp", ".vtu", ".vtm")
 """File extensions `load_mesh` reads (case-insensitive)."""
 
 
-def load_mesh(path):
+def load_mesh(path, *, return_normals=False):
     """Read a triangle mesh from a file.
 
     Parameters
@@ -36,6 +42,8 @@ def load_mesh(path):
     path : str or os.PathLike
         A mesh file whose extension is one of `MESH_FORMATS`: PLY (ASCII or binary), OBJ,
         STL (ASCII or binary), or a VTK dataset (``.vtk``, ``.vtp``, ``.vtu``, ``.vtm``).
+    return_normals : bool, default False
+        Also return the file's vertex normals.
 
     Returns
     -------
@@ -43,6 +51,11 @@ def load_mesh(path):
         Vertex positions in the file's own units and frame (object space).
     faces : numpy.ndarray of int32, shape (F, 3)
         Vertex indices of each triangle, in the winding order the file gives.
+    normals : numpy.ndarray of float64, shape (V, 3), or None
+        Only with `return_normals`: the file's vertex normals as written (object space, not
+        normalised; a zero row where an OBJ face corner names no normal), or None where the file
+        has none: a PLY file without ``nx``, ``ny``, ``nz`` vertex properties, an OBJ file without
+        ``vn`` lines, an STL file, a VTK dataset without point normals.
 
     Raises
     ------
@@ -50,25 +63,103 @@ def load_mesh(path):
         If the file is missing, a directory, of an unsupported format, unreadable, corrupt or
         truncated, has no faces, has NaN or infinite vertices, or has a face index outside
         ``0..V-1``; for PLY also a malformed header (a property declared twice, of an unknown
-        type, a list ``x``, ...), element counts that do not match the body, and faces of fewer
-        than 3 vertices. The message is one line naming `path` and the problem (for an ASCII PLY
-        body, the line).
+        type, a list ``x``, only some of ``nx``, ``ny``, ``nz``, ...), element counts that do not
+        match the body, and faces of fewer than 3 vertices. With `return_normals`, also NaN or
+        infinite normals, and for OBJ a line that is not what its keyword says, a face of fewer
+        than 3 corners or a normal or texture coordinate index out of range. The message is one
+        line naming `path` and the problem (for an ASCII PLY or OBJ file, the line).
 
     Notes
     -----
-    Polygons with more than three vertices are triangulated (by VTK). A volume dataset is
-    reduced to its boundary surface first. Degenerate triangles (repeated or collinear
-    vertices) are kept; vertices no face uses are kept too.
+    Polygons with more than three vertices are triangulated (by VTK; an OBJ file read with
+    `return_normals` as a fan from each face's first corner, as Mitsuba 3 does). A volume dataset
+    is reduced to its boundary surface first. Degenerate triangles (repeated or collinear
+    vertices) are kept; vertices no face uses are kept too. With `return_normals`, an OBJ file's
+    vertices are its distinct ``v/vt/vn`` index triples in order of first use, as Mitsuba 3's
+    loader numbers them, so that normals computed over them (`vertex_normals`) are Mitsuba's.
     """
     path = Path(path)
     _check_mesh_path(path)
-    if path.suffix.lower() == ".ply":
-        points, counts, indices = _read_ply(path)
+    suffix = path.suffix.lower()
+    if suffix == ".ply":
+        points, counts, indices, normals = _read_ply(path)
         _check_face_indices(counts, indices, len(points), path)  # before VTK, which can crash on them
         if len(counts) and np.all(counts == 3):
-            return _checked_triangles(points, indices.reshape(-1, 3), path)
-        return _triangles(_polydata(points, counts, indices), path)
-    return _triangles(_read_with_vtk(path), path)
+            mesh = _checked_triangles(points, indices.reshape(-1, 3), normals, path)
+        else:
+            mesh = _triangles(_polydata(points, counts, indices, normals), path)
+    elif suffix == ".obj" and return_normals:
+        mesh = _read_obj(path)
+    else:
+        mesh = _triangles(_read_with_vtk(path), path)
+    if not return_normals:
+        return mesh[:2]
+    if mesh[2] is not None:
+        bad = np.count_nonzero(~np.all(np.isfinite(mesh[2]), axis=1))
+        if bad:
+            raise MeshFileError(f"{path}: {bad} of {len(mesh[2])} vertex normals are NaN or infinite")
+    return mesh
+
+
+def vertex_normals(vertices, faces):
+    """Unit vertex normals of a triangle mesh, computed as Mitsuba 3 computes them for a mesh
+    file without normals (``Mesh::recompute_vertex_normals``).
+
+    Parameters
+    ----------
+    vertices : array_like, shape (V, 3)
+        Vertex positions, in the frame the normals are wanted in (Mitsuba: world space, after
+        ``to_world``; angles are not preserved by a non-uniform scale or a shear).
+    faces : array_like of int, shape (F, 3)
+        Vertex indices of each triangle; the winding gives each face's side.
+
+    Returns
+    -------
+    numpy.ndarray of float64, shape (V, 3)
+        Each vertex's normal: the sum over the triangles at it of the triangle's unit winding
+        normal ``cross(v1 - v0, v2 - v0)`` times the triangle's angle at the vertex (radians),
+        normalised. A vertex no non-degenerate triangle uses, or whose sum vanishes, gets the
+        zero vector (Mitsuba gives it the arbitrary (1, 0, 0)).
+
+    References
+    ----------
+    G. Thuermer, C. A. Wuethrich, "Computing Vertex Normals from Polygonal Facets", Journal of
+    Graphics Tools 3(1), 1998.
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    corners = v[f]  # (F, 3 corners, 3)
+    face_normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    length = np.linalg.norm(face_normal, axis=1, keepdims=True)
+    face_normal = np.divide(face_normal, length, out=np.zeros_like(face_normal), where=length > 0.0)
+    # the angle at each corner, between the edges to the next and the previous corner
+    to_next = np.roll(corners, -1, axis=1) - corners
+    to_prev = np.roll(corners, 1, axis=1) - corners
+    angle = np.arctan2(np.linalg.norm(np.cross(to_next, to_prev), axis=2), np.einsum("fci,fci->fc", to_next, to_prev))
+    weighted = (face_normal[:, None, :] * angle[:, :, None]).reshape(-1, 3)  # per corner, in f.ravel() order
+    total = np.column_stack([np.bincount(f.ravel(), weighted[:, k], minlength=len(v)) for k in range(3)])
+    length = np.linalg.norm(total, axis=1, keepdims=True)
+    return np.divide(total, length, out=np.zeros_like(total), where=length > 0.0)
+
+
+def transform_normals(normals, matrix):
+    """Map object-space normals to world space by the inverse transpose of ``matrix``.
+
+    Parameters
+    ----------
+    normals : array_like, shape (V, 3)
+        Normals in object space, of any length.
+    matrix : array_like, shape (4, 4)
+        The object-to-world matrix (`transform_matrix`); its 3x3 part must be invertible.
+
+    Returns
+    -------
+    numpy.ndarray of float64, shape (V, 3)
+        ``M^-T n`` normalised to unit length; a zero normal stays zero.
+    """
+    n = np.asarray(normals, dtype=np.float64) @ np.linalg.inv(np.asarray(matrix, dtype=np.float64)[:3, :3])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.divide(n, length, out=np.zeros_like(n), where=length > 0.0)
 
 
 def transform_matrix(*, translate=(0.0, 0.0, 0.0), scale=(1.0, 1.0, 1.0), rotate=(0.0, 0.0, 0.0), matrix=None):
@@ -256,17 +347,19 @@ def _check_face_indices(counts, indices, n_points, path):
         )
 
 
-def _checked_triangles(points, faces, path):
-    """``(vertices, faces)`` of a triangle mesh whose face indices are valid (`_check_face_indices`)
-    if its vertices are finite, else MeshFileError (the check of ``_triangles``, without VTK)."""
+def _checked_triangles(points, faces, normals, path):
+    """``(vertices, faces, normals)`` of a triangle mesh whose face indices are valid
+    (`_check_face_indices`) if its vertices are finite, else MeshFileError (the check of
+    ``_triangles``, without VTK)."""
     bad_points = np.count_nonzero(~np.all(np.isfinite(points), axis=1))
     if bad_points:
         raise MeshFileError(f"{path}: {bad_points} of {len(points)} vertices are NaN or infinite")
-    return np.asarray(points, dtype=np.float64), faces.astype(np.int32)
+    return np.asarray(points, dtype=np.float64), faces.astype(np.int32), normals
 
 
 def _triangles(dataset, path):
-    """Validate a dataset read from `path` and return its surface as (vertices, faces) arrays."""
+    """Validate a dataset read from `path` and return its surface as (vertices, faces, normals)
+    arrays, ``normals`` its point normals (None without)."""
     import pyvista as pv
 
     n_points = dataset.n_points
@@ -288,7 +381,8 @@ def _triangles(dataset, path):
         raise MeshFileError(f"{path}: contains no faces (empty mesh)")
     vertices = np.array(surface.points, dtype=np.float64)
     faces = surface.faces.reshape(-1, 4)[:, 1:].astype(np.int32)
-    return vertices, faces
+    normals = surface.point_data.active_normals
+    return vertices, faces, None if normals is None else np.array(normals, dtype=np.float64)
 
 
 def _cell_point_ids(dataset):
@@ -302,6 +396,86 @@ def _cell_point_ids(dataset):
     if isinstance(dataset, pv.UnstructuredGrid):
         return dataset.cell_connectivity
     return np.empty(0, dtype=np.int64)
+
+
+# --- OBJ, read for its normals ------------------------------------------------------------------
+#
+# As Mitsuba 3's OBJ loader reads it (src/shapes/obj.cpp): `v`, `vt`, `vn` and `f` lines, other
+# lines ignored; each distinct `v/vt/vn` index triple the faces use is one vertex, numbered in order
+# of first use; a face of n corners c0..c(n-1) is the fan of triangles (c0, c(k-1), ck), k = 2..n-1.
+
+
+def _read_obj(path):
+    """``(vertices, faces, normals)`` of an OBJ file read Mitsuba's way (above): normals None
+    without ``vn`` lines, else a zero row for a vertex whose index triple names no normal."""
+    try:
+        data = path.read_bytes()
+    except OSError as err:
+        raise MeshFileError(f"{path}: cannot read ({err.strerror})") from None
+    positions, normals, texcoords = [], [], 0
+    corners, sizes, face_lines = [], [], []
+    for number, line in enumerate(data.splitlines(), start=1):
+        words = line.split()
+        tag = words[0] if words else b""
+        try:
+            if tag in (b"v", b"vn"):
+                (positions if tag == b"v" else normals).append([float(x) for x in words[1:4]])
+                if len(words) < 4:
+                    raise ValueError
+            elif tag == b"vt":
+                texcoords += 1
+            elif tag == b"f":
+                for word in words[1:]:
+                    indices = [int(x) if x else 0 for x in word.split(b"/")]
+                    if not 1 <= len(indices) <= 3:
+                        raise ValueError
+                    corners.append(indices + [0] * (3 - len(indices)))
+                if len(words) < 4:
+                    raise MeshFileError(f"{path}: line {number}: a face needs at least 3 vertices")
+                sizes.append(len(words) - 1)
+                face_lines.append(number)
+        except ValueError:
+            what = "corners v, v/vt, v//vn or v/vt/vn (integers)" if tag == b"f" else "3 numbers"
+            text = line.decode(errors="replace").strip()
+            raise MeshFileError(f"{path}: line {number}: '{tag.decode()}' takes {what}, got {text!r}") from None
+    if not sizes:
+        raise MeshFileError(f"{path}: contains no faces (empty mesh)")
+    try:
+        keys = np.array(corners, dtype=np.int64)
+    except OverflowError:
+        raise MeshFileError(f"{path}: a face index is out of range (beyond 64-bit integers)") from None
+    corner_lines = np.repeat(face_lines, sizes)
+    for column, count, what, table in (
+        (0, len(positions), "vertex", "vertices"),
+        (1, texcoords, "texture coordinate", "texture coordinates"),
+        (2, len(normals), "normal", "normals"),
+    ):
+        index = keys[:, column]  # 1-based; 0: none named (a vertex must be)
+        outside = np.flatnonzero((index < (1 if column == 0 else 0)) | (index > count))
+        if outside.size:
+            raise MeshFileError(
+                f"{path}: {outside.size} of {len(index)} face {what} indices are out of range for {count} {table}"
+                f" (line {corner_lines[outside[0]]} has {index[outside[0]]})"
+            )
+    unique, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)  # the distinct triples in order of first use
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    vertex_of_corner, vertex_keys = rank[inverse.reshape(-1)], unique[order]
+    sizes = np.asarray(sizes, dtype=np.int64)
+    fans = sizes - 2
+    fan_start = np.repeat(np.cumsum(sizes) - sizes, fans)
+    k = np.arange(fans.sum()) - np.repeat(np.cumsum(fans) - fans, fans)
+    faces = vertex_of_corner[np.stack([fan_start, fan_start + k + 1, fan_start + k + 2], axis=1)]
+    points = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    bad_points = np.count_nonzero(~np.all(np.isfinite(points), axis=1))
+    if bad_points:
+        raise MeshFileError(f"{path}: {bad_points} of {len(points)} vertices are NaN or infinite")
+    vertex_normals_read = None
+    if normals:
+        table = np.vstack([np.zeros((1, 3)), np.asarray(normals, dtype=np.float64)])  # index 0: none named
+        vertex_normals_read = table[vertex_keys[:, 2]]
+    return points[vertex_keys[:, 0] - 1], faces.astype(np.int32), vertex_normals_read
 
 
 # --- PLY ------------------------------------------------------------------------------------
@@ -321,6 +495,7 @@ _PLY_ENDIAN = {"binary_little_endian": "<", "binary_big_endian": ">"}
 """Byte order of each binary PLY encoding."""
 _PLY_ENCODINGS = ("ascii", *_PLY_ENDIAN)
 _PLY_FACE_LISTS = ("vertex_indices", "vertex_index")
+_PLY_NORMALS = ("nx", "ny", "nz")
 _PLY_MAX_LIST = 2**31
 """Lists are at most this long (a longer one is a corrupt length field)."""
 
@@ -359,7 +534,8 @@ class _PlyHeader:
 
 
 def _read_ply(path):
-    """Parse a PLY file into its vertices (V, 3), face sizes (F,) and flat vertex indices.
+    """Parse a PLY file into its vertices (V, 3), face sizes (F,), flat vertex indices and vertex
+    normals (V, 3) (None without ``nx``, ``ny``, ``nz``).
 
     Raises MeshFileError for any file that is not a complete, well-formed PLY file.
     """
@@ -374,8 +550,8 @@ def _read_ply(path):
 
 
 def _ply_arrays(data):
-    """Vertices, face sizes (each at least 3) and flat face vertex indices from the bytes of a PLY
-    file; raise _PlyError if they are malformed."""
+    """Vertices, face sizes (each at least 3), flat face vertex indices and vertex normals (or None)
+    from the bytes of a PLY file; raise _PlyError if they are malformed."""
     header = _parse_ply_header(data)
     if header.encoding == "ascii":
         values = _read_ascii_body(data[header.body_start :], header.elements, header.body_line)
@@ -383,6 +559,9 @@ def _ply_arrays(data):
         values = _read_binary_body(memoryview(data)[header.body_start :], header.elements, header.encoding)
     vertex = values["vertex"]
     points = np.column_stack([np.asarray(vertex[axis], dtype=np.float64) for axis in "xyz"])
+    normals = None
+    if "nx" in vertex:
+        normals = np.column_stack([np.asarray(vertex[axis], dtype=np.float64) for axis in _PLY_NORMALS])
     face = values.get("face", {})
     counts, indices = next((face[name] for name in _PLY_FACE_LISTS if name in face), ([], []))
     counts, indices = _integers(counts, "face size"), _integers(indices, "vertex index")
@@ -390,15 +569,20 @@ def _ply_arrays(data):
     if small.size:
         others = f"; {small.size} faces have fewer than 3" if small.size > 1 else ""
         raise _PlyError(f"face {small[0]} has {counts[small[0]]} vertices (a face needs at least 3{others})")
-    return points, counts, indices
+    return points, counts, indices, normals
 
 
-def _polydata(points, counts, indices):
-    """A PolyData of polygon faces (``counts[i]`` vertices each, listed in ``indices``)."""
+def _polydata(points, counts, indices, normals):
+    """A PolyData of polygon faces (``counts[i]`` vertices each, listed in ``indices``), with
+    point ``normals`` where not None."""
     import pyvista as pv
 
     starts = np.cumsum(counts) - counts
-    return pv.PolyData(points, faces=np.insert(indices, starts, counts))
+    polydata = pv.PolyData(points, faces=np.insert(indices, starts, counts))
+    if normals is not None:
+        polydata.point_data.set_array(normals, "Normals")
+        polydata.point_data.active_normals_name = "Normals"
+    return polydata
 
 
 def _parse_ply_header(data):
@@ -444,7 +628,8 @@ def _check_ply_header(formats, elements, body_size):
     Raises _PlyError for: no or several ``format`` lines, an unknown encoding or version; an
     element declared twice, or with entries but no properties; a property declared twice in an
     element, of an unknown type, or a list whose length type is not an integer type; no
-    ``vertex`` element, or one without scalar x, y and z; a ``face`` element without exactly one
+    ``vertex`` element, or one without scalar x, y and z, or with only some of nx, ny, nz, or a list
+    one; a ``face`` element without exactly one
     ``vertex_indices`` (or ``vertex_index``) list; a binary body too short for the counts.
     """
     if not formats:
@@ -484,6 +669,10 @@ def _check_ply_header(formats, elements, body_size):
     for axis in "xyz":
         if axis not in vertex:
             raise _PlyError(f"element 'vertex' has no property '{axis}' (x, y and z are needed)")
+    normals = [axis for axis in _PLY_NORMALS if axis in vertex]
+    if normals and len(normals) < 3:
+        raise _PlyError(f"element 'vertex' has {', '.join(normals)} but not all of nx, ny and nz (a vertex normal)")
+    for axis in ("x", "y", "z", *normals):
         if vertex[axis].count_type:
             raise _PlyError(f"property '{axis}' of element 'vertex' is a list, not a number")
     if "face" in checked:

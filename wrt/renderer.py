@@ -79,6 +79,7 @@ def scene_features(scene: Scene) -> Features:
         disks=Disk in shapes,
         cylinders=Cylinder in shapes,
         instances=Instance in shapes,
+        smooth=any(isinstance(shape, Mesh) and shape.normals is not None for shape in (*scene.shapes, *members)),
     )
 
 

@@ -161,13 +161,18 @@ class Polygon:
 
 @dataclass(frozen=True, eq=False)
 class Mesh:
-    """Triangle mesh read from ``file`` with its ``transform`` already applied to ``vertices``."""
+    """Triangle mesh read from ``file`` with its ``transform`` already applied to ``vertices``.
+
+    ``normals`` are its shading normals with ``shading = "smooth"`` (None: flat, the face
+    normals): world space, unit, one per vertex, interpolated over each triangle; a zero row is a
+    vertex without a normal, whose triangles take their face normal at it."""
 
     file: str
     vertices: np.ndarray  # (V, 3) float64, world space
     faces: np.ndarray  # (F, 3) int32
     material: int
     velocity: tuple[float, float, float] = STILL
+    normals: np.ndarray | None = None  # (V, 3) float64, world space, unit or zero
 
 
 @dataclass(frozen=True, eq=False)

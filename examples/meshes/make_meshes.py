@@ -6,6 +6,10 @@ Run ``python examples/meshes/make_meshes.py`` to rewrite:
   binary little-endian PLY, centred at the origin with its largest extent 1.
 - ``tetra.obj``: a regular tetrahedron with vertices at (+-0.5, +-0.5, +-0.5), 4 triangles.
 - ``cube.stl``: the unit cube centred at the origin, 12 triangles, ASCII STL.
+- ``coarse_sphere.obj``: a unit UV sphere of 8 segments and 6 rings, quads and triangles at the
+  poles, no normals (smooth shading computes them), ASCII OBJ.
+- ``coarse_torus.ply``: a torus of radii 1 and 0.4, 12 x 8 quads split into triangles, with its
+  exact (analytic) vertex normals ``nx ny nz``, binary little-endian PLY.
 
 Every mesh is a closed surface whose triangles wind counter-clockwise seen from outside
 (normals point outward by the right-hand rule).
@@ -121,11 +125,63 @@ def write_cube(path):
     pv.Cube().triangulate().save(path, binary=False, recompute_normals=False)
 
 
+def write_coarse_sphere(path, segments=8, rings=6):
+    """Write a unit UV sphere (poles on the z axis) as an OBJ file of quads, with triangle fans at
+    the poles and no normals."""
+    polar = np.pi * np.arange(1, rings) / rings
+    azimuth = 2.0 * np.pi * np.arange(segments) / segments
+    ring = np.stack(
+        [
+            np.outer(np.sin(polar), np.cos(azimuth)),
+            np.outer(np.sin(polar), np.sin(azimuth)),
+            np.outer(np.cos(polar), np.ones(segments)),
+        ],
+        axis=-1,
+    ).reshape(-1, 3)
+    vertices = np.concatenate([[[0.0, 0.0, 1.0]], ring, [[0.0, 0.0, -1.0]]])
+    south = len(vertices)  # 1-based index of the south pole
+    k = np.arange(segments)
+    faces = [(1, 2 + j, 2 + (j + 1) % segments) for j in k]  # counter-clockwise seen from outside
+    for i in range(rings - 2):
+        top, bottom = 2 + i * segments, 2 + (i + 1) * segments
+        faces += [(top + j, bottom + j, bottom + (j + 1) % segments, top + (j + 1) % segments) for j in k]
+    last = 2 + (rings - 2) * segments
+    faces += [(south, last + (j + 1) % segments, last + j) for j in k]
+    lines = ["# Coarse unit UV sphere: quads, triangle fans at the poles, outward winding, no normals."]
+    lines += [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in vertices]
+    lines += ["f " + " ".join(map(str, face)) for face in faces]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def write_coarse_torus(path, segments=12, sides=8, major=1.0, minor=0.4):
+    """Write a torus around the z axis with its analytic unit vertex normals as a binary PLY file
+    of triangles (``x y z nx ny nz`` floats)."""
+    u = 2.0 * np.pi * np.arange(segments) / segments
+    v = 2.0 * np.pi * np.arange(sides) / sides
+    uu, vv = np.meshgrid(u, v, indexing="ij")
+    normals = np.stack([np.cos(uu) * np.cos(vv), np.sin(uu) * np.cos(vv), np.sin(vv)], axis=-1).reshape(-1, 3)
+    centres = np.stack([major * np.cos(uu), major * np.sin(uu), np.zeros_like(uu)], axis=-1).reshape(-1, 3)
+    vertices = centres + minor * normals
+    faces = torus_grid_faces(segments, sides)[:, [0, 2, 1]]  # outward for this parametrisation
+    rows = np.zeros(len(vertices), dtype=[("p", "<f4", 3), ("n", "<f4", 3)])
+    rows["p"], rows["n"] = vertices, normals
+    tris = np.zeros(len(faces), dtype=[("count", "u1"), ("ids", "<i4", 3)])
+    tris["count"], tris["ids"] = 3, faces
+    header = (
+        f"ply\nformat binary_little_endian 1.0\nelement vertex {len(vertices)}\n"
+        + "".join(f"property float {name}\n" for name in ("x", "y", "z", "nx", "ny", "nz"))
+        + f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    path.write_bytes(header.encode() + rows.tobytes() + tris.tobytes())
+
+
 def main():
     """Write every example mesh into this script's folder."""
     write_torus_knot(HERE / "torus_knot.ply")
     (HERE / "tetra.obj").write_text(TETRA_OBJ)
     write_cube(HERE / "cube.stl")
+    write_coarse_sphere(HERE / "coarse_sphere.obj")
+    write_coarse_torus(HERE / "coarse_torus.ply")
 
 
 if __name__ == "__main__":

@@ -38,6 +38,7 @@ def test_features_follow_the_scene():
         disks=False,
         cylinders=False,
         instances=False,
+        smooth=False,
     )
     mesh = make_scene([{"type": "mesh", "file": "examples/meshes/tetra.obj"}], scene_dir=".")
     assert (scene_features(mesh).triangles, scene_features(mesh).spheres, scene_features(mesh).polygons) == (
@@ -45,6 +46,9 @@ def test_features_follow_the_scene():
         False,
         False,
     )
+    assert not scene_features(mesh).smooth
+    smooth = make_scene([{"type": "mesh", "file": "examples/meshes/tetra.obj", "shading": "smooth"}], scene_dir=".")
+    assert scene_features(smooth).smooth
     rich = make_scene(
         [
             FLOOR,
@@ -57,7 +61,8 @@ def test_features_follow_the_scene():
         lights=[AREA],
         camera={**CAMERA, "aperture_radius": 0.1, "shutter": [0, 1]},
     )
-    assert scene_features(rich) == dataclasses.replace(ALL, orthographic=False, instances=False)  # a lens: perspective
+    # a lens: perspective
+    assert scene_features(rich) == dataclasses.replace(ALL, orthographic=False, instances=False, smooth=False)
     flat = make_scene([FLOOR], materials=DIFFUSE, camera={**CAMERA, "type": "orthographic", "width": 2.0})
     assert scene_features(flat).orthographic and not scene_features(flat).lens
     still = make_scene(

@@ -404,3 +404,19 @@ def test_documented_example_loads(tmp_path):
     scene = wrt.load_scene(write(tmp_path, toml))
     assert [type(s).__name__ for s in scene.shapes] == ["Plane", "Sphere", "Triangle", "Polygon", "Mesh"]
     assert scene.lights[0].type == "point"
+
+
+def test_smooth_mesh_normals_follow_the_transform_and_flip(tmp_path):
+    """shading = "smooth": the file's normals by the inverse transpose, unit; flip_normals reverses
+    the winding and the normals; flat (the default) keeps none; a bad value names the key."""
+    (tmp_path / "tri.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 1 1 1\nvn 0 0 3\nf 1//1 2//2 3//2\n")
+    mesh = '\n[[shape]]\ntype = "mesh"\nfile = "tri.obj"\ntransform = { scale = [2, 1, 1] }\n'
+    flat = wrt.load_scene(write(tmp_path, GOOD + mesh)).shapes[1]
+    smooth = wrt.load_scene(write(tmp_path, GOOD + mesh + 'shading = "smooth"\n')).shapes[1]
+    flipped = wrt.load_scene(write(tmp_path, GOOD + mesh + 'shading = "smooth"\nflip_normals = true\n')).shapes[1]
+    assert flat.normals is None
+    np.testing.assert_allclose(smooth.normals, [[0.5, 1, 1] / np.linalg.norm([0.5, 1, 1]), [0, 0, 1], [0, 0, 1]])
+    np.testing.assert_array_equal(flipped.normals, -smooth.normals)
+    np.testing.assert_array_equal(flipped.faces, [[2, 1, 0]])
+    with pytest.raises(wrt.SceneError, match=r"shape\[1\].shading = 'round': must be one of flat, smooth"):
+        wrt.load_scene(write(tmp_path, GOOD + mesh + 'shading = "round"\n'))

@@ -1,16 +1,19 @@
 """Tests for wrt.meshio: loading the bundled meshes, PLY parsing, transforms, file errors."""
 
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 import pyvista as pv
 from conftest import EXAMPLES
+from wrt_harness.mitsuba_peer import mitsuba_available
 
 from wrt.errors import MeshFileError
-from wrt.meshio import apply_transform, load_mesh, transform_matrix
+from wrt.meshio import apply_transform, load_mesh, transform_matrix, transform_normals, vertex_normals
 
 MESHES = EXAMPLES / "meshes"
+AVAILABLE, REASON = mitsuba_available()
 KNOT = MESHES / "torus_knot.ply"
 
 
@@ -294,3 +297,145 @@ def test_vtk_errors_are_not_printed(tmp_path, capfd):
         load_mesh(path)
     out, err = capfd.readouterr()
     assert out == "" and err == ""
+
+
+# --- vertex normals ------------------------------------------------------------------------------
+
+OBJ_CASES = {  # OBJ text: (vertices as Mitsuba 3 numbers them, their normals or None, triangles)
+    "v/vt/vn": (
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\nvn 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+        "f 1/1/1 2/2/1 3/3/2\nf 1/1/1 3/3/2 4/4/1\n",
+        [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]],
+        [[0, 0, 1], [0, 0, 1], [0, 1, 0], [0, 0, 1]],
+        [[0, 1, 2], [0, 2, 3]],
+    ),
+    "v//vn, a position with two normals": (
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\nvn 0 1 0\nf 1//1 2//1 3//2\nf 1//2 3//2 4//1\n",
+        [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 0, 0], [0, 1, 0]],
+        [[0, 0, 1], [0, 0, 1], [0, 1, 0], [0, 1, 0], [0, 0, 1]],
+        [[0, 1, 2], [3, 2, 4]],
+    ),
+    "v/vt, a corner split by its texture coordinate": (
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 0.5 0.5\n"
+        "f 1/1 2/2 3/3\nf 1/5 3/3 4/4\n",
+        [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 0, 0], [0, 1, 0]],
+        None,
+        [[0, 1, 2], [3, 2, 4]],
+    ),
+    "a pentagon: a fan from its first corner": (
+        "v 0 0 0\nv 1 0 0\nv 2 1 0\nv 1 2 0\nv 0 1 0\nf 1 2 3 4 5\n",
+        [[0, 0, 0], [1, 0, 0], [2, 1, 0], [1, 2, 0], [0, 1, 0]],
+        None,
+        [[0, 1, 2], [0, 2, 3], [0, 3, 4]],
+    ),
+}
+
+
+@pytest.mark.parametrize("case", list(OBJ_CASES))
+def test_obj_vertices_are_its_distinct_index_triples(tmp_path, case):
+    """Read for its normals, an OBJ file's vertices are its distinct v/vt/vn triples in order of
+    first use and its polygons fans, as Mitsuba 3 loads it (VTK splits every corner)."""
+    text, vertices, normals, faces = OBJ_CASES[case]
+    path = tmp_path / "m.obj"
+    path.write_text(text)
+    got = load_mesh(path, return_normals=True)
+    np.testing.assert_array_equal(got[0], vertices)
+    assert (got[2] is None) == (normals is None)
+    if normals is not None:
+        np.testing.assert_array_equal(got[2], normals)
+    np.testing.assert_array_equal(got[1], faces)
+    if AVAILABLE:
+        import mitsuba as mi
+
+        mi.set_variant("scalar_rgb")
+        params = mi.traverse(mi.load_dict({"type": "obj", "filename": str(path)}))
+        np.testing.assert_array_equal(np.array(params["faces"]).reshape(-1, 3), faces)
+        np.testing.assert_array_equal(np.array(params["vertex_positions"]).reshape(-1, 3), vertices)
+
+
+def test_obj_corner_without_a_normal_reads_zero(tmp_path):
+    path = tmp_path / "some.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 2\nf 1//1 2 3//1\n")
+    np.testing.assert_array_equal(load_mesh(path, return_normals=True)[2], [[0, 0, 2], [0, 0, 0], [0, 0, 2]])
+
+
+@pytest.mark.parametrize(
+    ("text", "problem"),
+    [
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//2 3//1\n",
+            "1 of 3 face normal indices are out of range for 1 normals (line 5 has 2)",
+        ),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/4 2 3\n", "1 of 3 face texture coordinate indices are out of range"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -1\n", "1 of 3 face vertex indices are out of range for 3 vertices"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn nan 0 1\nf 1//1 2//1 3//1\n", "3 of 3 vertex normals are NaN or infinite"),
+        ("v 0 0 0\nv 1 0\nv 0 1 0\nf 1 2 3\n", "line 2: 'v' takes 3 numbers, got 'v 1 0'"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2.5 3\n", "line 4: 'f' takes corners v, v/vt, v//vn or v/vt/vn"),
+        ("v 0 0 0\nv 1 0 0\nf 1 2\n", "line 3: a face needs at least 3 vertices"),
+        ("v 0 0 0\n", "contains no faces"),
+    ],
+)
+def test_obj_read_for_its_normals_refuses_bad_lines(tmp_path, text, problem):
+    path = tmp_path / "bad.obj"
+    path.write_text(text)
+    with pytest.raises(MeshFileError, match=re.escape(problem)):
+        load_mesh(path, return_normals=True)
+
+
+PLY_NORMALS = (
+    "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+    "property double nx\nproperty double ny\nproperty double nz\nelement face {faces}\n"
+    "property list uchar int vertex_indices\nend_header\n"
+    "0 0 0 0 0 1\n1 0 0 0 0.6 0.8\n1 1 0 1 0 0\n0 1 0 0 0 2\n{body}"
+)
+
+
+@pytest.mark.parametrize("body", ["3 0 1 2\n3 0 2 3\n", "4 0 1 2 3\n"], ids=["triangles", "a quad (VTK)"])
+def test_ply_vertex_normals_are_read_as_written(tmp_path, body):
+    path = tmp_path / "n.ply"
+    path.write_text(PLY_NORMALS.format(faces=body.count("\n"), body=body))
+    vertices, faces, normals = load_mesh(path, return_normals=True)
+    np.testing.assert_array_equal(normals, [[0, 0, 1], [0, 0.6, 0.8], [1, 0, 0], [0, 0, 2]])
+    assert len(load_mesh(path)) == 2 and len(faces) == 2 and len(vertices) == 4
+    assert load_mesh(MESHES / "tetra.obj", return_normals=True)[2] is None
+
+
+def test_ply_with_only_some_normal_properties_is_refused(tmp_path):
+    path = tmp_path / "half.ply"
+    path.write_text(
+        PLY_NORMALS.format(faces=1, body="3 0 1 2\n").replace("property double nz\n", "").replace(" 1\n1 0", "\n1 0")
+    )
+    assert_mesh_error(path, "element 'vertex' has nx, ny but not all of nx, ny and nz")
+
+
+def test_vertex_normals_weigh_faces_by_their_angle():
+    """At a cube's corner three faces meet at right angles, split into one or two triangles there:
+    angle weights give the diagonal whatever the split (area or count weights would not)."""
+    vertices, faces = load_mesh(MESHES / "cube.stl")
+    normals = vertex_normals(vertices, faces)
+    np.testing.assert_allclose(normals, np.sign(vertices) / np.sqrt(3), atol=1e-12)
+    lone = vertex_normals(np.vstack([vertices, [9, 9, 9]]), faces)
+    np.testing.assert_array_equal(lone[-1], [0, 0, 0])  # a vertex no face uses has none
+
+
+@pytest.mark.skipif(not AVAILABLE, reason=REASON)
+def test_vertex_normals_are_mitsubas():
+    """The normals Mitsuba 3 computes for an OBJ without normals (``Mesh::recompute_vertex_normals``
+    on the placed vertices: a shear changes the angles)."""
+    import mitsuba as mi
+
+    mi.set_variant("scalar_rgb")
+    matrix = np.array([[1.2, 0.6, 0, -0.5], [0, 0.9, 0, 0], [0.3, 0, 0.8, 0.4], [0, 0, 0, 1]])
+    path = MESHES / "coarse_sphere.obj"
+    mesh = mi.load_dict({"type": "obj", "filename": str(path), "to_world": mi.ScalarTransform4f(matrix)})
+    theirs = np.array(mi.traverse(mesh)["vertex_normals"]).reshape(-1, 3)
+    vertices, faces, normals = load_mesh(path, return_normals=True)
+    assert normals is None
+    np.testing.assert_allclose(vertex_normals(apply_transform(vertices, matrix=matrix), faces), theirs, atol=1e-6)
+
+
+def test_normals_transform_by_the_inverse_transpose():
+    matrix = transform_matrix(scale=(2.0, 1.0, 1.0), rotate=(0, 0, 90))
+    normals = transform_normals([[1.0, 1.0, 0.0], [0.0, 0.0, 0.0]], matrix)
+    np.testing.assert_allclose(normals[0], [-2 / np.sqrt(5), 1 / np.sqrt(5), 0], atol=1e-15)
+    np.testing.assert_array_equal(normals[1], 0.0)  # no normal stays none

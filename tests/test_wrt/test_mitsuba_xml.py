@@ -248,7 +248,7 @@ def test_to_world_composes_in_mitsuba_order(tmp_path):
     assert matrix[:3, :3] @ p + matrix[:3, 3] == pytest.approx(
         rotate @ (np.array([2, 3, 4]) * p) + [1, -2, 0.5], abs=1e-12
     )
-    assert doc["shape"][0]["file"] == "tri.obj" and len(warnings) == 1 and "vertex normals" in warnings[0]
+    assert doc["shape"][0]["file"] == "tri.obj" and doc["shape"][0]["shading"] == "smooth" and warnings == []
     # and the scene loads with the mesh where Mitsuba puts it (issue 16: the loader refused the
     # `transform.matrix` key the importer writes, so 17 of Mitsuba's 41 test scenes stopped)
     mesh = wrt.load_scene(tmp_path / "scene.xml", approximate=True).shapes[0]
@@ -281,19 +281,20 @@ def test_matrix_operation_is_row_major(tmp_path):
 
 
 @pytest.mark.parametrize("normals", ["vn 0 0 1\n", ""], ids=["the file's", "none in the file"])
-def test_identity_mesh_has_no_transform_and_vertex_normals_warn(tmp_path, normals):
+def test_identity_mesh_has_no_transform_and_shading_follows_face_normals(tmp_path, normals):
     """Mitsuba interpolates vertex normals unless face_normals = true, computing them when the
-    file has none (measured: a normal-less wedge differed by up to 0.34 per pixel from
-    face-normal shading), so both warn; face_normals = true matches wrt."""
+    file has none: shading = "smooth" (exact, no warning); face_normals = true is wrt's default
+    flat shading, and flip_normals turns the mesh around (tests/test_kernels/test_shading_normals.py
+    compares the normals with Mitsuba's)."""
     faces = "f 1//1 2//1 3//1" if normals else "f 1 2 3"
     (tmp_path / "n.obj").write_text(f"v 0 0 0\nv 1 0 0\nv 0 1 0\n{normals}{faces}\n")
     doc, warnings = convert(tmp_path, '<shape type="obj"><string name="filename" value="n.obj"/></shape>')
-    assert doc["shape"] == [{"type": "mesh", "file": "n.obj", "material": "default_bsdf"}]
-    assert any("vertex normals" in w for w in warnings)
-    body = (
-        '<shape type="obj"><string name="filename" value="n.obj"/><boolean name="face_normals" value="true"/></shape>'
-    )
-    assert not any("vertex normals" in w for w in convert(tmp_path, body)[1])
+    assert doc["shape"] == [{"type": "mesh", "file": "n.obj", "shading": "smooth", "material": "default_bsdf"}]
+    assert warnings == []
+    flags = '<boolean name="face_normals" value="true"/><boolean name="flip_normals" value="true"/>'
+    doc, warnings = convert(tmp_path, f'<shape type="obj"><string name="filename" value="n.obj"/>{flags}</shape>')
+    assert doc["shape"] == [{"type": "mesh", "file": "n.obj", "flip_normals": True, "material": "default_bsdf"}]
+    assert warnings == []
 
 
 RECTANGLE_TO_WORLD = (

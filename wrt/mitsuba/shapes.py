@@ -102,28 +102,24 @@ def shape(doc: Document, materials: Materials, element: Element, shapes: list, l
 
 def mesh(doc: Document, p: Plugin, matrix: np.ndarray) -> dict:
     """The ``mesh`` shape table of an ``obj`` or ``ply`` shape: its file, relative to the XML
-    file, and its ``to_world`` as a transform matrix."""
+    file, its ``to_world`` as a transform matrix, ``shading = "smooth"`` (Mitsuba interpolates the
+    file's vertex normals, or those it computes from the placed vertices when the file has none)
+    unless ``face_normals`` is true, and ``flip_normals`` (the winding reversed and the normals
+    turned around, as Mitsuba negates both its normals). A mirroring ``to_world`` needs nothing:
+    Mitsuba's face normals follow the mirrored winding, its computed normals too, and the file's
+    normals go by the inverse transpose, as wrt's do."""
     filename = p.string("filename", None)
     if filename is None:
         raise doc.error(p.element, "a mesh needs a filename")
-    if p.boolean("flip_normals", False):
-        doc.warn(p.params["flip_normals"], "flip_normals on a mesh is not supported: the file's winding is kept")
-    if mirrors(matrix[:3, :3]):
-        doc.warn(
-            p.element,
-            "the to_world transform mirrors the mesh: wrt's front side follows the mirrored winding, "
-            "Mitsuba's shading normals do not",
-        )
-    if not p.boolean("face_normals", False):
-        doc.warn(
-            p.element,
-            "Mitsuba shades this mesh with interpolated vertex normals (the file's, or computed when it "
-            "has none), wrt with face normals (set face_normals = true to compare)",
-        )
     found = doc.find_file(p.element, filename)
     if found is None:
         raise doc.error(p.element, f"no such mesh file {filename!r} {doc.searched(p.element)}")
-    return placed({"type": "mesh", "file": os.path.relpath(found, os.path.dirname(doc.path) or ".")}, matrix)
+    table = {"type": "mesh", "file": os.path.relpath(found, os.path.dirname(doc.path) or ".")}
+    if not p.boolean("face_normals", False):
+        table["shading"] = "smooth"
+    if p.boolean("flip_normals", False):
+        table["flip_normals"] = True
+    return placed(table, matrix)
 
 
 def quadric(doc: Document, p: Plugin, matrix: np.ndarray, front: float, emitters: list[Element]) -> dict:
