@@ -1,11 +1,14 @@
-"""The geometry oracle: the scene's shapes rasterised by pyvista (VTK/OpenGL), independently of
-the ray tracer, with the same camera; and a three-quarter overview with the camera frustum.
+"""The geometry oracle: the scene's shapes and light surfaces rasterised by pyvista (VTK/OpenGL),
+independently of the ray tracer, with the same camera; and a three-quarter overview with the
+camera frustum.
 
 Every shape is drawn unlit in a flat colour that encodes its ``object_id`` exactly, without
-anti-aliasing, so the rasterised image decodes back to an id per pixel; the ray tracer's
-``object_id`` AOV (pixel-centre rays) and the decoded ids are then shown through the same palette
-and compared by SSIM. Agreement checks the camera convention, every intersection routine and the
-mesh transforms against an independent implementation.
+anti-aliasing, so the rasterised image decodes back to an id per pixel; so is every light that is
+a surface (an area light's parallelogram, a sphere light's sphere, both sides), with the id the
+renderer gives light k, ``-2 - k``. The ray tracer's ``object_id`` AOV (pixel-centre rays) and the
+decoded ids are then shown through the same palette and compared by SSIM. Agreement checks the
+camera convention, every intersection routine and the mesh transforms against an independent
+implementation.
 """
 
 from __future__ import annotations
@@ -16,9 +19,10 @@ import threading
 
 import numpy as np
 
-from wrt.scene import Cylinder, Disk, Instance, Mesh, Plane, Polygon, Scene, Sphere, Triangle
+from wrt.scene import AreaLight, Cylinder, Disk, Instance, Mesh, Plane, Polygon, Scene, Sphere, SphereLight, Triangle
 
 QUADRIC_SIDES = 512  # vertices of the rims of disks and tubes: chords within 2e-5 of the radius (1 - cos(pi/512))
+ID_BITS = 24  # an id travels as one 8-bit RGB colour
 
 # VTK render windows are not safe to use from several threads at once (``wrt matrix --jobs``)
 _VTK_LOCK = threading.Lock()
@@ -31,23 +35,31 @@ def _offscreen_environment() -> None:
 
 
 def palette(ids: np.ndarray) -> np.ndarray:
-    """Distinct linear RGB colours for shape ids (golden-ratio hues), black for -1 (a miss)."""
+    """Linear RGB colours (..., 3) of ``object_id`` values (any shape): shape ids >= 0 in saturated
+    hues (golden-ratio sequence), the surface of light k (id ``-2 - k``) in pale tints (the same
+    sequence started at a warm yellow, a third of the saturation, full value), black for -1 (a miss)."""
     ids = np.asarray(ids)
-    hue = (ids * 0.618033988749895) % 1.0
-    rgb = np.array([colorsys.hsv_to_rgb(h, 0.75, 0.95) for h in hue.ravel()]).reshape(*ids.shape, 3)
-    rgb[ids < 0] = 0.0
+    light = ids <= -2
+    k = np.where(light, -2 - ids, ids)
+    hue = (np.where(light, 0.12, 0.0) + k * 0.618033988749895) % 1.0
+    saturation, value = np.where(light, 0.25, 0.75), np.where(light, 1.0, 0.95)
+    rgb = np.array([colorsys.hsv_to_rgb(*hsv) for hsv in zip(hue.ravel(), saturation.ravel(), value.ravel())])
+    rgb = rgb.reshape(*ids.shape, 3)
+    rgb[ids == -1] = 0.0
     return rgb.astype(np.float32)
 
 
 def _encode(object_id: int) -> tuple[float, float, float]:
-    """The exact 8-bit colour carrying ``object_id + 1`` (0 is the background)."""
-    v = object_id + 1
+    """The exact 8-bit colour carrying ``object_id + 1`` as a 24-bit two's complement number: black
+    is the background (-1), light ids (``-2 - k``) are the colours from white down."""
+    v = (object_id + 1) % (1 << ID_BITS)
     return ((v >> 16) & 255) / 255.0, ((v >> 8) & 255) / 255.0, (v & 255) / 255.0
 
 
 def _decode(image: np.ndarray) -> np.ndarray:
     rgb = np.asarray(image[..., :3], dtype=np.int64)
-    return ((rgb[..., 0] << 16) | (rgb[..., 1] << 8) | rgb[..., 2]) - 1
+    v = (rgb[..., 0] << 16) | (rgb[..., 1] << 8) | rgb[..., 2]
+    return np.where(v >= 1 << (ID_BITS - 1), v - (1 << ID_BITS), v) - 1
 
 
 def _corners(shape) -> list:
@@ -64,9 +76,19 @@ def _corners(shape) -> list:
     return []
 
 
+def _light_corners(light) -> list:
+    """Points whose box holds a light's surface (none for a light that is not a surface)."""
+    if isinstance(light, SphereLight):
+        return [np.asarray(light.center) - light.radius, np.asarray(light.center) + light.radius]
+    if isinstance(light, AreaLight):
+        return list(light.corners())
+    return []
+
+
 def scene_extent(scene: Scene) -> tuple[np.ndarray, float]:
-    """Centre and radius of a sphere around the bounded shapes and the camera."""
+    """Centre and radius of a sphere around the bounded shapes, the light surfaces and the camera."""
     points = [np.asarray(scene.camera.origin), np.asarray(scene.camera.look_at)]
+    points += [p for light in scene.lights for p in _light_corners(light)]
     for s in scene.shapes:
         if isinstance(s, Instance):  # the group's box, its corners through the instance's transform
             inner = np.asarray([p for member in scene.groups[s.group].shapes for p in _corners(member)])
@@ -87,7 +109,7 @@ def _shape_mesh(s, scene: Scene, plane_size: float):
     import pyvista as pv
 
     if isinstance(s, Sphere):
-        return pv.Sphere(radius=s.radius, center=s.center, theta_resolution=96, phi_resolution=64)
+        return _sphere(pv, s.center, s.radius)
     if isinstance(s, Plane):
         return pv.Plane(
             center=s.point, direction=s.normal, i_size=plane_size, j_size=plane_size, i_resolution=1, j_resolution=1
@@ -106,6 +128,26 @@ def _shape_mesh(s, scene: Scene, plane_size: float):
         return pv.merge(members).transform(s.matrix, inplace=False)
     faces = np.column_stack([np.full(len(s.faces), 3), s.faces]).ravel()
     return pv.PolyData(np.asarray(s.vertices, dtype=float), faces=faces)
+
+
+def _sphere(pv, center, radius: float):
+    """A finely tessellated sphere: its chords come within 6e-4 radius of the surface (1 - cos(pi/96))."""
+    return pv.Sphere(radius=radius, center=center, theta_resolution=96, phi_resolution=64)
+
+
+def light_meshes(scene: Scene) -> dict:
+    """pyvista PolyData of every light that is a surface, by its index k in ``[[light]]`` (its
+    ``object_id`` is ``-2 - k``): an area light's parallelogram (one quad, wound toward its emitting
+    side), a sphere light's sphere, tessellated as finely as sphere shapes."""
+    import pyvista as pv
+
+    meshes = {}
+    for k, light in enumerate(scene.lights):
+        if isinstance(light, SphereLight):
+            meshes[k] = _sphere(pv, light.center, light.radius)
+        elif isinstance(light, AreaLight):
+            meshes[k] = pv.PolyData(light.corners(), faces=[4, 0, 1, 2, 3])
+    return meshes
 
 
 def shape_meshes(scene: Scene, plane_size: float):
@@ -140,8 +182,8 @@ def _camera(plotter, scene: Scene, far: float) -> None:
 
 
 def rasterize_ids(scene: Scene) -> np.ndarray:
-    """Per-pixel shape id (H, W) of the scene rasterised by pyvista with the scene's camera; -1 where
-    nothing is drawn."""
+    """Per-pixel ``object_id`` (H, W) of the scene rasterised by pyvista with the scene's camera: the
+    shape's index, ``-2 - k`` on the surface of light k, -1 where nothing is drawn."""
     _offscreen_environment()
     import pyvista as pv
 
@@ -157,8 +199,12 @@ def _rasterize(scene: Scene, pv, w: int, h: int, reach: float) -> np.ndarray:
     try:
         plotter.set_background((0, 0, 0))
         plotter.disable_anti_aliasing()
-        for i, mesh in enumerate(shape_meshes(scene, plane_size=2000 * reach)):
-            plotter.add_mesh(mesh, color=_encode(i), lighting=False, show_scalar_bar=False, smooth_shading=False)
+        meshes = dict(enumerate(shape_meshes(scene, plane_size=2000 * reach)))
+        meshes.update({-2 - k: mesh for k, mesh in light_meshes(scene).items()})
+        for object_id, mesh in meshes.items():
+            plotter.add_mesh(
+                mesh, color=_encode(object_id), lighting=False, show_scalar_bar=False, smooth_shading=False
+            )
         _camera(plotter, scene, far=3000 * reach)
         return plotter.screenshot(return_img=True)
     finally:
@@ -166,7 +212,9 @@ def _rasterize(scene: Scene, pv, w: int, h: int, reach: float) -> np.ndarray:
 
 
 def overview(scene: Scene, path: str, size: tuple[int, int] = (480, 360)) -> None:
-    """A three-quarter view of the scene with the camera's frustum drawn, written to ``path`` (PNG)."""
+    """A three-quarter view of the scene, shapes and light surfaces in their ``palette`` colours, with
+    the camera's frustum drawn, written to ``path`` (PNG): from behind the camera, to its right and
+    above, the scene camera's ``up`` vertical on screen."""
     _offscreen_environment()
     import pyvista as pv
 
@@ -185,6 +233,8 @@ def _overview(scene, pv, path, size, center, radius) -> None:
                 color=tuple(palette(np.array([i]))[0]),
                 opacity=0.35 if isinstance(scene.shapes[i], Plane) else 0.9,
             )
+        for k, mesh in light_meshes(scene).items():
+            plotter.add_mesh(mesh, color=tuple(palette(np.array([-2 - k]))[0]), lighting=False)
         origin = np.asarray(scene.camera.origin)
         length = float(np.linalg.norm(np.asarray(scene.camera.look_at) - origin))
         starts, directions = scene.camera.corner_rays(scene.render.width / scene.render.height)
@@ -195,10 +245,13 @@ def _overview(scene, pv, path, size, center, radius) -> None:
         for line in lines:
             plotter.add_mesh(line, color="black", line_width=2)
         plotter.add_mesh(pv.Sphere(radius=0.02 * radius, center=origin), color="black")
-        diagonal = np.array([1.0, 0.8, 1.2])
+        up = np.asarray(scene.camera.up, dtype=float) / np.linalg.norm(scene.camera.up)
+        _, right, _ = scene.camera.basis()
+        behind = np.cross(right, up)  # horizontal, away from where the camera looks
+        diagonal = 1.0 * right + 0.8 * up + 1.2 * behind  # 27 degrees above the horizon
         plotter.camera.position = center + 2.6 * radius * diagonal / np.linalg.norm(diagonal)
         plotter.camera.focal_point = center
-        plotter.camera.up = (0, 1, 0)
+        plotter.camera.up = up
         plotter.screenshot(path)
     finally:
         plotter.close()

@@ -203,9 +203,8 @@ def flatten(scene: Scene) -> Primitives:
         if isinstance(light, SphereLight):
             spheres.append((light.center, light.radius, surface))
         elif isinstance(light, AreaLight):
-            c, u, v = (np.asarray(x, dtype=np.float64) for x in (light.corner, light.edge_u, light.edge_v))
-            normal = np.cross(u, v)
-            polys.append(([c, c + u, c + u + v, c + v], tuple(normal / np.linalg.norm(normal)), surface))
+            normal = np.cross(np.asarray(light.edge_u, dtype=np.float64), light.edge_v)
+            polys.append((light.corners(), tuple(normal / np.linalg.norm(normal)), surface))
     members = sum(len(group.shapes) for group in scene.groups)  # their surfaces follow the lights'
     velocity = [shape.velocity for shape in scene.shapes] + [(0.0, 0.0, 0.0)] * (len(scene.lights) + members)
     tri_blocks.insert(0, np.asarray([v for v, _ in tris], dtype=np.float32).reshape(-1, 3, 3))

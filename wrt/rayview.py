@@ -15,8 +15,12 @@ misses      one line per escaped segment, drawn to ``miss_length``, point data `
             the kind's colour to transparent; cell data as ``segments``
 hits        the hit points, point data ``normal`` (unit geometric normal), ``facing_normal`` (flipped
             to the side the ray came from), ``kind``, ``shape``, ``entering``, ``row``
-lights      point and spot lights as points (vertices); directional lights as a line along the
-            direction they travel
+lights      one piece per light that has a place, named ``light[k] TYPE`` (k: its index in
+            ``[[light]]``), cell data ``color``: point and spot lights as a vertex, a directional
+            light as a line along the direction it travels, a sphere light as its sphere, an area
+            light as its parallelogram (one quad wound toward its emitting side, cell data
+            ``normal``: the unit emitting normal, ``cross(edge_u, edge_v)``) plus ``light[k] area
+            emitting side``, an arrow from its centre along that normal
 camera      the rays through the image corners and the view's outline: a pyramid from the camera
             position, or a box from the camera plane (orthographic)
 bvh         with ``trace_rays(..., bvh=True)``: the box of every BVH node a segment's closest-hit
@@ -25,7 +29,8 @@ bvh         with ``trace_rays(..., bvh=True)``: the box of every BVH node a segm
 
 ``draw`` puts them in a plotter: geometry semi-transparent, segments coloured by kind with a
 legend, hit points as small spheres, normals as short arrows on the side the ray came from (the
-normal reflection and refraction use), misses fading out, visited BVH boxes as thin lines. ``save_view``
+normal reflection and refraction use), misses fading out, visited BVH boxes as thin lines, light
+surfaces opaque and unlit in a light colour (an area light's back, which emits nothing, darker). ``save_view``
 renders off screen to a PNG (EGL when there is no display), ``show`` opens a window, ``export``
 writes the blocks to a ``.vtm`` that ParaView and ``pyvista.read`` open.
 """
@@ -42,6 +47,7 @@ from .errors import WrtError
 from .loader import load_scene
 from .rays import DEFAULT_CAPACITY, RayTree, grid_pixels, trace_rays
 from .scene import (
+    AreaLight,
     Cylinder,
     DirectionalLight,
     Disk,
@@ -51,6 +57,7 @@ from .scene import (
     PointLight,
     Polygon,
     Sphere,
+    SphereLight,
     SpotLight,
     Triangle,
 )
@@ -61,11 +68,14 @@ GEOMETRY_OPACITY = 0.25
 PLANE_OPACITY = 0.12  # planes are large: fainter, so they do not veil the rays
 NORMAL_COLOR = "#404040"
 LIGHT_COLOR = "#ffd000"
+LIGHT_BACK_COLOR = "#8c7a3a"  # the back of an area light, which emits nothing
 BVH_COLOR = "#7f8c9a"
 MISS_FRACTION = 0.25  # misses are drawn this fraction of the scene's size long
 HIT_FRACTION = 0.006  # radius of the hit spheres
 QUADRIC_SIDES = 96  # vertices of the rims of disks and tubes
 NORMAL_FRACTION = 0.06  # length of the normal arrows
+EMITTING_FRACTION = 0.15  # length of the arrows on the emitting side of area lights
+MAX_ELEVATION = 60.0  # degrees above the scene's horizon the automatic view may look down from
 BACKGROUND = "white"
 
 
@@ -84,8 +94,11 @@ def _material_color(scene, shape) -> np.ndarray:
 
 
 def _bounds(tree: RayTree) -> tuple[np.ndarray, np.ndarray]:
-    """World-space box around the camera, every segment end that is not a miss, and the bounded shapes."""
+    """World-space box around the camera, every segment end that is not a miss, the bounded shapes
+    and the light surfaces."""
     points = [np.asarray(tree.scene.camera.origin, dtype=np.float64)[None], tree.origin, tree.end[~tree.escaped]]
+    points += [light.corners() for light in tree.scene.lights if isinstance(light, AreaLight)]
+    points += [_shape_points(light) for light in tree.scene.lights if isinstance(light, SphereLight)]
     for shape in tree.scene.shapes:
         if isinstance(shape, Instance):  # its group's shapes through its transform
             m = shape.matrix
@@ -97,8 +110,8 @@ def _bounds(tree: RayTree) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _shape_points(shape) -> np.ndarray:
-    """Points (n, 3) whose box holds a bounded shape; none for a plane."""
-    if isinstance(shape, Sphere):
+    """Points (n, 3) whose box holds a bounded shape or a sphere light; none for a plane."""
+    if isinstance(shape, (Sphere, SphereLight)):
         c = np.asarray(shape.center)
         return np.stack([c - shape.radius, c + shape.radius])
     if isinstance(shape, (Triangle, Polygon, Mesh)):
@@ -112,7 +125,7 @@ def _shape_mesh(shape, centre: np.ndarray, size: float, scene) -> pv.PolyData:
     if isinstance(shape, Instance):
         members = [_shape_mesh(member, centre, size, scene) for member in scene.groups[shape.group].shapes]
         return pv.merge(members).transform(shape.matrix, inplace=False)
-    if isinstance(shape, Sphere):
+    if isinstance(shape, (Sphere, SphereLight)):
         return pv.Sphere(radius=shape.radius, center=shape.center, theta_resolution=48, phi_resolution=32)
     if isinstance(shape, Plane):
         n = np.asarray(shape.normal)
@@ -126,6 +139,40 @@ def _shape_mesh(shape, centre: np.ndarray, size: float, scene) -> pv.PolyData:
         return pv.PolyData(vertices, np.hstack([np.full((len(triangles), 1), 3), triangles]).ravel())
     verts = np.asarray(shape.vertices, dtype=np.float64)  # triangle or polygon (non-convex: triangulated)
     return pv.PolyData(verts, np.concatenate([[len(verts)], np.arange(len(verts))])).triangulate()
+
+
+def _light_blocks(scene, centre: np.ndarray, size: float) -> pv.MultiBlock:
+    """The ``lights`` block (see the module docstring); ``centre`` and ``size``: the drawing's box, where
+    directional lights are drawn."""
+    pieces = {}
+    for k, light in enumerate(scene.lights):
+        name = f"light[{k}] {light.type}"
+        if isinstance(light, (PointLight, SpotLight)):
+            pieces[name] = pv.PolyData(np.asarray([light.position], dtype=np.float64))
+        elif isinstance(light, DirectionalLight):
+            d = np.asarray(light.direction) / np.linalg.norm(light.direction)
+            pieces[name] = pv.Line(centre - 0.6 * size * d, centre - 0.45 * size * d)
+        elif isinstance(light, SphereLight):
+            pieces[name] = _shape_mesh(light, centre, size, scene)
+        elif isinstance(light, AreaLight):
+            corners = light.corners()
+            normal = np.cross(light.edge_u, light.edge_v)
+            normal /= np.linalg.norm(normal)
+            pieces[name] = pv.PolyData(corners, faces=[4, 0, 1, 2, 3])
+            pieces[name].cell_data["normal"] = normal[None]
+            pieces[f"{name} emitting side"] = pv.Arrow(
+                start=corners.mean(axis=0),
+                direction=normal,
+                tip_length=0.35,
+                tip_radius=0.12,
+                shaft_radius=0.04,
+                scale=EMITTING_FRACTION * size,
+            )
+    lights = pv.MultiBlock()
+    for name, mesh in pieces.items():
+        mesh.cell_data["color"] = np.tile(_rgb255(LIGHT_COLOR), (mesh.n_cells, 1))
+        lights[name] = mesh
+    return lights
 
 
 def _lines(starts: np.ndarray, ends: np.ndarray) -> pv.PolyData:
@@ -188,23 +235,6 @@ def ray_blocks(tree: RayTree) -> pv.MultiBlock:
         hits.point_data["entering"] = tree.entering[hit_rows].astype(np.uint8)
         hits.point_data["row"] = hit_rows
 
-    light_points, verts, lines = [], [], []
-    for light in scene.lights:
-        if isinstance(light, (PointLight, SpotLight)):
-            verts += [1, len(light_points)]
-            light_points.append(light.position)
-        elif isinstance(light, DirectionalLight):
-            d = np.asarray(light.direction) / np.linalg.norm(light.direction)
-            lines += [2, len(light_points), len(light_points) + 1]
-            light_points += [centre - 0.6 * size * d, centre - 0.45 * size * d]
-    lights = pv.PolyData()
-    if light_points:
-        lights = pv.PolyData(
-            np.asarray(light_points, dtype=np.float64),
-            verts=np.array(verts, dtype=np.int64),
-            lines=np.array(lines, dtype=np.int64),
-        )
-
     starts, directions = scene.camera.corner_rays(scene.render.width / scene.render.height)
     view = np.concatenate([starts, starts + 0.08 * size * directions])  # a pyramid, or a box (orthographic)
     edges = [[k, 4 + k] for k in range(4)] + [[ring + k, ring + (k + 1) % 4] for ring in (0, 4) for k in range(4)]
@@ -215,7 +245,7 @@ def ray_blocks(tree: RayTree) -> pv.MultiBlock:
     blocks["segments"] = segments
     blocks["misses"] = misses
     blocks["hits"] = hits
-    blocks["lights"] = lights
+    blocks["lights"] = _light_blocks(scene, centre, size)
     blocks["camera"] = camera
     blocks["bvh"] = _box_edges(tree)
     return blocks
@@ -239,9 +269,11 @@ def _box_edges(tree: RayTree) -> pv.PolyData:
 
 
 def _auto_view(tree: RayTree, forward: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit direction toward the eye and view-up that show the ray trees flattest on screen: the
-    normal of the plane the segments lie closest to (least principal axis of their points), from
-    above; a side view when they lie on one line."""
+    """Unit direction toward the eye and view-up that show the ray trees flattest on screen with the
+    scene's ``up`` (unit) vertical: the normal of the plane the segments lie closest to (least
+    principal axis of their points), from above, lowered to at most ``MAX_ELEVATION`` above the
+    horizon (looking straight down: from behind the scene camera, ``forward``); a side view when
+    they lie on one line. The view-up is ``up`` projected on the view plane."""
     points = np.concatenate([tree.origin, tree.end[~tree.escaped], tree.origin + tree.direction]).astype(np.float64)
     _, spread, axes = np.linalg.svd(points - points.mean(axis=0), full_matrices=False)
     if len(spread) < 3 or spread[1] < 1e-3 * spread[0]:  # one line: look from its side, level with it
@@ -253,9 +285,13 @@ def _auto_view(tree: RayTree, forward: np.ndarray, up: np.ndarray) -> tuple[np.n
     normal /= np.linalg.norm(normal)
     if np.dot(normal, up) < -1e-6 or (abs(np.dot(normal, up)) <= 1e-6 and np.dot(normal, forward) > 0):
         normal = -normal
+    horizontal = normal - np.dot(normal, up) * up
+    if np.linalg.norm(horizontal) < 1e-3:  # looking straight down: its azimuth would be noise
+        horizontal = np.dot(forward, up) * up - forward
+    horizontal /= np.linalg.norm(horizontal)
+    elevation = min(np.arcsin(np.clip(np.dot(normal, up), 0.0, 1.0)), np.radians(MAX_ELEVATION))
+    normal = np.cos(elevation) * horizontal + np.sin(elevation) * up
     view_up = up - np.dot(up, normal) * normal
-    if np.linalg.norm(view_up) < 0.2:  # looking down: the scene camera's forward points up the picture
-        view_up = forward - np.dot(forward, normal) * normal
     return normal, view_up / np.linalg.norm(view_up)
 
 
@@ -309,21 +345,25 @@ def draw(plotter: pv.Plotter, tree: RayTree, view: tuple[float, float] | None = 
     if boxes.n_cells:
         plotter.add_mesh(boxes, color=BVH_COLOR, opacity=0.6, line_width=1, lighting=False)
     lights = blocks["lights"]
-    if lights.n_points:
+    for light in lights:
         plotter.add_mesh(
-            lights,
+            light,
             color=LIGHT_COLOR,
             point_size=20,
             render_points_as_spheres=True,
             line_width=6,
             render_lines_as_tubes=True,
+            lighting=False,  # lights glow: one flat colour
+            backface_params={"color": LIGHT_BACK_COLOR},
         )
     plotter.add_mesh(blocks["camera"], color="#303030", line_width=2)
     legend = [[RayTree.KIND_NAMES[k], KIND_COLORS[k]] for k in sorted(set(tree.kind.tolist()))]
     if tree.hit.any():
         legend.append(["surface normal", NORMAL_COLOR])
-    if lights.n_points:
+    if len(lights):
         legend.append(["light", LIGHT_COLOR])
+    if any(isinstance(light, AreaLight) for light in tree.scene.lights):
+        legend.append(["back of an area light", LIGHT_BACK_COLOR])
     if boxes.n_cells:
         legend.append([f"BVH nodes visited ({len(np.unique(tree.visit_node))})", BVH_COLOR])
     width, height = 0.011 * max(len(label) for label, _ in legend) + 0.04, 0.032 * len(legend)
@@ -342,7 +382,8 @@ def draw(plotter: pv.Plotter, tree: RayTree, view: tuple[float, float] | None = 
 
     forward, right, up = tree.scene.camera.basis()
     if view is None:
-        towards_eye, view_up = _auto_view(tree, forward, up)
+        scene_up = np.asarray(tree.scene.camera.up, dtype=np.float64)
+        towards_eye, view_up = _auto_view(tree, forward, scene_up / np.linalg.norm(scene_up))
     else:
         az, el = np.radians(view[0]), np.radians(view[1])
         towards_eye, view_up = np.cos(el) * (-np.cos(az) * forward + np.sin(az) * right) + np.sin(el) * up, up

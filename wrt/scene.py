@@ -290,6 +290,12 @@ class AreaLight:
     radiance: tuple[float, float, float]
     type: str = "area"
 
+    def corners(self) -> np.ndarray:
+        """Its four corners (4, 3), float64, wound so that their normal is the emitting side,
+        ``cross(edge_u, edge_v)``."""
+        c, u, v = (np.asarray(x, dtype=np.float64) for x in (self.corner, self.edge_u, self.edge_v))
+        return np.array([c, c + u, c + u + v, c + v])
+
 
 @dataclass(frozen=True)
 class SphereLight:

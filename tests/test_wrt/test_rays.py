@@ -6,8 +6,10 @@ import sys
 import numpy as np
 import pytest
 import pyvista as pv
+import tomllib
 from conftest import EXAMPLES, make_scene
 from skimage.io import imread
+from wrt.kernels.path import SHADOW_MARGIN
 from wrt.kernels.record import (
     CAMERA,
     REFLECTED,
@@ -22,7 +24,8 @@ from wrt.kernels.record import (
 import wrt
 from wrt import rayview
 from wrt.cli import main
-from wrt.rays import trace_rays
+from wrt.loader import parse_scene
+from wrt.rays import grid_pixels, trace_rays
 
 GLASS = {"name": "glass", "type": "dielectric", "ior": 1.5}
 HEAD_ON = {
@@ -255,7 +258,8 @@ def test_export_reopens_with_pyvista(tmp_path):
     np.testing.assert_array_equal(blocks["segments"].cell_data["kind"], tree.kind[ends])
     np.testing.assert_array_equal(blocks["segments"].cell_data["parent"], tree.parent[ends])
     np.testing.assert_allclose(blocks["hits"].points, tree.end[tree.hit], atol=1e-6)
-    np.testing.assert_allclose(blocks["lights"].points, [[0, 4, 4]])
+    assert list(blocks["lights"].keys()) == ["light[0] point"]
+    np.testing.assert_allclose(blocks["lights"]["light[0] point"].points, [[0, 4, 4]])
 
 
 def test_view_png_off_screen_is_not_blank(tmp_path):
@@ -356,3 +360,121 @@ def test_show_bvh_logs_the_nodes_the_traversal_visits(tmp_path):
     assert main(["rays", showcase, "--pixel", "330", "150", "--show-bvh", "--export", str(out)]) == 0
     boxes = pv.read(out)["bvh"]
     assert boxes.n_cells == 12 * len(np.unique(tree.visit_node[tree.visit_row == 0]))
+
+
+CORNELL = EXAMPLES / "path" / "cornell_box.toml"
+Y_TO_Z = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])  # a rotation taking +y to +z
+
+
+def cornell_box(up: str):
+    """The Cornell box path scene, as written (up = +y) or turned so that its up is +z."""
+    if up == "+y":
+        return wrt.load_scene(CORNELL)
+    doc = tomllib.loads(CORNELL.read_text())
+    doc["camera"]["up"] = [0.0, 1.0, 0.0]
+    for table in [doc["camera"], *doc["shape"], *doc["light"]]:
+        for key in ("vertices", "center", "corner", "edge_u", "edge_v", "origin", "look_at", "up"):
+            if key in table:
+                table[key] = (np.asarray(table[key]) @ Y_TO_Z.T).tolist()
+    return parse_scene(doc, file="<cornell box, z up>", scene_dir=str(CORNELL.parent))
+
+
+def cornell_rays(up="+y"):
+    """`wrt rays examples/path/cornell_box.toml --grid 3 3 --samples 2`, as a new user first runs it."""
+    scene = cornell_box(up)
+    return trace_rays(scene, grid_pixels(scene.render.width, scene.render.height, 3, 3), samples=2)
+
+
+def test_shadow_rays_end_on_the_drawn_area_light():
+    """Cornell box: every shadow ray reaching the area light ends on its parallelogram (within the
+    shadow margin of its plane: the rays stop that fraction of their length short, inside its
+    edges, on its emitting side), and the ``lights`` block draws the parallelogram there, with its
+    emitting normal and an arrow along it."""
+    tree = cornell_rays()
+    light = only(tree.scene.lights)
+    corner, u, v = (np.asarray(x, dtype=np.float64) for x in (light.corner, light.edge_u, light.edge_v))
+    normal = np.cross(u, v) / np.linalg.norm(np.cross(u, v))
+    lit = np.flatnonzero(tree.kind == SHADOW_LIT)
+    assert len(lit) > 20
+    ends = tree.end[lit].astype(np.float64)
+    length = np.linalg.norm(ends - tree.origin[lit], axis=1)
+    margin = SHADOW_MARGIN * length / (1 - SHADOW_MARGIN) + 1e-5  # plus float32 rounding and the spawn offset
+    assert np.all(np.abs((ends - corner) @ normal) <= margin)
+    uv = np.linalg.lstsq(np.column_stack([u, v]), (ends - corner).T, rcond=None)[0]
+    assert np.all((uv >= -1e-5) & (uv <= 1 + 1e-5))
+    assert np.all((tree.origin[lit] - corner) @ normal > 0)  # lit from the side it emits to
+
+    blocks = rayview.ray_blocks(tree)
+    assert list(blocks["lights"].keys()) == ["light[0] area", "light[0] area emitting side"]
+    drawn = blocks["lights"]["light[0] area"]
+    _, closest = drawn.find_closest_cell(ends, return_closest_point=True)
+    assert np.all(np.linalg.norm(closest - ends, axis=1) <= margin)
+    np.testing.assert_allclose(drawn.cell_data["normal"][0], normal, atol=1e-12)
+    along = (blocks["lights"]["light[0] area emitting side"].points - (corner + (u + v) / 2)) @ normal
+    assert along.min() > -1e-6 and along.max() > 0.1  # an arrow from the centre, out of the emitting side
+
+
+def test_shadow_rays_end_on_the_drawn_sphere_light(tmp_path):
+    """A sphere light is drawn as its sphere where the shadow rays reaching it end, and exported by name."""
+    scene = make_scene(
+        [{"type": "disk", "center": [0, 0, 0], "normal": [0, 1, 0], "radius": 3}],
+        lights=[
+            {"type": "point", "position": [-2, 3, 0], "intensity": [1, 1, 1]},
+            {"type": "sphere", "center": [1, 2, -1], "radius": 0.5, "radiance": [5, 5, 5]},
+        ],
+        camera={"origin": [0, 1.5, 4], "look_at": [0, 0.5, 0]},
+        render={"width": 24, "height": 18, "integrator": "path", "max_depth": 2},
+    )
+    tree = trace_rays(scene, grid_pixels(24, 18, 4, 3), samples=4)
+    to_sphere = np.linalg.norm(tree.end - [-2, 3, 0], axis=1) > 1e-4  # not to the point light
+    lit = np.flatnonzero((tree.kind == SHADOW_LIT) & to_sphere)
+    assert len(lit) > 20
+    ends = tree.end[lit].astype(np.float64)
+    margin = SHADOW_MARGIN * np.linalg.norm(ends - tree.origin[lit], axis=1) / (1 - SHADOW_MARGIN) + 1e-5
+    distance = np.linalg.norm(ends - [1, 2, -1], axis=1)
+    assert np.all((distance >= 0.5 - 1e-6) & (distance <= 0.5 + margin))
+    rayview.export(tree, str(tmp_path / "rays.vtm"))
+    lights = pv.read(tmp_path / "rays.vtm")["lights"]
+    assert list(lights.keys()) == ["light[0] point", "light[1] sphere"]
+    _, closest = lights["light[1] sphere"].find_closest_cell(ends, return_closest_point=True)
+    assert np.linalg.norm(closest - ends, axis=1).max() < 0.5 * (1 - np.cos(np.pi / 32)) + 1e-3  # tessellation
+
+
+@pytest.mark.parametrize("up", ["+y", "+z"])
+def test_automatic_view_keeps_the_scene_up_vertical(up):
+    """The automatic view of `wrt rays` looks down at most ``MAX_ELEVATION`` above the scene's
+    horizon, and its up is the scene camera's up projected on the view plane."""
+    tree = cornell_rays(up)
+    scene_up = np.asarray(tree.scene.camera.up) / np.linalg.norm(tree.scene.camera.up)
+    np.testing.assert_allclose(scene_up, [0, 1, 0] if up == "+y" else [0, 0, 1])
+    plotter = pv.Plotter(off_screen=True)
+    try:
+        rayview.draw(plotter, tree)
+        eye = np.subtract(plotter.camera.position, plotter.camera.focal_point)
+        view_up = np.asarray(plotter.camera.up)
+    finally:
+        plotter.close()
+    eye /= np.linalg.norm(eye)
+    assert 0 <= np.dot(eye, scene_up) <= np.sin(np.radians(rayview.MAX_ELEVATION)) + 1e-9
+    projected = scene_up - np.dot(scene_up, eye) * eye
+    np.testing.assert_allclose(view_up / np.linalg.norm(view_up), projected / np.linalg.norm(projected), atol=1e-9)
+
+
+@pytest.mark.parametrize("up", ["+y", "+z"])
+def test_automatic_view_of_a_level_fan_looks_from_behind_the_camera(up):
+    """Camera rays of the two middle image rows of the level Cornell box camera lie in its horizontal
+    plane: the flattest view would look straight down the up axis; it is lowered to
+    ``MAX_ELEVATION`` above the horizon, from behind the camera, with the scene's up up the picture."""
+    scene = cornell_box(up)
+    tree = trace_rays(scene, [(x, y) for x in range(0, 400, 25) for y in (199, 200)], max_depth=1)
+    plotter = pv.Plotter(off_screen=True)
+    try:
+        rayview.draw(plotter, tree)
+        eye = np.subtract(plotter.camera.position, plotter.camera.focal_point)
+        view_up = np.asarray(plotter.camera.up)
+    finally:
+        plotter.close()
+    turn = np.eye(3) if up == "+y" else Y_TO_Z
+    elevation = np.radians(rayview.MAX_ELEVATION)  # the camera looks down -z (+y up): behind it is +z
+    np.testing.assert_allclose(eye / np.linalg.norm(eye), turn @ [0, np.sin(elevation), np.cos(elevation)], atol=1e-6)
+    np.testing.assert_allclose(view_up, turn @ [0, np.cos(elevation), -np.sin(elevation)], atol=1e-6)
