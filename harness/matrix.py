@@ -26,7 +26,7 @@ import tomllib
 
 from wrt.errors import WrtError
 from wrt.loader import override_render, parse_scene
-from wrt.scene import Mesh, Scene
+from wrt.scene import EnvironmentLight, Mesh, Scene
 
 from .score import SSIM_WINDOW, check_threshold
 
@@ -201,14 +201,15 @@ def load_feature_scene(feature: Feature, wrong: bool = False) -> Scene:
 
 def scene_hash(feature: Feature) -> str:
     """SHA-256 of everything a reference depends on: the scene document (without spp and seed),
-    the bytes of its mesh files, the image size and the reference spp."""
+    the bytes of its mesh files and environment maps, the image size and the reference spp."""
     doc = scene_document(feature)
     for key in ("spp", "seed"):
         doc["render"].pop(key)
     h = hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode())
     h.update(f"{feature.width}x{feature.height}@{feature.reference_spp}".encode())
-    for shape in load_feature_scene(feature).shapes:
-        if isinstance(shape, Mesh):
-            with open(shape.file, "rb") as f:
+    scene = load_feature_scene(feature)
+    for item in (*scene.shapes, *scene.lights):
+        if isinstance(item, Mesh) or (isinstance(item, EnvironmentLight) and item.image is not None):
+            with open(item.file, "rb") as f:
                 h.update(hashlib.sha256(f.read()).digest())
     return h.hexdigest()

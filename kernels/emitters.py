@@ -4,13 +4,15 @@ estimation with multiple importance sampling.
 
 Units: ``radiance`` in W/(m^2 sr). A parallelogram light (``corner``, ``edge_u``, ``edge_v``)
 emits from the side of ``cross(edge_u, edge_v)`` only; a sphere light outward; the environment
-uniformly from every direction. Densities are per unit solid angle at the receiving point.
+uniformly from every direction, or as its map says (Mitsuba 3's ``envmap``: ``wrt.envmap``
+describes the mapping, the bilinear lookup and the distribution the map is sampled with).
+Densities are per unit solid angle at the receiving point.
 """
 
 import warp as wp
 
 from .intersect import intersect_sphere
-from .lights import AREA, ENVIRONMENT, SPHERE_LIGHT, LightData
+from .lights import AREA, ENVIRONMENT, ENVIRONMENT_MAP, SPHERE_LIGHT, LightData
 from .sample_warps import cone_one_minus_cos, frame, uniform_cone, uniform_sphere
 
 
@@ -81,3 +83,84 @@ def emitter_pdf(lights: LightData, i: wp.int32, p: wp.vec3, wi: wp.vec3, dist: f
     if kind == ENVIRONMENT:
         return 1.0 / (4.0 * wp.pi)
     return 0.0
+
+
+@wp.func
+def find_interval(cdf: wp.array(dtype=float), start: wp.int32, n: wp.int32, x: float) -> wp.int32:
+    """The interval ``k`` in [0, n - 2] of the ``n`` CDF values from ``cdf[start]`` (0 to 1) holding
+    ``x`` in [0, 1): ``cdf[start + k] <= x < cdf[start + k + 1]``, never an empty one."""
+    lo = int(0)
+    hi = n - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if cdf[start + mid] <= x:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+@wp.func
+def environment_map_cell(lights: LightData, w: wp.vec3):
+    """The cell ``(j, i)`` of the environment map that world direction ``w`` falls in, and where in
+    it: ``(j, i, fy, fx)`` with fy, fx in [0, 1] from row j and (wrapping) column i toward the next."""
+    height = lights.env_radiance.shape[0]
+    width = lights.env_radiance.shape[1]
+    local = wp.transpose(lights.env_to_world) * w
+    u = wp.atan2(local[0], -local[2]) / (2.0 * wp.pi)
+    x = u * float(width) - 0.5
+    x = x - wp.floor(x / float(width)) * float(width)
+    y = wp.acos(wp.clamp(local[1], -1.0, 1.0)) / wp.pi * float(height - 1)
+    i = wp.clamp(int(x), 0, width - 1)
+    j = wp.clamp(int(y), 0, height - 2)
+    return j, i, y - float(j), x - float(i)
+
+
+@wp.func
+def environment_map_radiance(lights: LightData, k: wp.int32, w: wp.vec3) -> wp.vec3:
+    """Radiance (W/(m^2 sr)) arriving from world direction ``w`` (unit, pointing away from the
+    receiver) out of environment map light ``k``: the map looked up bilinearly, times its ``power``."""
+    j, i, fy, fx = environment_map_cell(lights, w)
+    i1 = (i + 1) % lights.env_radiance.shape[1]
+    top = lights.env_radiance[j, i] * (1.0 - fx) + lights.env_radiance[j, i1] * fx
+    bottom = lights.env_radiance[j + 1, i] * (1.0 - fx) + lights.env_radiance[j + 1, i1] * fx
+    return wp.cw_mul(lights.power[k], top * (1.0 - fy) + bottom * fy)
+
+
+@wp.func
+def environment_map_pdf(lights: LightData, w: wp.vec3) -> float:
+    """Solid-angle density with which ``sample_environment_map`` picks world direction ``w``."""
+    j, i, fy, fx = environment_map_cell(lights, w)
+    return lights.env_pdf[j, i]
+
+
+@wp.func
+def sample_environment_map(lights: LightData, k: wp.int32, u1: float, u2: float):
+    """A direction from environment map light ``k`` by its luminance: ``(wi, radiance, pdf)``, wi
+    world space. A cell row by ``u1``, a cell within it by ``u2``, then uniform in azimuth and
+    ``cos theta`` within the cell by what is left of each."""
+    height = lights.env_radiance.shape[0]
+    width = lights.env_radiance.shape[1]
+    cdf = lights.env_cdf
+    j = find_interval(cdf, 0, height, u1)
+    fv = wp.clamp((u1 - cdf[j]) / (cdf[j + 1] - cdf[j]), 0.0, 1.0)
+    start = height + j * (width + 1)
+    i = find_interval(cdf, start, width + 1, u2)
+    fu = wp.clamp((u2 - cdf[start + i]) / (cdf[start + i + 1] - cdf[start + i]), 0.0, 1.0)
+    step = wp.pi / float(height - 1)
+    cos0 = wp.cos(float(j) * step)
+    cos_theta = cos0 + fv * (wp.cos(float(j + 1) * step) - cos0)
+    sin_theta = wp.sqrt(wp.max(0.0, 1.0 - cos_theta * cos_theta))
+    phi = 2.0 * wp.pi * (float(i) + fu + 0.5) / float(width)
+    local = wp.vec3(sin_theta * wp.sin(phi), cos_theta, -sin_theta * wp.cos(phi))
+    wi = lights.env_to_world * local
+    return wi, environment_map_radiance(lights, k, wi), lights.env_pdf[j, i]
+
+
+@wp.func
+def sample_emitter_or_map(lights: LightData, i: wp.int32, p: wp.vec3, u1: float, u2: float):
+    """``sample_emitter`` for scenes with an environment map light, which it samples too."""
+    if lights.type[i] == ENVIRONMENT_MAP:
+        wi, radiance, pdf = sample_environment_map(lights, i, u1, u2)
+        return wi, wp.inf, radiance, pdf
+    return sample_emitter(lights, i, p, u1, u2)

@@ -22,6 +22,7 @@ from dataclasses import astuple, dataclass
 @dataclass(frozen=True)
 class Features:
     lights: bool = True  # any light: shadow rays (whitted), next-event estimation and environment (path)
+    environment_map: bool = True  # an environment light with a map: its lookup and sampling (path)
     specular: bool = True  # mirrors or dielectrics: reflected and refracted rays
     dielectric: bool = True  # refraction, Fresnel, nested media, Beer-Lambert absorption
     lens: bool = True  # a thin lens (aperture_radius > 0): lens sampling

@@ -1,10 +1,13 @@
 """Lights on the device, and what delta lights (point, directional, spot) deliver to a point.
 
 Every light of the scene is one row of ``LightData``; area, sphere and environment lights are
-sampled by ``wrt.kernels.emitters``. Units: point and spot ``intensity`` in W/sr, directional
-``irradiance`` in W/m^2, area/sphere/environment ``radiance`` in W/(m^2 sr) (RGB).
-A point light at distance d delivers irradiance ``I / d^2`` on a surface facing it; the
-integrator multiplies by the BRDF and the cosine at the receiver.
+sampled by ``wrt.kernels.emitters``. An environment light with a map (``ENVIRONMENT_MAP``, at
+most one per scene) keeps its image, frame and sampling distribution in the ``env_*`` fields
+(``wrt.envmap`` describes their layout; 1-element placeholders in scenes without a map).
+Units: point and spot ``intensity`` in W/sr, directional ``irradiance`` in W/m^2,
+area/sphere/environment ``radiance`` in W/(m^2 sr) (RGB). A point light at distance d delivers
+irradiance ``I / d^2`` on a surface facing it; the integrator multiplies by the BRDF and the
+cosine at the receiver.
 """
 
 import warp as wp
@@ -15,6 +18,7 @@ SPOT = wp.constant(2)
 AREA = wp.constant(3)
 SPHERE_LIGHT = wp.constant(4)
 ENVIRONMENT = wp.constant(5)
+ENVIRONMENT_MAP = wp.constant(6)
 
 
 @wp.struct
@@ -29,6 +33,10 @@ class LightData:
     cos_cutoff: wp.array(dtype=float)  # spot: cos of the cone's half-angle
     cutoff: wp.array(dtype=float)  # spot: half-angle, radians
     beam: wp.array(dtype=float)  # spot: half-angle of full intensity, radians
+    env_radiance: wp.array2d(dtype=wp.vec3)  # (H, W) the map's pixels, W/(m^2 sr) before ``power``
+    env_to_world: wp.mat33  # the map's frame (a rotation) to world space
+    env_cdf: wp.array(dtype=float)  # marginal CDF over cell rows, then each row's conditional CDF
+    env_pdf: wp.array2d(dtype=float)  # (H - 1, W) solid-angle density of each cell, 1/sr
 
 
 @wp.func

@@ -4,7 +4,10 @@ Types (``MaterialData.type``): ``DIFFUSE`` (Lambert, albedo/pi), ``PHONG`` (albe
 energy-normalised Phong lobe ``specular (n + 2) / (2 pi) cos^n alpha``, alpha between the
 mirror direction of ``wi`` and ``wo``), ``MIRROR`` (perfect specular, ``reflectance``),
 ``DIELECTRIC`` (smooth glass: ``ior``, Beer-Lambert ``sigma``), ``GLOSSY`` (GGX conductor of
-``roughness`` alpha with the constant Fresnel factor ``reflectance``, ``wrt.kernels.microfacet``) and
+``roughness`` alpha with the constant Fresnel factor ``reflectance``, ``wrt.kernels.microfacet``),
+``CONDUCTOR`` (the exact Fresnel reflectance of the complex index of refraction ``eta + i k`` times
+the tint ``reflectance``: a mirror where ``roughness`` is 0, else GGX of alpha ``roughness`` with
+the Fresnel term at the microfacet normal) and
 ``EMITTER`` (the surface of an area or sphere light: reflects nothing). Any type may emit
 ``emission`` (W/(m^2 sr)) from its front side. ``base_color`` is what the raycast integrator shows.
 A material that is not ``two_sided`` (one-sided, as Mitsuba 3's diffuse and conductors) reflects
@@ -50,7 +53,7 @@ M. Pharr, W. Jakob, G. Humphreys, pbrt-v4, sec. 9.1 (the BSDF interface and its 
 import warp as wp
 
 from .microfacet import ggx_eval, ggx_g1, ggx_pdf, ggx_sample_visible_normal
-from .optics import fresnel_dielectric, reflect, refract
+from .optics import fresnel_conductor, fresnel_dielectric, reflect, refract
 from .sample_warps import cosine_hemisphere, frame
 
 DIFFUSE = wp.constant(0)
@@ -59,6 +62,7 @@ MIRROR = wp.constant(2)
 DIELECTRIC = wp.constant(3)
 GLOSSY = wp.constant(4)
 EMITTER = wp.constant(5)
+CONDUCTOR = wp.constant(6)
 
 BSDF_REFLECTION = wp.constant(1)
 BSDF_TRANSMISSION = wp.constant(2)
@@ -76,11 +80,13 @@ class MaterialData:
     albedo: wp.array(dtype=wp.vec3)
     specular: wp.array(dtype=wp.vec3)
     exponent: wp.array(dtype=float)
-    reflectance: wp.array(dtype=wp.vec3)
+    reflectance: wp.array(dtype=wp.vec3)  # mirror, glossy: the reflectance; conductor: the tint of its Fresnel term
     ior: wp.array(dtype=float)
     sigma: wp.array(dtype=wp.vec3)  # absorption coefficient per unit length, -ln(transmittance)
     priority: wp.array(dtype=wp.int32)
-    roughness: wp.array(dtype=float)  # GGX alpha
+    roughness: wp.array(dtype=float)  # GGX alpha (conductor: 0 for a smooth one)
+    eta: wp.array(dtype=wp.vec3)  # conductor: real part of the index of refraction, per channel
+    k: wp.array(dtype=wp.vec3)  # conductor: imaginary part (extinction coefficient)
     emission: wp.array(dtype=wp.vec3)
     two_sided: wp.array(dtype=wp.int32)  # 1: both sides reflect; 0: the back side reflects nothing
 
@@ -117,6 +123,10 @@ def bsdf_flags(materials: MaterialData, m: wp.int32) -> wp.int32:
         return BSDF_REFLECTION | BSDF_SPECULAR
     if kind == DIELECTRIC:
         return BSDF_REFLECTION | BSDF_TRANSMISSION | BSDF_SPECULAR
+    if kind == CONDUCTOR:
+        if materials.roughness[m] > 0.0:
+            return BSDF_REFLECTION | BSDF_GLOSSY
+        return BSDF_REFLECTION | BSDF_SPECULAR
     return 0
 
 
@@ -138,12 +148,26 @@ def non_specular(flags: wp.int32) -> bool:
 
 
 @wp.func
+def specular_reflectance(materials: MaterialData, m: wp.int32, cos_theta: float) -> wp.vec3:
+    """The reflectance of a mirror's, a glossy's or a conductor's facet (the surface, or a
+    microfacet) seen at incidence cosine ``cos_theta``: ``reflectance``, for a conductor times its
+    Fresnel term."""
+    if materials.type[m] == CONDUCTOR:
+        return wp.cw_mul(materials.reflectance[m], fresnel_conductor(cos_theta, materials.eta[m], materials.k[m]))
+    return materials.reflectance[m]
+
+
+@wp.func
 def bsdf_eval(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
     """f(wo, wi) (1/sr) of the non-specular lobes for ``wi`` on the side of ``n``; 0 for delta lobes."""
     kind = materials.type[m]
-    if kind == GLOSSY:
+    if kind == GLOSSY or kind == CONDUCTOR:
+        alpha = materials.roughness[m]
+        if alpha == 0.0:
+            return wp.vec3(0.0)
         to_local = wp.transpose(frame(n))
-        return materials.reflectance[m] * ggx_eval(to_local * wo, to_local * wi, materials.roughness[m])
+        cos_h = wp.abs(wp.dot(wo, wp.normalize(wo + wi)))
+        return specular_reflectance(materials, m, cos_h) * ggx_eval(to_local * wo, to_local * wi, alpha)
     if kind == DIFFUSE:
         return materials.albedo[m] / wp.pi
     if kind == PHONG:
@@ -157,9 +181,12 @@ def bsdf_eval(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi:
 def bsdf_pdf(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3) -> float:
     """Solid-angle density (1/sr) with which ``bsdf_sample`` draws ``wi``; 0 for delta lobes."""
     kind = materials.type[m]
-    if kind == GLOSSY:
+    if kind == GLOSSY or kind == CONDUCTOR:
+        alpha = materials.roughness[m]
+        if alpha == 0.0:
+            return 0.0
         to_local = wp.transpose(frame(n))
-        return ggx_pdf(to_local * wo, to_local * wi, materials.roughness[m])
+        return ggx_pdf(to_local * wo, to_local * wi, alpha)
     if kind == DIFFUSE or kind == PHONG:
         return wp.max(0.0, wp.dot(n, wi)) / wp.pi
     return 0.0
@@ -167,8 +194,9 @@ def bsdf_pdf(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: 
 
 @wp.func
 def specular_lobes(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float) -> SpecularLobes:
-    """The delta lobes of a mirror (reflectance) or a smooth dielectric (exact Fresnel F reflected,
-    1 - F refracted by Snell's law, all reflected past the critical angle); none for other types.
+    """The delta lobes of a mirror (reflectance), a smooth conductor (reflectance times its Fresnel
+    term) or a smooth dielectric (exact Fresnel F reflected, 1 - F refracted by Snell's law, all
+    reflected past the critical angle); none for other types.
 
     Refracted radiance is scaled by ``eta^2`` (radiance transport, as pbrt-v4's and Mitsuba 3's
     dielectrics in radiance mode): the solid angle of a beam is compressed by ``(n1 / n2)^2`` as
@@ -183,8 +211,8 @@ def specular_lobes(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3
     lobes.refracts = False
     lobes.total_internal = False
     kind = materials.type[m]
-    if kind == MIRROR:
-        lobes.reflectance = materials.reflectance[m]
+    if kind == MIRROR or kind == CONDUCTOR:
+        lobes.reflectance = specular_reflectance(materials, m, wp.dot(wo, n))
     elif kind == DIELECTRIC:
         fresnel = fresnel_dielectric(wp.dot(wo, n), eta)
         ok, wt = refract(-wo, n, eta)
@@ -202,19 +230,20 @@ def specular_lobes(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3
 def bsdf_sample(
     materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uc: float, u: wp.vec2
 ) -> BSDFSample:
-    """A direction drawn from material ``m``'s BSDF: diffuse and Phong cosine-weighted, glossy by
-    GGX visible normals, a mirror's reflection, a dielectric's reflection with probability F
-    (weight F / F = 1) and refraction otherwise (weight ``eta^2``, ``specular_lobes``)."""
+    """A direction drawn from material ``m``'s BSDF: diffuse and Phong cosine-weighted, glossy and
+    rough conductors by GGX visible normals, a mirror's or a smooth conductor's reflection, a
+    dielectric's reflection with probability F (weight F / F = 1) and refraction otherwise (weight
+    ``eta^2``, ``specular_lobes``)."""
     s = BSDFSample()
     s.weight = wp.vec3(0.0)
     s.pdf = 0.0
     s.flags = 0
     kind = materials.type[m]
-    if kind == MIRROR or kind == DIELECTRIC:
+    if kind == MIRROR or kind == DIELECTRIC or (kind == CONDUCTOR and materials.roughness[m] == 0.0):
         lobes = specular_lobes(materials, m, n, wo, eta)
         s.wi = lobes.wr
         s.flags = BSDF_REFLECTION | BSDF_SPECULAR
-        if kind == MIRROR:
+        if kind != DIELECTRIC:
             s.weight = lobes.reflectance
             s.pdf = 1.0
         elif uc < lobes.reflectance[0]:
@@ -229,16 +258,17 @@ def bsdf_sample(
             s.flags = BSDF_TRANSMISSION | BSDF_SPECULAR
         return s
     to_world = frame(n)
-    if kind == GLOSSY:
+    if kind == GLOSSY or kind == CONDUCTOR:
         to_local = wp.transpose(to_world)
         wo_local = to_local * wo
         alpha = materials.roughness[m]
         h = ggx_sample_visible_normal(wo_local, alpha, u[0], u[1])
-        wi_local = 2.0 * wp.dot(wo_local, h) * h - wo_local
+        cos_h = wp.dot(wo_local, h)
+        wi_local = 2.0 * cos_h * h - wo_local
         s.wi = to_world * wi_local
         s.flags = BSDF_REFLECTION | BSDF_GLOSSY
         if wi_local[2] > 0.0:
-            s.weight = materials.reflectance[m] * ggx_g1(wi_local, alpha)
+            s.weight = specular_reflectance(materials, m, cos_h) * ggx_g1(wi_local, alpha)
             s.pdf = ggx_pdf(wo_local, wi_local, alpha)
         return s
     s.wi = to_world * cosine_hemisphere(u[0], u[1])

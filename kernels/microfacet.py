@@ -1,8 +1,10 @@
 """GGX microfacet reflection (a rough conductor), in a local shading frame.
 
 Local frame: the normal is +z; ``wo`` and ``wi`` are unit vectors pointing away from the surface.
-``alpha`` is the GGX roughness (the scene's ``roughness``); ``reflectance`` is a constant Fresnel
-factor, so reflectance 1 is a lossless rough mirror up to the energy lost to single scattering.
+``alpha`` is the GGX roughness (the scene's ``roughness``). The BRDF here has no Fresnel factor:
+``wrt.kernels.materials`` multiplies it by glossy's constant ``reflectance`` (1: a lossless rough
+mirror up to the energy lost to single scattering) or by a conductor's exact Fresnel reflectance
+at the angle between ``wo`` and the microfacet normal (the half vector).
 Masking-shadowing is separable Smith: ``G = G1(wo) G1(wi)``.
 
 References

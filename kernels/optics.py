@@ -1,4 +1,4 @@
-"""Specular optics: mirror reflection, Snell refraction and the exact dielectric Fresnel term.
+"""Specular optics: mirror reflection, Snell refraction and the exact Fresnel terms of dielectrics and conductors.
 
 Conventions: ``d`` is the incident ray direction (unit, pointing toward the surface), ``n`` the
 unit normal on the side the ray comes from (``dot(d, n) < 0``), ``eta = n1 / n2`` the ratio of
@@ -8,6 +8,8 @@ References
 ----------
 M. Pharr, W. Jakob, G. Humphreys, pbrt-v4, sec. 9.3 (Snell's law in vector form, Fresnel).
 E. Hecht, Optics, 5th ed., sec. 4.6 (Fresnel equations).
+K. D. Moeller, Optics, University Science Books, 1988 (the conductor's Fresnel equations in real
+arithmetic, as Mitsuba 3's ``fresnel_conductor``).
 """
 
 import warp as wp
@@ -53,3 +55,35 @@ def fresnel_dielectric(cos_i: float, eta: float) -> float:
     r_par = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
     r_perp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
     return 0.5 * (r_par * r_par + r_perp * r_perp)
+
+
+@wp.func
+def fresnel_conductor1(cos_i: float, eta: float, k: float) -> float:
+    """Fraction of unpolarised light reflected by a conductor of complex index of refraction
+    ``eta + i k`` (relative to the outside), at incidence cosine ``cos_i`` (>= 0): the exact
+    Fresnel equations, the mean of the s and p reflectances. 1 at grazing incidence; at normal
+    incidence ``((eta - 1)^2 + k^2) / ((eta + 1)^2 + k^2)``."""
+    cos2 = wp.min(cos_i * cos_i, 1.0)
+    sin2 = 1.0 - cos2
+    t1 = eta * eta - k * k - sin2
+    a2_plus_b2 = wp.sqrt(t1 * t1 + 4.0 * eta * eta * k * k)
+    a = wp.sqrt(wp.max(0.0, 0.5 * (a2_plus_b2 + t1)))
+    t2 = a2_plus_b2 + cos2
+    t3 = 2.0 * wp.sqrt(cos2) * a
+    r_s = (t2 - t3) / (t2 + t3)
+    t4 = a2_plus_b2 * cos2 + sin2 * sin2
+    t5 = t3 * sin2
+    r_p = r_s  # the limit at normal incidence, where the expression below is 0/0 for eta = k = 0
+    if t4 + t5 > 0.0:
+        r_p = r_s * (t4 - t5) / (t4 + t5)
+    return 0.5 * (r_s + r_p)
+
+
+@wp.func
+def fresnel_conductor(cos_i: float, eta: wp.vec3, k: wp.vec3) -> wp.vec3:
+    """``fresnel_conductor1`` per RGB channel."""
+    return wp.vec3(
+        fresnel_conductor1(cos_i, eta[0], k[0]),
+        fresnel_conductor1(cos_i, eta[1], k[1]),
+        fresnel_conductor1(cos_i, eta[2], k[2]),
+    )

@@ -5,7 +5,8 @@ Per camera sample one path is traced:
 
 - at diffuse, Phong and glossy surfaces, every light is sampled once (next-event estimation):
   delta lights (point, directional, spot) with a shadow ray; area, sphere and environment lights
-  by ``wrt.kernels.emitters`` with a shadow ray, weighted against BSDF sampling by the power heuristic;
+  (a constant one uniformly, a map by its luminance) by ``wrt.kernels.emitters`` with a shadow
+  ray, weighted against BSDF sampling by the power heuristic;
   then the path continues in a direction drawn from the BSDF (cosine-weighted for diffuse and
   Phong, GGX visible normals for glossy);
 - mirrors reflect; dielectrics reflect with probability F (exact Fresnel) or refract, with
@@ -30,11 +31,11 @@ BSDF sample (j = 0, 1: a 2D pair), the Fresnel choice (2) and roulette (3) at ea
 
 import warp as wp
 
-from .emitters import emitter_pdf, sample_emitter
+from .emitters import emitter_pdf, environment_map_pdf, environment_map_radiance, sample_emitter, sample_emitter_or_map
 from .features import ALL, Features
 from .hit import Hit, make_surface_hit
 from .integrator import CameraRay, IntegratorSettings, make_render_kernel, make_trace_segment
-from .lights import ENVIRONMENT, SPOT, LightData, light_incident
+from .lights import ENVIRONMENT, ENVIRONMENT_MAP, SPOT, LightData, light_incident
 from .materials import (
     BSDF_SPECULAR,
     BSDF_TOTAL_INTERNAL,
@@ -75,9 +76,11 @@ def light_dim(depth: wp.int32, i: wp.int32) -> wp.int32:
     return 1048576 + 2048 * depth + 2 * i
 
 
-def make_next_event(record: bool, trace: Traversal):
-    """``next_event``, recording its shadow rays when ``record`` (compiled out otherwise)."""
+def make_next_event(record: bool, trace: Traversal, environment_map: bool):
+    """``next_event``, recording its shadow rays when ``record`` and sampling environment maps
+    when ``environment_map`` (each compiled out otherwise)."""
     shadow_ray = make_shadow_ray(record, trace)
+    sample_light = sample_emitter_or_map if environment_map else sample_emitter
 
     @wp.func
     def next_event(
@@ -116,7 +119,7 @@ def make_next_event(record: bool, trace: Traversal):
                     contribution = wp.cw_mul(bsdf_eval(materials, m, n, wo, wi), irradiance) * cos_theta
             else:
                 u = sample_2d(sampler, ray.pixel, ray.sample, light_dim(depth, i))
-                wi, dist, radiance, pdf = sample_emitter(lights, i, hit.p, u[0], u[1])
+                wi, dist, radiance, pdf = wp.static(sample_light)(lights, i, hit.p, u[0], u[1])
                 t_max = dist
                 if lights.type[i] != ENVIRONMENT:
                     t_max = dist * (1.0 - SHADOW_MARGIN)
@@ -148,18 +151,33 @@ def make_next_event(record: bool, trace: Traversal):
     return next_event
 
 
-@wp.func
-def environment_radiance(lights: LightData, bsdf_pdf_prev: float, specular: bool) -> wp.vec3:
-    """Radiance of the environment lights along an escaping ray, MIS-weighted unless the ray came
-    from the camera or a specular bounce."""
-    total = wp.vec3(0.0)
-    for i in range(lights.type.shape[0]):
-        if lights.type[i] == ENVIRONMENT:
-            mis = float(1.0)
-            if not specular:
-                mis = power_heuristic(bsdf_pdf_prev, 1.0 / (4.0 * wp.pi))
-            total += lights.power[i] * mis
-    return total
+def make_environment_radiance(environment_map: bool):
+    """``environment_radiance``, with environment maps when ``environment_map`` (compiled out
+    otherwise)."""
+
+    @wp.func
+    def environment_radiance(lights: LightData, d: wp.vec3, bsdf_pdf_prev: float, specular: bool) -> wp.vec3:
+        """Radiance of the environment lights along an escaping ray of direction ``d``, MIS-weighted
+        unless the ray came from the camera or a specular bounce."""
+        total = wp.vec3(0.0)
+        for i in range(lights.type.shape[0]):
+            radiance = wp.vec3(0.0)
+            light_pdf = float(0.0)
+            if lights.type[i] == ENVIRONMENT:
+                radiance = lights.power[i]
+                light_pdf = 1.0 / (4.0 * wp.pi)
+            if wp.static(environment_map):
+                if lights.type[i] == ENVIRONMENT_MAP:
+                    radiance = environment_map_radiance(lights, i, d)
+                    light_pdf = environment_map_pdf(lights, d)
+            if max_component(radiance) > 0.0:
+                mis = float(1.0)
+                if not specular:
+                    mis = power_heuristic(bsdf_pdf_prev, light_pdf)
+                total += radiance * mis
+        return total
+
+    return environment_radiance
 
 
 def make_path_radiance(record: bool, features: Features = ALL):
@@ -167,7 +185,8 @@ def make_path_radiance(record: bool, features: Features = ALL):
     with the code of the features the scene lacks compiled out (``wrt.kernels.features``)."""
     trace = traversal(features)
     trace_segment = make_trace_segment(record, trace)
-    next_event = make_next_event(record, trace)
+    next_event = make_next_event(record, trace, features.environment_map)
+    environment_radiance = make_environment_radiance(features.environment_map)
     surface_hit = make_surface_hit(features.smooth)
 
     @wp.func
@@ -217,7 +236,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
             # Escaped: the environment lights
             if prim == NO_HIT:
                 if wp.static(features.lights):
-                    radiance += wp.cw_mul(beta, environment_radiance(lights, prev_pdf, specular))
+                    radiance += wp.cw_mul(beta, environment_radiance(lights, d, prev_pdf, specular))
                 break
 
             # Emission at the front of what was hit, MIS-weighted against light sampling

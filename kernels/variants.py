@@ -33,8 +33,8 @@ def relevant(integrator: str, features: Features) -> Features:
     variant costs a compilation (seconds) the first time it is used, so only flags that remove
     measurable work are specialised on (see docs/performance.md): the geometry (primitive kinds,
     moving surfaces) and the pixel loop's camera (lens, orthographic) and shutter sampling for
-    every integrator; lights, the branch stack and smooth shading for whitted; lights, dielectrics
-    and smooth shading for path (its mirror test is a load and a compare: path ignores
+    every integrator; lights, the branch stack and smooth shading for whitted; lights, dielectrics,
+    smooth shading and environment maps for path (its mirror test is a load and a compare: path ignores
     ``specular``; raycast's one shading normal per camera ray is not worth one)."""
     every_integrator = {
         "lens": features.lens,
@@ -57,7 +57,13 @@ def relevant(integrator: str, features: Features) -> Features:
             smooth=features.smooth,
             **every_integrator,
         )
-    return Features(lights=features.lights, dielectric=features.dielectric, smooth=features.smooth, **every_integrator)
+    return Features(
+        lights=features.lights,
+        environment_map=features.environment_map,
+        dielectric=features.dielectric,
+        smooth=features.smooth,
+        **every_integrator,
+    )
 
 
 def render_kernel(integrator: str, features: Features):

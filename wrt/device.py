@@ -19,12 +19,14 @@ from wrt.kernels.lights import (
     AREA,
     DIRECTIONAL,
     ENVIRONMENT,
+    ENVIRONMENT_MAP,
     POINT,
     SPHERE_LIGHT,
     SPOT,
     LightData,
 )
 from wrt.kernels.materials import (
+    CONDUCTOR,
     DIELECTRIC,
     DIFFUSE,
     EMITTER,
@@ -37,6 +39,8 @@ from wrt.kernels.media import MEDIA, Media
 from wrt.kernels.sampling import INDEPENDENT, SOBOL, STRATIFIED, Sampler
 from wrt.kernels.traverse import GeometryData
 
+from .conductors import normal_reflectance
+from .envmap import environment_distribution
 from .errors import WrtError
 from .geometry import Primitives
 from .scene import (
@@ -64,6 +68,7 @@ MATERIAL_CODES = {
     "dielectric": DIELECTRIC,
     "glossy": GLOSSY,
     "emitter": EMITTER,
+    "conductor": CONDUCTOR,
 }
 
 
@@ -154,7 +159,10 @@ def upload_geometry(p: Primitives, device) -> GeometryData:
 
 
 def _base_color(mat) -> tuple:
-    """The colour the raycast integrator shows for a material."""
+    """The colour the raycast integrator shows for a material (a conductor: its reflectance at
+    normal incidence)."""
+    if mat.type == "conductor":
+        return tuple(np.multiply(normal_reflectance(mat.eta, mat.k), mat.reflectance))
     return {
         "mirror": mat.reflectance,
         "glossy": mat.reflectance,
@@ -196,6 +204,8 @@ def upload_materials(scene: Scene, device) -> MaterialData:
         m.sigma = _vec3([np.minimum(-np.log(mat.transmittance), 1e30) for mat in mats], device)
     m.priority = _int([mat.priority for mat in mats], device)
     m.roughness = _float([mat.roughness for mat in mats], device)
+    m.eta = _vec3([mat.eta for mat in mats], device)
+    m.k = _vec3([mat.k for mat in mats], device)
     m.emission = _vec3([mat.emission for mat in mats], device)
     m.two_sided = _int([mat.two_sided for mat in mats], device)
     return m
@@ -233,7 +243,7 @@ def upload_lights(scene: Scene, device) -> LightData:
         elif isinstance(light, SphereLight):
             row.update(type=SPHERE_LIGHT, position=light.center, radius=light.radius, power=light.radiance)
         elif isinstance(light, EnvironmentLight):
-            row.update(type=ENVIRONMENT, power=light.radiance)
+            row.update(type=ENVIRONMENT if light.image is None else ENVIRONMENT_MAP, power=light.radiance)
         rows.append(row)
     cutoff = np.radians([r["cutoff"] for r in rows])
     lights = LightData()
@@ -247,7 +257,25 @@ def upload_lights(scene: Scene, device) -> LightData:
     lights.cos_cutoff = _float(np.cos(cutoff), device)
     lights.cutoff = _float(cutoff, device)
     lights.beam = _float(np.radians([r["beam"] for r in rows]), device)
+    upload_environment_map(lights, scene, device)
     return lights
+
+
+def upload_environment_map(lights: LightData, scene: Scene, device) -> None:
+    """The ``env_*`` fields of ``lights``: the scene's environment map (at most one) with its
+    sampling distribution (``wrt.envmap``), or 1-element placeholders when it has none."""
+    maps = [light for light in scene.lights if isinstance(light, EnvironmentLight) and light.image is not None]
+    if maps:
+        image, to_world = maps[0].image, maps[0].to_world
+        distribution = environment_distribution(image)
+        cdf, pdf = distribution.cdf, distribution.pdf
+    else:
+        image, to_world = np.zeros((1, 1, 3)), np.eye(3)
+        cdf, pdf = np.zeros(1), np.zeros((1, 1))
+    lights.env_radiance = wp.array(np.asarray(image, dtype=np.float32), dtype=wp.vec3, device=device)
+    lights.env_to_world = wp.mat33(*np.asarray(to_world, dtype=np.float32).ravel())
+    lights.env_cdf = _float(cdf, device)
+    lights.env_pdf = wp.array(np.asarray(pdf, dtype=np.float32), dtype=wp.float32, device=device)
 
 
 def camera_media(scene: Scene) -> list[int]:

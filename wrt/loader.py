@@ -17,6 +17,8 @@ from collections.abc import Mapping
 import numpy as np
 import tomllib
 
+from .conductors import METALS
+from .envmap import EnvironmentMapError, read_environment_map
 from .errors import MeshFileError, SceneError, WrtError
 from .meshio import apply_transform, load_mesh, transform_matrix, transform_normals, vertex_normals
 from .scene import (
@@ -309,7 +311,26 @@ _MATERIAL_KEYS = {
     "mirror": ("reflectance", "two_sided"),
     "dielectric": ("ior", "transmittance", "priority"),
     "glossy": ("roughness", "reflectance", "two_sided"),
+    "conductor": ("reflectance", "two_sided"),  # and those of _conductor
 }
+
+
+def _conductor(t: _Table) -> dict:
+    """A conductor's ``roughness`` (0, the default: smooth; else GGX alpha) and its complex index
+    of refraction: ``metal``, a name of ``wrt.conductors.METALS``, or ``eta`` and ``k``."""
+    roughness = t.number("roughness", 0.0, lo=0.0, hi=1.0)
+    if 0.0 < roughness < 1e-3:
+        raise t.error("roughness", "must be 0 (a smooth conductor) or at least 0.001", roughness)
+    if "metal" in t.data:
+        given = [key for key in ("eta", "k") if key in t.data]
+        if given:
+            raise t.error(given[0], "is given with 'metal': give either a metal or eta and k", t.data[given[0]])
+        eta, k = METALS[t.string("metal", choices=METALS)]
+    elif "eta" in t.data or "k" in t.data:
+        eta, k = t.vec3("eta", lo=0.0, hi=1e3), t.vec3("k", lo=0.0, hi=1e3)
+    else:
+        raise t.error("metal", "is required (a named metal), or else eta and k")
+    return {"roughness": roughness, "eta": eta, "k": k}
 
 
 def _material(file: str, index: int, data) -> Material:
@@ -329,6 +350,8 @@ def _material(file: str, index: int, data) -> Material:
     }
     for key in _MATERIAL_KEYS[kind]:
         values[key] = readers[key]()
+    if kind == "conductor":
+        values.update(_conductor(t))
     if "two_sided" in t.data and "two_sided" not in values:
         raise t.error(
             "two_sided", f"does not apply to a {kind}: it reflects and refracts on both sides", t.data["two_sided"]
@@ -539,7 +562,34 @@ def _unit(t: _Table, key: str) -> tuple[float, float, float]:
     return tuple(float(c) for c in v / np.linalg.norm(v))
 
 
-def _light(file: str, index: int, data):
+def _environment(t: _Table, scene_dir: str) -> EnvironmentLight:
+    """An ``environment`` table: a constant ``radiance``, or a map: ``file`` (an equirectangular
+    OpenEXR or Radiance HDR image of linear RGB, relative to ``scene_dir``), ``scale`` and the
+    ``transform`` of its frame (rotations only: it is infinitely far)."""
+    if "file" not in t.data:
+        for key in ("scale", "transform"):
+            if key in t.data:
+                raise t.error(key, 'applies to an environment map only (one with a "file")', t.data[key])
+        return EnvironmentLight(radiance=t.vec3("radiance", lo=0.0))
+    if "radiance" in t.data:
+        raise t.error("radiance", 'is for a constant environment: a map\'s radiance is its pixels times "scale"')
+    name = t.string("file")
+    path = os.path.join(scene_dir, name)
+    try:
+        image = read_environment_map(path)
+    except EnvironmentMapError as e:
+        raise t.error("file", str(e), name) from None
+    scale = t.number("scale", 1.0, lo=0.0)
+    if float(image.max()) * scale > MAX_MAGNITUDE:
+        raise t.error("scale", f"times the brightest pixel ({image.max():.3g}) {BEYOND_FLOAT32}", scale)
+    matrix = _transform(t)
+    to_world = matrix[:3, :3]
+    if np.any(matrix[:3, 3]) or not np.allclose(to_world.T @ to_world, np.eye(3), rtol=0.0, atol=1e-6):
+        raise t.error("transform", "must be a rotation (an environment is infinitely far)", t.data["transform"])
+    return EnvironmentLight(radiance=(scale, scale, scale), file=path, image=image, to_world=to_world)
+
+
+def _light(file: str, index: int, data, scene_dir: str):
     t = _Table(file, f"light[{index}]", data)
     kind = t.string("type", choices=LIGHT_TYPES)
     if kind == "point":
@@ -575,7 +625,7 @@ def _light(file: str, index: int, data):
             radiance=t.vec3("radiance", lo=0.0),
         )
     else:
-        light = EnvironmentLight(radiance=t.vec3("radiance", lo=0.0))
+        light = _environment(t, scene_dir)
     t.finish()
     return light
 
@@ -622,7 +672,10 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
                 f"{BEYOND_FLOAT32}",
                 list(shape.velocity),
             )
-    lights = [_light(file, i, light) for i, light in enumerate(_array_of_tables(file, doc, "light"))]
+    lights = [_light(file, i, light, scene_dir) for i, light in enumerate(_array_of_tables(file, doc, "light"))]
+    maps = [i for i, light in enumerate(lights) if isinstance(light, EnvironmentLight) and light.image is not None]
+    if len(maps) > 1:
+        raise SceneError(file, f"light[{maps[1]}]", "file", f"a second environment map (light[{maps[0]}] has one)")
     if render.integrator == "whitted":
         for i, light in enumerate(lights):
             if isinstance(light, (AreaLight, SphereLight, EnvironmentLight)):

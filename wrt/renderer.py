@@ -47,7 +47,19 @@ from .errors import WrtError
 from .geometry import build
 from .host import default_threads
 from .loader import override_render
-from .scene import AreaLight, Cylinder, Disk, Instance, Mesh, Polygon, Scene, Sphere, SphereLight, Triangle
+from .scene import (
+    AreaLight,
+    Cylinder,
+    Disk,
+    EnvironmentLight,
+    Instance,
+    Mesh,
+    Polygon,
+    Scene,
+    Sphere,
+    SphereLight,
+    Triangle,
+)
 
 TILE_PIXELS = 4096  # pixels per CPU launch: small enough to balance two threads, large enough to amortise a launch
 PASS_SECONDS = 1.0  # wall seconds a pass of a progressive render aims at
@@ -67,7 +79,8 @@ def scene_features(scene: Scene) -> Features:
     shapes = {type(shape) for shape in (*scene.shapes, *members)} | {type(light) for light in scene.lights}
     return Features(
         lights=bool(scene.lights),
-        specular=bool(kinds & {"mirror", "dielectric"}),
+        environment_map=any(isinstance(light, EnvironmentLight) and light.image is not None for light in scene.lights),
+        specular=bool(kinds & {"mirror", "dielectric"}) or any(m.type == "conductor" and not m.roughness for m in used),
         dielectric="dielectric" in kinds,
         lens=scene.camera.aperture_radius > 0.0,
         orthographic=scene.camera.type == "orthographic",

@@ -8,7 +8,7 @@ validates; code downstream trusts them.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -89,7 +89,7 @@ class Camera:
         ), forward + sx * t * aspect * right + sy * t * up
 
 
-MATERIAL_TYPES = ("diffuse", "phong", "mirror", "dielectric", "glossy")
+MATERIAL_TYPES = ("diffuse", "phong", "mirror", "dielectric", "glossy", "conductor")
 
 
 @dataclass(frozen=True)
@@ -98,10 +98,12 @@ class Material:
 
     ``albedo``: diffuse reflectance (diffuse, phong); ``specular`` and ``exponent``: the
     energy-normalised Phong lobe; ``reflectance``: mirror colour, or the constant Fresnel factor
-    of a glossy (GGX) conductor of ``roughness`` alpha; ``ior``, ``transmittance``
+    of a glossy (GGX) conductor of ``roughness`` alpha, or the tint of a conductor's Fresnel term;
+    ``eta`` and ``k``: a conductor's complex index of refraction ``eta + i k`` (per channel;
+    ``roughness`` 0: smooth, else GGX alpha); ``ior``, ``transmittance``
     (fraction left after one scene unit inside, Beer-Lambert) and ``priority`` (which medium wins
     where dielectrics overlap): dielectric; ``emission``: radiance in W/(m^2 sr) leaving the front side;
-    ``two_sided``: both sides reflect (diffuse, phong, mirror, glossy; a dielectric always does), else
+    ``two_sided``: both sides reflect (diffuse, phong, mirror, glossy, conductor; a dielectric always does), else
     the back side (facing away from the surface's normal) reflects nothing, as Mitsuba 3's one-sided BSDFs.
     """
 
@@ -115,6 +117,8 @@ class Material:
     transmittance: tuple[float, float, float] = (1.0, 1.0, 1.0)
     priority: int = 0
     roughness: float = 0.2
+    eta: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    k: tuple[float, float, float] = (1.0, 1.0, 1.0)
     emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
     two_sided: bool = True
 
@@ -307,11 +311,18 @@ class SphereLight:
     type: str = "sphere"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class EnvironmentLight:
-    """Constant ``radiance`` (W/(m^2 sr)) arriving from every direction, seen by rays that leave."""
+    """Radiance arriving from every direction, seen by rays that leave: constant ``radiance``
+    (W/(m^2 sr)), or with an ``image``, the image's pixel values (W/(m^2 sr)) times ``radiance``
+    (the scene file's ``scale`` in each channel). ``image``: (H, W, 3) float32 linear RGB of an
+    equirectangular map read from ``file``, laid out as Mitsuba 3's ``envmap`` (``wrt.envmap``)
+    in the frame ``to_world`` (3x3 float64, a rotation or reflection) takes to world space."""
 
     radiance: tuple[float, float, float]
+    file: str | None = None
+    image: np.ndarray | None = None
+    to_world: np.ndarray = field(default_factory=lambda: np.eye(3))
     type: str = "environment"
 
 

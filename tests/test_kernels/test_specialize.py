@@ -5,7 +5,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import CAMERA, make_scene
+from conftest import CAMERA, EXAMPLES, make_scene
 from wrt.kernels.features import ALL, Features
 from wrt.kernels.variants import relevant, render_kernel
 
@@ -26,6 +26,7 @@ def test_features_follow_the_scene():
     plain = make_scene([FLOOR], materials=DIFFUSE)
     assert scene_features(plain) == Features(
         lights=False,
+        environment_map=False,
         specular=False,
         dielectric=False,
         lens=False,
@@ -62,7 +63,11 @@ def test_features_follow_the_scene():
         camera={**CAMERA, "aperture_radius": 0.1, "shutter": [0, 1]},
     )
     # a lens: perspective
-    assert scene_features(rich) == dataclasses.replace(ALL, orthographic=False, instances=False, smooth=False)
+    assert scene_features(rich) == dataclasses.replace(
+        ALL, environment_map=False, orthographic=False, instances=False, smooth=False
+    )
+    sky = {"type": "environment", "file": str(EXAMPLES / "envmaps" / "sky.exr")}
+    assert scene_features(make_scene([FLOOR], materials=DIFFUSE, lights=[sky])).environment_map
     flat = make_scene([FLOOR], materials=DIFFUSE, camera={**CAMERA, "type": "orthographic", "width": 2.0})
     assert scene_features(flat).orthographic and not scene_features(flat).lens
     still = make_scene(
@@ -129,6 +134,13 @@ SCENES = {
         "path",
     ),
     "path disk and cylinder": ([FLOOR, DISK, CYLINDER], DIFFUSE, [AREA], {}, "path"),
+    "path environment map": (
+        [FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "mirror"}],
+        DIFFUSE + [MIRROR],
+        [{"type": "environment", "file": str(EXAMPLES / "envmaps" / "sky.exr"), "transform": {"rotate": [0, 60, 0]}}],
+        {},
+        "path",
+    ),
     "path instances, one moving": (
         [
             FLOOR,

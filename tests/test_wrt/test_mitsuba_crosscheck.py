@@ -21,6 +21,8 @@ CASES = {  # scene: (width, height, spp), each renderer ~3-10 s on 2 cores
     "one_sided": (64, 48, 1024),  # one-sided BSDFs black from the back (all two-sided: red mean +23%, SSIM 0.81)
     "instances": (64, 48, 1024),  # a shapegroup placed by three instances, one non-uniformly scaled (issue 16)
     "smooth_meshes": (64, 48, 1024),  # interpolated vertex normals, computed and the file's (flat: SSIM 0.954)
+    "conductors": (64, 48, 1024),  # gold and copper, exact Fresnel (as normal-incidence constants: blue mean -2.1%)
+    "envmap": (64, 48, 1024),  # an environment map with a sun, rotated by to_world (issue 15)
 }
 
 

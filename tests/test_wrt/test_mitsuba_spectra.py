@@ -78,24 +78,26 @@ def scene(tmp_path, spectrum):
 
 TRAVERSED = (
     "paint.reflectance.value",
+    "metal.eta.value",
+    "metal.k.value",
     "lamp.emitter.radiance.value",
     "bulb.intensity.value",
     "spot.intensity.value",
     "sun.irradiance.value",
     "sky.radiance.value",
 )
-"""The parameters of `scene` as ``mi.traverse`` names them, the conductor's aside."""
+"""The parameters of `scene` as ``mi.traverse`` names them."""
 
 
 def converted_colours(path):
-    """What wrt made of `scene`'s colours: ``{mitsuba parameter: rgb}``; the conductor's are its
-    normal-incidence reflectance (the one approximation, allowed here)."""
-    doc, _ = load_mitsuba(path, approximate=True)
+    """What wrt made of `scene`'s colours: ``{mitsuba parameter: rgb}``."""
+    doc, _ = load_mitsuba(path)
     materials = {m["name"]: m for m in doc["material"]}
     lights = {light["type"]: light for light in doc["light"]}
     return {
         "paint.reflectance.value": materials["paint"]["albedo"],
-        "metal": materials["metal"]["reflectance"],
+        "metal.eta.value": materials["metal"]["eta"],
+        "metal.k.value": materials["metal"]["k"],
         "lamp.emitter.radiance.value": lights["sphere"]["radiance"],
         "bulb.intensity.value": lights["point"]["intensity"],
         "spot.intensity.value": lights["spot"]["intensity"],
@@ -105,16 +107,10 @@ def converted_colours(path):
 
 
 def mitsuba_colours(path):
-    """Mitsuba's RGB of the same parameters; the conductor's reflectance at normal incidence
-    from Mitsuba's eta and k."""
+    """Mitsuba's RGB of the same parameters."""
     mi = mitsuba_module()
     params = mi.traverse(mi.load_file(str(path)))
-    rgb = {
-        key: np.broadcast_to(np.asarray(params[key], dtype=np.float64), (3,))
-        for key in (*TRAVERSED, "metal.eta.value", "metal.k.value")
-    }
-    eta, k = rgb.pop("metal.eta.value"), rgb.pop("metal.k.value")
-    return {**rgb, "metal": ((eta - 1) ** 2 + k**2) / ((eta + 1) ** 2 + k**2)}
+    return {key: np.broadcast_to(np.asarray(params[key], dtype=np.float64), (3,)) for key in TRAVERSED}
 
 
 def assert_close(ours, theirs):

@@ -11,6 +11,7 @@ from conftest import EXAMPLES
 from wrt_harness.mitsuba_peer import mitsuba_available, render_mitsuba
 
 import wrt
+from wrt.conductors import METALS
 from wrt.errors import WrtError
 from wrt.mitsuba import (
     IOR_TABLE,
@@ -449,8 +450,54 @@ def test_conductors(tmp_path):
     doc, warnings = convert(
         tmp_path, '<shape type="sphere"><bsdf type="roughconductor"><string name="material" value="Au"/></bsdf></shape>'
     )
-    assert doc["material"][0]["reflectance"] == [0.9667, 0.802, 0.3241] and doc["material"][0]["roughness"] == 0.1
-    assert len(warnings) == 2 and "beckmann" in warnings[0] and "normal-incidence" in warnings[1]
+    assert doc["material"][0] == {
+        "name": "conductor@2",
+        "type": "conductor",
+        "metal": "Au",
+        "roughness": 0.1,
+        "reflectance": [1, 1, 1],
+        "two_sided": False,
+    }
+    assert len(warnings) == 1 and "beckmann" in warnings[0]
+
+
+def test_conductor_ior_converts_exactly(tmp_path):
+    """A named material or eta and k become a wrt conductor without a warning; Mitsuba's
+    refusals (both given, an unknown name) are errors."""
+    body = """
+    <bsdf type="conductor" id="gold"><string name="material" value="Au"/>
+        <rgb name="specular_reflectance" value="0.5"/></bsdf>
+    <bsdf type="roughconductor" id="custom"><string name="distribution" value="ggx"/><float name="alpha" value="0.3"/>
+        <rgb name="eta" value="0.2, 0.9, 1.1"/><rgb name="k" value="3.9, 2.4, 2.1"/></bsdf>
+    <shape type="sphere"><ref id="gold"/></shape>
+    <shape type="sphere"><ref id="custom"/></shape>"""
+    doc, warnings = convert(tmp_path, body, approximate=False)
+    assert (
+        doc["material"]
+        == [
+            {"name": "gold", "type": "conductor", "metal": "Au", "reflectance": [0.5] * 3, "two_sided": False},
+            {
+                "name": "custom",
+                "type": "conductor",
+                "eta": [0.2, 0.9, 1.1],
+                "k": [3.9, 2.4, 2.1],
+                "roughness": 0.3,
+                "reflectance": [1, 1, 1],
+                "two_sided": False,
+            },
+        ]
+        and warnings == []
+    )
+    gold, custom = wrt.parse_scene(doc, scene_dir=str(tmp_path)).materials[:2]
+    assert (gold.eta, gold.k, gold.roughness) == (*METALS["Au"], 0.0) and custom.roughness == 0.3
+    both = '<string name="material" value="Au"/><float name="eta" value="2"/>'
+    with pytest.raises(WrtError, match=r"scene.xml:2: .*either eta and k or a material"):
+        convert(tmp_path, f'<shape type="sphere"><bsdf type="conductor">{both}</bsdf></shape>')
+    with pytest.raises(WrtError, match=r"unknown conductor material 'Gold'"):
+        convert(
+            tmp_path,
+            '<shape type="sphere"><bsdf type="conductor"><string name="material" value="Gold"/></bsdf></shape>',
+        )
 
 
 # --- emitters ----------------------------------------------------------------------------------

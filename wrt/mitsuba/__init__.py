@@ -23,13 +23,12 @@ from converting it: ``sensors`` (sensor, film, filter, sampler, integrator), ``b
 ``shapes`` and ``emitters``, one module per plugin kind; ``scene`` puts them together.
 """
 
-from .bsdfs import CONDUCTOR_F0, IOR_TABLE
+from .bsdfs import IOR_TABLE
 from .scene import load_mitsuba
 from .sensors import FILTERS, MAX_DEPTH, SAMPLERS
 from .transforms import look_at_matrix, rotation_matrix, vertical_fov
 
 __all__ = [
-    "CONDUCTOR_F0",
     "FILTERS",
     "IOR_TABLE",
     "MAX_DEPTH",

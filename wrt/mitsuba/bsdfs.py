@@ -9,9 +9,7 @@ import math
 from collections import Counter
 from dataclasses import dataclass
 
-import numpy as np
-
-from .transforms import as_list
+from ..conductors import METALS
 from .xml import Document, Element, Plugin
 
 IOR_TABLE = {
@@ -41,49 +39,6 @@ IOR_TABLE = {
 }
 """Mitsuba 3's named indices of refraction (``int_ior``/``ext_ior`` strings, case-insensitive;
 Hecht, Optics, 4th ed., ~589 nm)."""
-
-CONDUCTOR_F0 = {
-    "Ag": (0.9748, 0.9575, 0.9063),
-    "Al": (0.9280, 0.9178, 0.9189),
-    "AlAs": (0.3200, 0.2783, 0.1430),
-    "Au": (0.9667, 0.8020, 0.3241),
-    "Be": (0.5975, 0.5206, 0.5062),
-    "Cr": (0.6876, 0.6491, 0.6870),
-    "CsI": (0.1325, 0.0675, 0.0619),
-    "Cu": (0.9520, 0.6198, 0.5106),
-    "Cu2O": (0.3147, 0.2455, 0.2379),
-    "CuO": (0.2907, 0.1982, 0.1834),
-    "Hg": (0.8140, 0.7702, 0.7631),
-    "HgTe": (0.4699, 0.3665, 0.3507),
-    "Ir": (0.7426, 0.6802, 0.6308),
-    "K": (0.9539, 0.9363, 0.9201),
-    "Li": (0.9248, 0.8844, 0.7933),
-    "MgO": (0.1244, 0.0603, 0.0526),
-    "Mo": (0.6182, 0.5618, 0.5409),
-    "Na_palik": (0.9785, 0.9597, 0.9315),
-    "Nb": (0.5640, 0.4895, 0.4731),
-    "Ni_palik": (0.7001, 0.5942, 0.4936),
-    "Rh": (0.8243, 0.7544, 0.7216),
-    "Se": (0.3793, 0.2507, 0.2413),
-    "SiC": (0.2711, 0.1873, 0.1808),
-    "SnTe": (0.4070, 0.1084, 0.0152),
-    "Ta": (0.4565, 0.3419, 0.3799),
-    "Te": (0.6350, 0.5781, 0.5617),
-    "ThF4": (0.0861, 0.0328, 0.0264),
-    "TiC": (0.5482, 0.4397, 0.4116),
-    "TiN": (0.6409, 0.4523, 0.1976),
-    "TiO2": (0.3039, 0.2246, 0.2380),
-    "VC": (0.5297, 0.4179, 0.3798),
-    "VN": (0.5251, 0.3926, 0.3106),
-    "V_palik": (0.5727, 0.5107, 0.5365),
-    "W": (0.5746, 0.4778, 0.4331),
-    "a-C": (0.2794, 0.1940, 0.1691),
-    "d-C": (0.2123, 0.1579, 0.1449),
-}
-"""Normal-incidence reflectance (linear RGB) of Mitsuba 3's named conductors, measured with
-Mitsuba 3.9 ``scalar_rgb`` (a ``conductor`` sampled at normal incidence). A ``<name>_palik``
-material not listed has the same value as ``<name>``. wrt's mirror and glossy materials have a
-constant Fresnel factor, so a named conductor converts to this value with a warning."""
 
 
 @dataclass
@@ -138,31 +93,30 @@ def alpha(p: Plugin) -> float:
     return p.number("alpha", 0.1)
 
 
-def conductor_reflectance(p: Plugin) -> list[float]:
-    """Reflectance of a (rough) conductor: exact for material "none" (Mitsuba's default, F = 1),
-    the normal-incidence Fresnel reflectance otherwise (with a warning)."""
-    scale = p.color("specular_reflectance", 1.0)
-    if p.has("eta") or p.has("k"):
-        eta = np.array(p.color("eta", 0.0, unbounded=True))
-        k = np.array(p.color("k", 1.0, unbounded=True))
-        f0 = ((eta - 1) ** 2 + k**2) / ((eta + 1) ** 2 + k**2)
-        source = "eta, k"
+def conductor(p: Plugin, roughness: float) -> dict:
+    """The ``[[material]]`` table of a conductor (``roughness`` 0) or a rough conductor (GGX
+    alpha), exact: a named ``material`` or ``eta`` and ``k`` become a wrt conductor; material
+    "none" without them (Mitsuba's default: eta 0, k 1, F = 1) a mirror or a glossy material.
+    ``specular_reflectance`` scales the Fresnel term (wrt's ``reflectance``)."""
+    reflectance = p.color("specular_reflectance", 1.0)
+    name = p.string("material", "none")
+    if name != "none":
+        if p.has("eta") or p.has("k"):
+            raise p.doc.error(p.element, "give either eta and k or a material, not both (Mitsuba rejects it)")
+        if name not in METALS:
+            raise p.doc.error(p.element, f"unknown conductor material {name!r} (known: none, {', '.join(METALS)})")
+        table = {"type": "conductor", "metal": name}
+    elif p.has("eta") or p.has("k"):
+        table = {
+            "type": "conductor",
+            "eta": p.color("eta", 0.0, unbounded=True),
+            "k": p.color("k", 1.0, unbounded=True),
+        }
     else:
-        name = p.string("material", "none")
-        if name == "none":
-            return scale
-        known = CONDUCTOR_F0.get(name, CONDUCTOR_F0.get(name.removesuffix("_palik")))
-        if known is None:
-            known = ", ".join(["none", *CONDUCTOR_F0])
-            raise p.doc.error(p.element, f"unknown conductor material {name!r} (known: {known}, and <name>_palik)")
-        f0, source = np.array(known), f"material '{name}'"
-    reflectance = as_list(np.clip(f0 * scale, 0.0, 1.0))
-    p.doc.warn(
-        p.element,
-        f"{source}: angle-dependent Fresnel approximated by its normal-incidence value "
-        f"{[round(c, 4) for c in reflectance]}",
-    )
-    return reflectance
+        table = {"type": "glossy" if roughness else "mirror"}
+    if roughness:
+        table["roughness"] = roughness
+    return {**table, "reflectance": reflectance}
 
 
 class Materials:
@@ -238,13 +192,8 @@ class Materials:
             return Material(front.params, True)
         if p.type == "diffuse":
             material = Material({"type": "diffuse", "albedo": p.color("reflectance", 0.5)}, False)
-        elif p.type == "conductor":
-            material = Material({"type": "mirror", "reflectance": conductor_reflectance(p)}, False)
-        elif p.type == "roughconductor":
-            roughness = alpha(p)
-            material = Material(
-                {"type": "glossy", "roughness": roughness, "reflectance": conductor_reflectance(p)}, False
-            )
+        elif p.type in ("conductor", "roughconductor"):
+            material = Material(conductor(p, alpha(p) if p.type == "roughconductor" else 0.0), False)
         elif p.type == "dielectric":
             interior, exterior = ior(p, "int_ior", "bk7"), ior(p, "ext_ior", "air")
             for name in ("specular_reflectance", "specular_transmittance"):

@@ -1,7 +1,9 @@
-"""Converting Mitsuba's emitters into wrt lights: ``point``, ``spot``, ``directional`` and
-``constant`` on their own, ``area`` attached to a shape."""
+"""Converting Mitsuba's emitters into wrt lights: ``point``, ``spot``, ``directional``,
+``constant`` and ``envmap`` on their own, ``area`` attached to a shape."""
 
 from __future__ import annotations
+
+import os
 
 import numpy as np
 
@@ -35,10 +37,38 @@ def emitter(doc: Document, element: Element) -> dict | None:
         }
     elif p.type == "constant":
         light = {"type": "environment", "radiance": p.color("radiance", 1.0, emission=True)}
+    elif p.type == "envmap":
+        light = environment_map(doc, p, matrix)
     else:
         doc.warn(element, "emitter type not supported: ignored")
         return None
     p.finish()
+    return light
+
+
+def environment_map(doc: Document, p: Plugin, matrix: np.ndarray) -> dict:
+    """The ``environment`` table of an ``envmap``: its file (found as Mitsuba finds it), ``scale``
+    and the rotation of its ``to_world`` (the translation does nothing to directions; a matrix
+    that is not a rotation distorts Mitsuba's map: approximated by its nearest rotation)."""
+    filename = p.string("filename", None)
+    if filename is None:
+        raise doc.error(p.element, "an envmap needs a filename")
+    found = doc.find_file(p.element, filename)
+    if found is None:
+        raise doc.error(p.element, f"no such environment map {filename!r} {doc.searched(p.element)}")
+    p.boolean("mis_compensation", False)  # changes the sampling density only: the noise, not the image
+    light = {"type": "environment", "file": os.path.relpath(found, os.path.dirname(doc.path) or ".")}
+    scale = p.number("scale", 1.0)
+    if scale != 1.0:
+        light["scale"] = scale
+    rotation = matrix[:3, :3]
+    if not np.allclose(rotation.T @ rotation, np.eye(3), rtol=0.0, atol=1e-6):
+        doc.warn(p.element, "to_world is not a rotation (it scales or shears the map): its nearest rotation is used")
+        u, _, vt = np.linalg.svd(rotation)
+        rotation = u @ vt
+    if not np.allclose(rotation, np.eye(3), rtol=0.0, atol=0.0):
+        rows = [[*as_list(row), 0.0] for row in rotation] + [[0.0, 0.0, 0.0, 1.0]]
+        light["transform"] = {"matrix": [x for row in rows for x in row]}
     return light
 
 
