@@ -7,13 +7,22 @@ emits from the side of ``cross(edge_u, edge_v)`` only; a sphere light outward; t
 uniformly from every direction, or as its map says (Mitsuba 3's ``envmap``: ``wrt.envmap``
 describes the mapping, the bilinear lookup and the distribution the map is sampled with).
 Densities are per unit solid angle at the receiving point.
+
+Emissive triangles (``wrt.emitting``: the triangles of emitting, unmoving ``[[shape]]`` meshes
+and triangles) are sampled together as one more emitter: a triangle chosen by emitted power, a
+uniform point on it; they emit their material's ``emission`` from their shading front, as a path
+hitting them sees it.
 """
+
+import functools
 
 import warp as wp
 
 from .intersect import intersect_sphere
 from .lights import AREA, ENVIRONMENT, ENVIRONMENT_MAP, SPHERE_LIGHT, LightData
+from .materials import MaterialData
 from .sample_warps import cone_one_minus_cos, frame, uniform_cone, uniform_sphere
+from .traverse import KIND_BITS, TRIANGLE, GeometryData, shading_normal
 
 
 @wp.func
@@ -164,3 +173,62 @@ def sample_emitter_or_map(lights: LightData, i: wp.int32, p: wp.vec3, u1: float,
         wi, radiance, pdf = sample_environment_map(lights, i, u1, u2)
         return wi, wp.inf, radiance, pdf
     return sample_emitter(lights, i, p, u1, u2)
+
+
+@wp.func
+def emitting_triangle_pdf(geometry: GeometryData, lights: LightData, e: wp.int32, wi: wp.vec3, dist: float) -> float:
+    """Solid-angle density with which ``sample_emitting_triangle`` picks direction ``wi`` from a
+    point at ``dist`` from where it meets emitting triangle ``e``: its selection probability over
+    its area, times ``dist^2 / |cos|`` at the triangle (either side; emission is judged apart)."""
+    t = lights.emit_tri[e]
+    a = geometry.tri_verts[3 * t]
+    m = wp.cross(geometry.tri_verts[3 * t + 1] - a, geometry.tri_verts[3 * t + 2] - a)
+    twice_area = wp.length(m)
+    cos_light = wp.abs(wp.dot(wi, m)) / twice_area
+    if cos_light <= 0.0:
+        return 0.0
+    selection = lights.emit_cdf[e + 1] - lights.emit_cdf[e]
+    return selection * dist * dist / (0.5 * twice_area * cos_light)
+
+
+@functools.cache
+def make_sample_emitting_triangle(smooth: bool):
+    """``sample_emitting_triangle``; with ``smooth``, the emitting side of a smooth-shaded triangle
+    is its interpolated shading normal's, as for a path that hits it."""
+
+    @wp.func
+    def sample_emitting_triangle(
+        geometry: GeometryData,
+        materials: MaterialData,
+        lights: LightData,
+        p: wp.vec3,
+        time: float,
+        uc: float,
+        u1: float,
+        u2: float,
+    ):
+        """Direction toward an emitting triangle from ``p``: ``(wi, distance, radiance, pdf)``,
+        the triangle chosen by ``uc`` with its power probability, a uniform point on it by
+        ``(u1, u2)``; radiance zero where its back faces ``p``."""
+        e = find_interval(lights.emit_cdf, 0, lights.emit_cdf.shape[0], uc)
+        t = lights.emit_tri[e]
+        a = geometry.tri_verts[3 * t]
+        b = geometry.tri_verts[3 * t + 1]
+        c = geometry.tri_verts[3 * t + 2]
+        su = wp.sqrt(u1)
+        q = a + su * (1.0 - u2) * (b - a) + su * u2 * (c - a)
+        to_q = q - p
+        dist2 = wp.dot(to_q, to_q)
+        if dist2 == 0.0:
+            return wp.vec3(0.0, 0.0, 1.0), 0.0, wp.vec3(0.0), 0.0
+        dist = wp.sqrt(dist2)
+        wi = to_q / dist
+        ns = wp.normalize(wp.cross(b - a, c - a))
+        if wp.static(smooth):
+            ns = shading_normal(geometry, (t << KIND_BITS) | TRIANGLE, -1, q, ns, time)
+        if wp.dot(wi, ns) >= 0.0:
+            return wi, dist, wp.vec3(0.0), 0.0
+        radiance = materials.emission[materials.shape_material[geometry.tri_shape[t]]]
+        return wi, dist, radiance, emitting_triangle_pdf(geometry, lights, e, wi, dist)
+
+    return sample_emitting_triangle

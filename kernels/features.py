@@ -2,7 +2,8 @@
 
 Each integrator's kernel is built per distinct ``Features`` value by a factory whose ``@wp.func``
 bodies test the flags with ``wp.static``, so a feature the scene does not use is not in the
-generated code at all: no shadow rays or light sampling without lights, no branch stack,
+generated code at all: no shadow rays or light sampling without lights, no sampling of emissive
+triangles without emitting meshes or triangles (``wrt.emitting``), no branch stack,
 Fresnel or media bookkeeping without mirrors and dielectrics, no lens or shutter-time sampling
 with a pinhole camera or nothing moving, no orthographic projection with a perspective camera,
 no shading-normal interpolation without smooth-shaded meshes;
@@ -23,6 +24,7 @@ from dataclasses import astuple, dataclass
 class Features:
     lights: bool = True  # any light: shadow rays (whitted), next-event estimation and environment (path)
     environment_map: bool = True  # an environment light with a map: its lookup and sampling (path)
+    emissive: bool = True  # emissive triangles sampled by next-event estimation (path; wrt.emitting)
     specular: bool = True  # mirrors or dielectrics: reflected and refracted rays
     dielectric: bool = True  # refraction, Fresnel, nested media, Beer-Lambert absorption
     lens: bool = True  # a thin lens (aperture_radius > 0): lens sampling

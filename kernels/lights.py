@@ -3,7 +3,9 @@
 Every light of the scene is one row of ``LightData``; area, sphere and environment lights are
 sampled by ``wrt.kernels.emitters``. An environment light with a map (``ENVIRONMENT_MAP``, at
 most one per scene) keeps its image, frame and sampling distribution in the ``env_*`` fields
-(``wrt.envmap`` describes their layout; 1-element placeholders in scenes without a map).
+(``wrt.envmap`` describes their layout; 1-element placeholders in scenes without a map); the
+emissive triangles sampled with them (``wrt.emitting``) in the ``emit_*`` and ``tri_emitter``
+fields (placeholders likewise).
 Units: point and spot ``intensity`` in W/sr, directional ``irradiance`` in W/m^2,
 area/sphere/environment ``radiance`` in W/(m^2 sr) (RGB). A point light at distance d delivers
 irradiance ``I / d^2`` on a surface facing it; the integrator multiplies by the BRDF and the
@@ -19,6 +21,7 @@ AREA = wp.constant(3)
 SPHERE_LIGHT = wp.constant(4)
 ENVIRONMENT = wp.constant(5)
 ENVIRONMENT_MAP = wp.constant(6)
+EMITTING_TRIANGLES = wp.constant(7)  # not a row's type: the emissive triangles, sampled after the lights
 
 
 @wp.struct
@@ -37,6 +40,9 @@ class LightData:
     env_to_world: wp.mat33  # the map's frame (a rotation) to world space
     env_cdf: wp.array(dtype=float)  # marginal CDF over cell rows, then each row's conditional CDF
     env_pdf: wp.array2d(dtype=float)  # (H - 1, W) solid-angle density of each cell, 1/sr
+    emit_tri: wp.array(dtype=wp.int32)  # the emitting triangles (wrt.emitting): triangle indices in GeometryData
+    emit_cdf: wp.array(dtype=float)  # (E + 1) their selection CDF by emitted power, 0 to 1
+    tri_emitter: wp.array(dtype=wp.int32)  # per triangle of GeometryData its index in emit_tri, -1 if none
 
 
 @wp.func

@@ -5,6 +5,9 @@ energy-normalised Phong lobe ``specular (n + 2) / (2 pi) cos^n alpha``, alpha be
 mirror direction of ``wi`` and ``wo``), ``MIRROR`` (perfect specular, ``reflectance``),
 ``DIELECTRIC`` (smooth glass: ``ior``, Beer-Lambert ``sigma``), ``GLOSSY`` (GGX conductor of
 ``roughness`` alpha with the constant Fresnel factor ``reflectance``, ``wrt.kernels.microfacet``),
+``THIN_DIELECTRIC`` (a window pane: a dielectric slab of negligible thickness of relative index
+``ior``, reflecting ``reflectance`` times the summed Fresnel term R' of ``fresnel_thin_dielectric``
+and letting ``transmittance`` times 1 - R' straight through; it bounds no medium),
 ``CONDUCTOR`` (the exact Fresnel reflectance of the complex index of refraction ``eta + i k`` times
 the tint ``reflectance``: a mirror where ``roughness`` is 0, else GGX of alpha ``roughness`` with
 the Fresnel term at the microfacet normal) and
@@ -17,8 +20,10 @@ The BSDF interface (pbrt-v4's ``BSDF::f / Sample_f / PDF / Flags``, Mitsuba 3's 
 pdf / flags``): integrators ask these functions and never test a material's type.
 
 - ``bsdf_flags(materials, m)``: the lobes, a combination of ``BSDF_REFLECTION``,
-  ``BSDF_TRANSMISSION``, ``BSDF_DIFFUSE``, ``BSDF_GLOSSY`` and ``BSDF_SPECULAR`` (a delta lobe); 0 for
-  a surface that scatters nothing (``EMITTER``). ``bsdf_flags_from(materials, m, front)``: the same
+  ``BSDF_TRANSMISSION``, ``BSDF_DIFFUSE``, ``BSDF_GLOSSY``, ``BSDF_SPECULAR`` (a delta lobe) and
+  ``BSDF_THIN`` (the transmission goes straight on and the surface bounds no medium: integrators
+  leave the media stack alone there); 0 for a surface that scatters nothing (``EMITTER``).
+  ``bsdf_flags_from(materials, m, front)``: the same
   for a ray arriving on the front side or the back, 0 on the back of a one-sided material: what
   integrators ask at a hit, and then call the functions below only where it is not 0.
   ``non_specular(flags)``: the BSDF has lobes that ``bsdf_eval`` sees, so light sampling
@@ -53,7 +58,7 @@ M. Pharr, W. Jakob, G. Humphreys, pbrt-v4, sec. 9.1 (the BSDF interface and its 
 import warp as wp
 
 from .microfacet import ggx_eval, ggx_g1, ggx_pdf, ggx_sample_visible_normal
-from .optics import fresnel_conductor, fresnel_dielectric, reflect, refract
+from .optics import fresnel_conductor, fresnel_dielectric, fresnel_thin_dielectric, reflect, refract
 from .sample_warps import cosine_hemisphere, frame
 
 DIFFUSE = wp.constant(0)
@@ -63,6 +68,7 @@ DIELECTRIC = wp.constant(3)
 GLOSSY = wp.constant(4)
 EMITTER = wp.constant(5)
 CONDUCTOR = wp.constant(6)
+THIN_DIELECTRIC = wp.constant(7)
 
 BSDF_REFLECTION = wp.constant(1)
 BSDF_TRANSMISSION = wp.constant(2)
@@ -70,6 +76,7 @@ BSDF_DIFFUSE = wp.constant(4)
 BSDF_GLOSSY = wp.constant(8)
 BSDF_SPECULAR = wp.constant(16)
 BSDF_TOTAL_INTERNAL = wp.constant(32)  # a sampled lobe only: specular reflection because refraction is impossible
+BSDF_THIN = wp.constant(64)  # transmission goes straight on through a surface that bounds no medium (thin dielectric)
 
 
 @wp.struct
@@ -81,8 +88,9 @@ class MaterialData:
     specular: wp.array(dtype=wp.vec3)
     exponent: wp.array(dtype=float)
     reflectance: wp.array(dtype=wp.vec3)  # mirror, glossy: the reflectance; conductor: the tint of its Fresnel term
-    ior: wp.array(dtype=float)
+    ior: wp.array(dtype=float)  # dielectric: its ior; thin dielectric: its ior over the scene's exterior_ior
     sigma: wp.array(dtype=wp.vec3)  # absorption coefficient per unit length, -ln(transmittance)
+    transmittance: wp.array(dtype=wp.vec3)  # thin dielectric: the tint of its straight transmission
     priority: wp.array(dtype=wp.int32)
     roughness: wp.array(dtype=float)  # GGX alpha (conductor: 0 for a smooth one)
     eta: wp.array(dtype=wp.vec3)  # conductor: real part of the index of refraction, per channel
@@ -123,6 +131,8 @@ def bsdf_flags(materials: MaterialData, m: wp.int32) -> wp.int32:
         return BSDF_REFLECTION | BSDF_SPECULAR
     if kind == DIELECTRIC:
         return BSDF_REFLECTION | BSDF_TRANSMISSION | BSDF_SPECULAR
+    if kind == THIN_DIELECTRIC:
+        return BSDF_REFLECTION | BSDF_TRANSMISSION | BSDF_SPECULAR | BSDF_THIN
     if kind == CONDUCTOR:
         if materials.roughness[m] > 0.0:
             return BSDF_REFLECTION | BSDF_GLOSSY
@@ -155,6 +165,20 @@ def specular_reflectance(materials: MaterialData, m: wp.int32, cos_theta: float)
     if materials.type[m] == CONDUCTOR:
         return wp.cw_mul(materials.reflectance[m], fresnel_conductor(cos_theta, materials.eta[m], materials.k[m]))
     return materials.reflectance[m]
+
+
+@wp.func
+def thin_reflectance(materials: MaterialData, m: wp.int32, cos_theta: float) -> float:
+    """R', the fraction a thin dielectric ``m`` reflects at incidence cosine ``cos_theta`` (either
+    side), before its tints; ``1 - R'`` goes straight through."""
+    return fresnel_thin_dielectric(wp.abs(cos_theta), 1.0 / materials.ior[m])
+
+
+@wp.func
+def thin_transmittance(materials: MaterialData, m: wp.int32, cos_theta: float) -> wp.vec3:
+    """What a thin dielectric ``m`` lets straight through at incidence cosine ``cos_theta``:
+    ``transmittance`` times ``1 - R'``."""
+    return materials.transmittance[m] * (1.0 - thin_reflectance(materials, m, cos_theta))
 
 
 @wp.func
@@ -195,8 +219,10 @@ def bsdf_pdf(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: 
 @wp.func
 def specular_lobes(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float) -> SpecularLobes:
     """The delta lobes of a mirror (reflectance), a smooth conductor (reflectance times its Fresnel
-    term) or a smooth dielectric (exact Fresnel F reflected, 1 - F refracted by Snell's law, all
-    reflected past the critical angle); none for other types.
+    term), a smooth dielectric (exact Fresnel F reflected, 1 - F refracted by Snell's law, all
+    reflected past the critical angle) or a thin dielectric (``reflectance`` R' reflected,
+    ``transmittance`` (1 - R') straight on, ``wt = -wo``; ``eta`` is 1 there, as it bounds no
+    medium); none for other types.
 
     Refracted radiance is scaled by ``eta^2`` (radiance transport, as pbrt-v4's and Mitsuba 3's
     dielectrics in radiance mode): the solid angle of a beam is compressed by ``(n1 / n2)^2`` as
@@ -223,7 +249,31 @@ def specular_lobes(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3
         lobes.wt = wt
         lobes.refracts = ok
         lobes.total_internal = not ok
+    elif kind == THIN_DIELECTRIC:
+        cos_theta = wp.dot(wo, n)
+        lobes.reflectance = materials.reflectance[m] * thin_reflectance(materials, m, cos_theta)
+        lobes.transmittance = thin_transmittance(materials, m, cos_theta)
+        lobes.refracts = True
     return lobes
+
+
+@wp.func
+def thin_dielectric_sample(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, uc: float) -> BSDFSample:
+    """A thin dielectric's reflection with probability R' (weight ``reflectance``), else its
+    straight transmission (weight ``transmittance``, ``wi = -wo``)."""
+    s = BSDFSample()
+    r = thin_reflectance(materials, m, wp.dot(wo, n))
+    if uc < r:
+        s.wi = reflect(-wo, n)
+        s.weight = materials.reflectance[m]
+        s.pdf = r
+        s.flags = BSDF_REFLECTION | BSDF_SPECULAR
+    else:
+        s.wi = -wo
+        s.weight = materials.transmittance[m]
+        s.pdf = 1.0 - r
+        s.flags = BSDF_TRANSMISSION | BSDF_SPECULAR | BSDF_THIN
+    return s
 
 
 @wp.func
@@ -233,12 +283,15 @@ def bsdf_sample(
     """A direction drawn from material ``m``'s BSDF: diffuse and Phong cosine-weighted, glossy and
     rough conductors by GGX visible normals, a mirror's or a smooth conductor's reflection, a
     dielectric's reflection with probability F (weight F / F = 1) and refraction otherwise (weight
-    ``eta^2``, ``specular_lobes``)."""
+    ``eta^2``, ``specular_lobes``), a thin dielectric's reflection with probability R' (weight
+    ``reflectance``) and straight transmission otherwise (weight ``transmittance``)."""
     s = BSDFSample()
     s.weight = wp.vec3(0.0)
     s.pdf = 0.0
     s.flags = 0
     kind = materials.type[m]
+    if kind == THIN_DIELECTRIC:
+        return thin_dielectric_sample(materials, m, n, wo, uc)
     if kind == MIRROR or kind == DIELECTRIC or (kind == CONDUCTOR and materials.roughness[m] == 0.0):
         lobes = specular_lobes(materials, m, n, wo, eta)
         s.wi = lobes.wr

@@ -58,6 +58,17 @@ def fresnel_dielectric(cos_i: float, eta: float) -> float:
 
 
 @wp.func
+def fresnel_thin_dielectric(cos_i: float, eta: float) -> float:
+    """Fraction of unpolarised light reflected by a dielectric slab of negligible thickness,
+    every internal reflection summed: with ``R = fresnel_dielectric(cos_i, eta)`` at either face
+    and ``T = 1 - R``, ``R' = R + T^2 R / (1 - R^2) = 2 R / (1 + R)`` (Mitsuba 3's
+    ``thindielectric``); the rest, ``1 - R'``, goes straight through. ``cos_i`` >= 0, ``eta`` the
+    ratio of the outside's ior to the slab's."""
+    r = fresnel_dielectric(cos_i, eta)
+    return 2.0 * r / (1.0 + r)
+
+
+@wp.func
 def fresnel_conductor1(cos_i: float, eta: float, k: float) -> float:
     """Fraction of unpolarised light reflected by a conductor of complex index of refraction
     ``eta + i k`` (relative to the outside), at incidence cosine ``cos_i`` (>= 0): the exact

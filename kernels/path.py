@@ -6,16 +6,20 @@ Per camera sample one path is traced:
 - at diffuse, Phong and glossy surfaces, every light is sampled once (next-event estimation):
   delta lights (point, directional, spot) with a shadow ray; area, sphere and environment lights
   (a constant one uniformly, a map by its luminance) by ``wrt.kernels.emitters`` with a shadow
-  ray, weighted against BSDF sampling by the power heuristic;
+  ray, weighted against BSDF sampling by the power heuristic; and one emissive triangle of the
+  scene's own meshes and triangles (``wrt.emitting``: chosen by power, a uniform point on it),
+  weighted likewise;
   then the path continues in a direction drawn from the BSDF (cosine-weighted for diffuse and
   Phong, GGX visible normals for glossy);
 - mirrors reflect; dielectrics reflect with probability F (exact Fresnel) or refract, with
-  Beer-Lambert absorption and the nested-media rules of ``wrt.kernels.media``;
+  Beer-Lambert absorption and the nested-media rules of ``wrt.kernels.media``; thin dielectrics
+  reflect with probability R' or let the path straight on, in the medium it was in;
 - the back side of a one-sided material (``two_sided = false``) reflects nothing: the path ends
   there, without next-event estimation;
 - emission is added where the path hits an emitter's front: fully after the camera or a specular
-  bounce, MIS-weighted after a BSDF sample when the emitter is a light that NEE also samples
-  (emissive materials of shapes are found by BSDF sampling only); paths leaving the scene see the
+  bounce, MIS-weighted after a BSDF sample when the emitter is a light or an emissive triangle
+  that NEE also samples (other emissive shapes, and shapes seen through instances, are found by
+  BSDF sampling only); paths leaving the scene see the
   environment lights, MIS-weighted likewise;
 - after ``RR_DEPTH`` segments, Russian roulette continues a path with probability
   min(0.95, largest channel of its throughput) and divides by it (unbiased; Mitsuba's rr_depth 5);
@@ -26,18 +30,29 @@ Per camera sample one path is traced:
 k + 1), as Mitsuba 3's. Random numbers come from the render's sampler (``wrt.kernels.sampling``):
 dimensions 0-4 are the camera's (pixel position, lens, time), ``bounce_dim(depth, j)`` are the
 BSDF sample (j = 0, 1: a 2D pair), the Fresnel choice (2) and roulette (3) at each bounce, and
-``light_dim(depth, i)`` the 2D sample of light i. A path's shapes stay at its camera ray's time.
+``light_dim(depth, i)`` the 2D sample of light i; with n lights, ``light_dim(depth, n)`` is the
+point on an emissive triangle and ``light_dim(depth, n + 1)`` (1D) the choice of the triangle.
+A path's shapes stay at its camera ray's time.
 """
 
 import warp as wp
 
-from .emitters import emitter_pdf, environment_map_pdf, environment_map_radiance, sample_emitter, sample_emitter_or_map
+from .emitters import (
+    emitter_pdf,
+    emitting_triangle_pdf,
+    environment_map_pdf,
+    environment_map_radiance,
+    make_sample_emitting_triangle,
+    sample_emitter,
+    sample_emitter_or_map,
+)
 from .features import ALL, Features
 from .hit import Hit, make_surface_hit
 from .integrator import CameraRay, IntegratorSettings, make_render_kernel, make_trace_segment
-from .lights import ENVIRONMENT, ENVIRONMENT_MAP, SPOT, LightData, light_incident
+from .lights import EMITTING_TRIANGLES, ENVIRONMENT, ENVIRONMENT_MAP, SPOT, LightData, light_incident
 from .materials import (
     BSDF_SPECULAR,
+    BSDF_THIN,
     BSDF_TOTAL_INTERNAL,
     BSDF_TRANSMISSION,
     MaterialData,
@@ -60,7 +75,7 @@ from .sample_warps import power_heuristic
 from .sampling import Sampler, sample_1d, sample_2d
 from .shadow import make_shadow_ray
 from .spawn import ray_error, spawn_origin
-from .traverse import NO_HIT, GeometryData, Traversal, traversal
+from .traverse import KIND_BITS, KIND_MASK, NO_HIT, TRIANGLE, GeometryData, Traversal, traversal
 
 RR_DEPTH = wp.constant(5)
 SHADOW_MARGIN = wp.constant(1.0e-4)  # shadow rays toward a light's surface stop this fraction short of it
@@ -76,11 +91,12 @@ def light_dim(depth: wp.int32, i: wp.int32) -> wp.int32:
     return 1048576 + 2048 * depth + 2 * i
 
 
-def make_next_event(record: bool, trace: Traversal, environment_map: bool):
-    """``next_event``, recording its shadow rays when ``record`` and sampling environment maps
-    when ``environment_map`` (each compiled out otherwise)."""
+def make_next_event(record: bool, trace: Traversal, features: Features):
+    """``next_event``, recording its shadow rays when ``record``, sampling environment maps and
+    emissive triangles when the scene has them (each compiled out otherwise)."""
     shadow_ray = make_shadow_ray(record, trace)
-    sample_light = sample_emitter_or_map if environment_map else sample_emitter
+    sample_light = sample_emitter_or_map if features.environment_map else sample_emitter
+    sample_triangle = make_sample_emitting_triangle(features.smooth)
 
     @wp.func
     def next_event(
@@ -96,7 +112,8 @@ def make_next_event(record: bool, trace: Traversal, environment_map: bool):
         parent: wp.int32,
         beta: wp.vec3,
     ) -> wp.vec3:
-        """Light reflected toward ``hit.wo`` from one sample of every light, MIS-weighted for lights
+        """Light reflected toward ``hit.wo`` from one sample of every light and one of the emissive
+        triangles (the last emitter, ``i == lights.type.shape[0]``), MIS-weighted for emitters
         with area (W/(m^2 sr), before the path's throughput ``beta``); ``sigma`` is the absorption
         of the medium ``hit`` lies in, applied along the shadow rays as along BSDF-sampled paths.
 
@@ -107,11 +124,19 @@ def make_next_event(record: bool, trace: Traversal, environment_map: bool):
         m = hit.material
         n = hit.n_facing
         wo = hit.wo
-        for i in range(lights.type.shape[0]):
+        n_lights = lights.type.shape[0]
+        n_emitters = n_lights
+        if wp.static(features.emissive):
+            if lights.emit_cdf.shape[0] > 1:  # not the placeholder of a scene without them
+                n_emitters += 1
+        for i in range(n_emitters):
             wi = wp.vec3(0.0)
             t_max = float(0.0)
             contribution = wp.vec3(0.0)
-            if lights.type[i] <= SPOT:
+            kind = EMITTING_TRIANGLES
+            if i < n_lights:
+                kind = lights.type[i]
+            if kind <= SPOT:
                 wi, dist, irradiance = light_incident(lights, i, hit.p)
                 t_max = dist
                 cos_theta = wp.dot(n, wi)
@@ -119,9 +144,19 @@ def make_next_event(record: bool, trace: Traversal, environment_map: bool):
                     contribution = wp.cw_mul(bsdf_eval(materials, m, n, wo, wi), irradiance) * cos_theta
             else:
                 u = sample_2d(sampler, ray.pixel, ray.sample, light_dim(depth, i))
-                wi, dist, radiance, pdf = wp.static(sample_light)(lights, i, hit.p, u[0], u[1])
+                dist = float(0.0)
+                radiance = wp.vec3(0.0)
+                pdf = float(0.0)
+                if kind == EMITTING_TRIANGLES:
+                    if wp.static(features.emissive):
+                        uc = sample_1d(sampler, ray.pixel, ray.sample, light_dim(depth, i + 1))
+                        wi, dist, radiance, pdf = wp.static(sample_triangle)(
+                            geometry, materials, lights, hit.p, ray.time, uc, u[0], u[1]
+                        )
+                else:
+                    wi, dist, radiance, pdf = wp.static(sample_light)(lights, i, hit.p, u[0], u[1])
                 t_max = dist
-                if lights.type[i] != ENVIRONMENT:
+                if kind != ENVIRONMENT:
                     t_max = dist * (1.0 - SHADOW_MARGIN)
                 cos_theta = wp.dot(n, wi)
                 if pdf > 0.0 and cos_theta > 0.0 and max_component(radiance) > 0.0:
@@ -185,7 +220,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
     with the code of the features the scene lacks compiled out (``wrt.kernels.features``)."""
     trace = traversal(features)
     trace_segment = make_trace_segment(record, trace)
-    next_event = make_next_event(record, trace, features.environment_map)
+    next_event = make_next_event(record, trace, features)
     environment_radiance = make_environment_radiance(features.environment_map)
     surface_hit = make_surface_hit(features.smooth)
 
@@ -247,6 +282,18 @@ def make_path_radiance(record: bool, features: Features = ALL):
                 if not specular and hit.shape >= geometry.num_shapes:
                     light = hit.shape - geometry.num_shapes
                     mis = power_heuristic(prev_pdf, emitter_pdf(lights, light, prev_p, d, wp.length(hit.p - prev_p)))
+                if wp.static(features.emissive):
+                    tri = prim >> KIND_BITS
+                    if (
+                        not specular
+                        and inst < 0
+                        and (prim & KIND_MASK) == TRIANGLE
+                        and tri < lights.tri_emitter.shape[0]
+                    ):
+                        e = lights.tri_emitter[tri]
+                        if e >= 0:
+                            light_pdf = emitting_triangle_pdf(geometry, lights, e, d, wp.length(hit.p - prev_p))
+                            mis = power_heuristic(prev_pdf, light_pdf)
                 radiance += wp.cw_mul(beta, emission) * mis
             flags = bsdf_flags_from(materials, hit.material, hit.front)
             if flags == 0:
@@ -258,7 +305,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
             media_t = media
             n_media_t = n_media
             if wp.static(features.dielectric):
-                if (flags & BSDF_TRANSMISSION) != 0:
+                if (flags & (BSDF_TRANSMISSION | BSDF_THIN)) == BSDF_TRANSMISSION:  # a thin dielectric bounds none
                     real = bool(True)
                     real, eta, media_t, n_media_t = dielectric_interface(
                         materials, settings.exterior_ior, media, n_media, hit.shape, hit.entering
@@ -280,7 +327,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
                 break
 
             # Next-event estimation at non-specular surfaces
-            if wp.static(features.lights):
+            if wp.static(features.lights or features.emissive):
                 if non_specular(flags):
                     sigma = wp.vec3(0.0)
                     if wp.static(features.dielectric):
@@ -293,7 +340,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
             # Sample the BSDF for the next direction
             uc = float(0.0)
             u = wp.vec2(0.0)
-            if wp.static(features.dielectric):
+            if wp.static(features.specular):
                 if (flags & BSDF_TRANSMISSION) != 0:
                     uc = sample_1d(sampler, ray.pixel, ray.sample, bounce_dim(depth, 2))
             if non_specular(flags):

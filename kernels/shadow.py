@@ -10,7 +10,8 @@
 - filtered (the lecture's, whitted's ``dielectric_shadows = "filtered"``): dielectrics let the
   shadow ray through in a straight line, attenuated by Beer-Lambert over the length inside them:
   up to the first surface in the medium it starts in, between an entering and a leaving surface
-  in that dielectric, after an entering one in it (at most ``SHADOW_CROSSINGS`` surfaces);
+  in that dielectric, after an entering one in it (at most ``SHADOW_CROSSINGS`` surfaces), and
+  thin dielectrics let it through attenuated by their straight transmittance, in the same medium;
   anything else blocks.
 
 In a recording variant each shadow ray is appended to the ``RayRecord``: ``SHADOW_LIT`` up to its
@@ -21,7 +22,7 @@ that decides visibility does not say where the blocker is).
 
 import warp as wp
 
-from .materials import BSDF_TRANSMISSION, MaterialData, bsdf_flags
+from .materials import BSDF_THIN, BSDF_TRANSMISSION, MaterialData, bsdf_flags, thin_transmittance
 from .media import beer_lambert, max_component
 from .record import SHADOW_BLOCKED, SHADOW_LIT, RayRecord, record_ray
 from .spawn import spawn_origin
@@ -62,7 +63,10 @@ def make_shadow_ray(record: bool, trace: Traversal):
                 return wp.vec3(0.0), t_total + t, prim, inst
             p, n, err = hit_point(geometry, prim, inst, o, w, t, time)
             m = materials.shape_material[prim_shape(geometry, prim)]
-            if wp.dot(w, n) > 0.0:  # leaving: the segment just travelled was inside this dielectric
+            if (bsdf_flags(materials, m) & BSDF_THIN) != 0:  # a pane: the medium goes on beyond it
+                passed = thin_transmittance(materials, m, wp.dot(w, n))
+                out = wp.cw_mul(out, wp.cw_mul(beer_lambert(sigma_now, t), passed))
+            elif wp.dot(w, n) > 0.0:  # leaving: the segment just travelled was inside this dielectric
                 out = wp.cw_mul(out, beer_lambert(materials.sigma[m], t))
                 sigma_now = wp.vec3(0.0)  # beyond it: taken as clear (shadow rays keep no media stack)
             else:  # entering: the segment just travelled was in the current medium

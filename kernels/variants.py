@@ -34,8 +34,9 @@ def relevant(integrator: str, features: Features) -> Features:
     measurable work are specialised on (see docs/performance.md): the geometry (primitive kinds,
     moving surfaces) and the pixel loop's camera (lens, orthographic) and shutter sampling for
     every integrator; lights, the branch stack and smooth shading for whitted; lights, dielectrics,
-    smooth shading and environment maps for path (its mirror test is a load and a compare: path ignores
-    ``specular``; raycast's one shading normal per camera ray is not worth one)."""
+    smooth shading, environment maps and emissive triangles for path (its mirror test is a load
+    and a compare: path ignores ``specular``; raycast's one shading normal per camera ray is not
+    worth one)."""
     every_integrator = {
         "lens": features.lens,
         "orthographic": features.orthographic,
@@ -60,6 +61,7 @@ def relevant(integrator: str, features: Features) -> Features:
     return Features(
         lights=features.lights,
         environment_map=features.environment_map,
+        emissive=features.emissive,
         dielectric=features.dielectric,
         smooth=features.smooth,
         **every_integrator,

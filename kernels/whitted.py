@@ -10,6 +10,8 @@ Per camera ray, a ray tree is traced depth first with an explicit stack of pendi
 - dielectrics: a reflected branch weighted by the exact Fresnel reflectance F and a refracted
   branch weighted by 1 - F (Snell's law), or only the reflected one under total internal
   reflection; absorption inside follows Beer-Lambert over the distance travelled;
+- thin dielectrics (panes): a reflected branch weighted by R' and one straight on, in the same
+  medium, weighted by 1 - R' (``wrt.kernels.optics.fresnel_thin_dielectric``), times their tints;
 - the back side of a one-sided material (``two_sided = false``) adds nothing, not even
   ``ambient``, and the path ends there;
 - emission on any material is added where a ray hits its front side; rays that leave the scene
@@ -56,6 +58,7 @@ from .integrator import CameraRay, IntegratorSettings, make_render_kernel, make_
 from .lights import LightData, light_incident
 from .materials import (
     BSDF_SPECULAR,
+    BSDF_THIN,
     BSDF_TRANSMISSION,
     MaterialData,
     bsdf_eval,
@@ -267,7 +270,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                         media_t = media
                         n_media_t = n_media
                         if wp.static(features.dielectric):
-                            if (flags & BSDF_TRANSMISSION) != 0:
+                            if (flags & (BSDF_TRANSMISSION | BSDF_THIN)) == BSDF_TRANSMISSION:  # not a thin one
                                 real, eta, media_t, n_media_t = dielectric_interface(
                                     materials, settings.exterior_ior, media, n_media, hit.shape, hit.entering
                                 )

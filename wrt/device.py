@@ -33,6 +33,7 @@ from wrt.kernels.materials import (
     GLOSSY,
     MIRROR,
     PHONG,
+    THIN_DIELECTRIC,
     MaterialData,
 )
 from wrt.kernels.media import MEDIA, Media
@@ -40,6 +41,7 @@ from wrt.kernels.sampling import INDEPENDENT, SOBOL, STRATIFIED, Sampler
 from wrt.kernels.traverse import GeometryData
 
 from .conductors import normal_reflectance
+from .emitting import emitting_triangles
 from .envmap import environment_distribution
 from .errors import WrtError
 from .geometry import Primitives
@@ -69,6 +71,7 @@ MATERIAL_CODES = {
     "glossy": GLOSSY,
     "emitter": EMITTER,
     "conductor": CONDUCTOR,
+    "thin_dielectric": THIN_DIELECTRIC,
 }
 
 
@@ -167,6 +170,7 @@ def _base_color(mat) -> tuple:
         "mirror": mat.reflectance,
         "glossy": mat.reflectance,
         "dielectric": mat.transmittance,
+        "thin_dielectric": mat.transmittance,
         "emitter": mat.emission,
     }.get(mat.type, mat.albedo)
 
@@ -199,9 +203,11 @@ def upload_materials(scene: Scene, device) -> MaterialData:
     m.specular = _vec3([mat.specular for mat in mats], device)
     m.exponent = _float([mat.exponent for mat in mats], device)
     m.reflectance = _vec3([mat.reflectance for mat in mats], device)
-    m.ior = _float([mat.ior for mat in mats], device)
+    exterior = scene.render.exterior_ior  # a thin dielectric sits in it: its ior is relative to it
+    m.ior = _float([mat.ior / exterior if mat.type == "thin_dielectric" else mat.ior for mat in mats], device)
     with np.errstate(divide="ignore"):
         m.sigma = _vec3([np.minimum(-np.log(mat.transmittance), 1e30) for mat in mats], device)
+    m.transmittance = _vec3([mat.transmittance for mat in mats], device)
     m.priority = _int([mat.priority for mat in mats], device)
     m.roughness = _float([mat.roughness for mat in mats], device)
     m.eta = _vec3([mat.eta for mat in mats], device)
@@ -211,9 +217,10 @@ def upload_materials(scene: Scene, device) -> MaterialData:
     return m
 
 
-def upload_lights(scene: Scene, device) -> LightData:
+def upload_lights(scene: Scene, device, prims: Primitives | None = None) -> LightData:
     """Every light of the scene, one row each in file order (see ``wrt.kernels.lights.LightData``):
-    the surface of light k is surface ``num_shapes + k`` of the geometry."""
+    the surface of light k is surface ``num_shapes + k`` of the geometry; and the emitting
+    triangles of ``prims`` (the scene flattened; none without it)."""
     rows = []
     for light in scene.lights:
         row = {
@@ -258,7 +265,21 @@ def upload_lights(scene: Scene, device) -> LightData:
     lights.cutoff = _float(cutoff, device)
     lights.beam = _float(np.radians([r["beam"] for r in rows]), device)
     upload_environment_map(lights, scene, device)
+    upload_emitting_triangles(lights, scene, prims, device)
     return lights
+
+
+def upload_emitting_triangles(lights: LightData, scene: Scene, prims: Primitives | None, device) -> None:
+    """The ``emit_*`` and ``tri_emitter`` fields of ``lights`` (``wrt.emitting``), 1-element
+    placeholders when ``prims`` is None."""
+    if prims is None:
+        tri, cdf, of_triangle = np.zeros(1), np.zeros(1), np.full(1, -1)
+    else:
+        emitting = emitting_triangles(scene, prims)
+        tri, cdf, of_triangle = emitting.tri, emitting.cdf, emitting.of_triangle
+    lights.emit_tri = _int(tri if len(tri) else np.zeros(1), device)
+    lights.emit_cdf = _float(cdf, device)
+    lights.tri_emitter = _int(of_triangle if len(of_triangle) else np.full(1, -1), device)
 
 
 def upload_environment_map(lights: LightData, scene: Scene, device) -> None:

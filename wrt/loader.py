@@ -312,6 +312,7 @@ _MATERIAL_KEYS = {
     "dielectric": ("ior", "transmittance", "priority"),
     "glossy": ("roughness", "reflectance", "two_sided"),
     "conductor": ("reflectance", "two_sided"),  # and those of _conductor
+    "thin_dielectric": ("ior", "reflectance", "transmittance"),
 }
 
 

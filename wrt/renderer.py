@@ -43,6 +43,7 @@ from .device import (
     upload_lights,
     upload_materials,
 )
+from .emitting import emitting_shapes
 from .errors import WrtError
 from .geometry import build
 from .host import default_threads
@@ -80,7 +81,9 @@ def scene_features(scene: Scene) -> Features:
     return Features(
         lights=bool(scene.lights),
         environment_map=any(isinstance(light, EnvironmentLight) and light.image is not None for light in scene.lights),
-        specular=bool(kinds & {"mirror", "dielectric"}) or any(m.type == "conductor" and not m.roughness for m in used),
+        emissive=bool(emitting_shapes(scene)),
+        specular=bool(kinds & {"mirror", "dielectric", "thin_dielectric"})
+        or any(m.type == "conductor" and not m.roughness for m in used),
         dielectric="dielectric" in kinds,
         lens=scene.camera.aperture_radius > 0.0,
         orthographic=scene.camera.type == "orthographic",
@@ -198,7 +201,7 @@ def prepare(scene: Scene, dev: wp.context.Device) -> DeviceScene:
             height=h,
             geometry=upload_geometry(prims, dev),
             materials=upload_materials(scene, dev),
-            lights=upload_lights(scene, dev),
+            lights=upload_lights(scene, dev, prims),
             settings=integrator_settings(scene),
             camera=camera_data(scene.camera, scene.render, w, h),
             film=film,

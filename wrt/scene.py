@@ -89,7 +89,7 @@ class Camera:
         ), forward + sx * t * aspect * right + sy * t * up
 
 
-MATERIAL_TYPES = ("diffuse", "phong", "mirror", "dielectric", "glossy", "conductor")
+MATERIAL_TYPES = ("diffuse", "phong", "mirror", "dielectric", "glossy", "conductor", "thin_dielectric")
 
 
 @dataclass(frozen=True)
@@ -102,7 +102,10 @@ class Material:
     ``eta`` and ``k``: a conductor's complex index of refraction ``eta + i k`` (per channel;
     ``roughness`` 0: smooth, else GGX alpha); ``ior``, ``transmittance``
     (fraction left after one scene unit inside, Beer-Lambert) and ``priority`` (which medium wins
-    where dielectrics overlap): dielectric; ``emission``: radiance in W/(m^2 sr) leaving the front side;
+    where dielectrics overlap): dielectric; a thin dielectric (a window pane: no medium inside, in the
+    scene's ``exterior_ior``) reflects ``reflectance`` times its summed Fresnel term R' at ``ior`` and
+    lets ``transmittance`` (a tint, not per unit length) times 1 - R' straight through;
+    ``emission``: radiance in W/(m^2 sr) leaving the front side;
     ``two_sided``: both sides reflect (diffuse, phong, mirror, glossy, conductor; a dielectric always does), else
     the back side (facing away from the surface's normal) reflects nothing, as Mitsuba 3's one-sided BSDFs.
     """

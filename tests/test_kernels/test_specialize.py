@@ -27,6 +27,7 @@ def test_features_follow_the_scene():
     assert scene_features(plain) == Features(
         lights=False,
         environment_map=False,
+        emissive=False,
         specular=False,
         dielectric=False,
         lens=False,
@@ -64,7 +65,7 @@ def test_features_follow_the_scene():
     )
     # a lens: perspective
     assert scene_features(rich) == dataclasses.replace(
-        ALL, environment_map=False, orthographic=False, instances=False, smooth=False
+        ALL, environment_map=False, emissive=False, orthographic=False, instances=False, smooth=False
     )
     sky = {"type": "environment", "file": str(EXAMPLES / "envmaps" / "sky.exr")}
     assert scene_features(make_scene([FLOOR], materials=DIFFUSE, lights=[sky])).environment_map
@@ -134,6 +135,13 @@ SCENES = {
         "path",
     ),
     "path disk and cylinder": ([FLOOR, DISK, CYLINDER], DIFFUSE, [AREA], {}, "path"),
+    "path emissive triangles": (
+        [FLOOR, {"type": "triangle", "vertices": [[-1, 2, -1], [1, 2, -1], [1, 2, 1]], "material": "lamp"}],
+        DIFFUSE + [{"name": "lamp", "albedo": [0, 0, 0], "emission": [3, 3, 3]}],
+        [AREA],
+        {},
+        "path",
+    ),
     "path environment map": (
         [FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "mirror"}],
         DIFFUSE + [MIRROR],

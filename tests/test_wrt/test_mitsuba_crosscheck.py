@@ -23,6 +23,8 @@ CASES = {  # scene: (width, height, spp), each renderer ~3-10 s on 2 cores
     "smooth_meshes": (64, 48, 1024),  # interpolated vertex normals, computed and the file's (flat: SSIM 0.954)
     "conductors": (64, 48, 1024),  # gold and copper, exact Fresnel (as normal-incidence constants: blue mean -2.1%)
     "envmap": (64, 48, 1024),  # an environment map with a sun, rotated by to_world (issue 15)
+    "thin_dielectric": (64, 48, 1024),  # a window pane, R' = 2R / (1 + R) (one surface's R: means -3.2 to -4.1%)
+    "emissive_mesh": (64, 48, 1024),  # area emitters on OBJ meshes, sampled by NEE (BSDF sampling only: SSIM 0.88)
 }
 
 

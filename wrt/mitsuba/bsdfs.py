@@ -187,7 +187,7 @@ class Materials:
                 self.doc.warn(inner[1], "a different BSDF on the back side is not supported: both sides use the first")
             p.finish()
             front = self._convert(inner[0])
-            if front.params["type"] == "dielectric":
+            if front.params["type"] in ("dielectric", "thin_dielectric"):
                 raise self.doc.error(inner[0], "a twosided BSDF cannot nest a BSDF that transmits (Mitsuba rejects it)")
             return Material(front.params, True)
         if p.type == "diffuse":
@@ -201,6 +201,17 @@ class Materials:
                     self.doc.warn(p.params[name], f"'{name}' (a non-physical scale) is not supported: ignored")
             self.ext_iors.append((exterior, element))
             material = Material({"type": "dielectric", "ior": interior}, True)
+        elif p.type == "thindielectric":
+            self.ext_iors.append((ior(p, "ext_ior", "air"), element))
+            material = Material(
+                {
+                    "type": "thin_dielectric",
+                    "ior": ior(p, "int_ior", "bk7"),
+                    "reflectance": p.color("specular_reflectance", 1.0),
+                    "transmittance": p.color("specular_transmittance", 1.0),
+                },
+                True,
+            )
         else:
             return self._closest(p)
         p.finish()
