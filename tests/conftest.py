@@ -39,6 +39,18 @@ material = "red"
 """  # a small valid scene file that the bad-input tests break one key at a time
 
 
+def fresnel_dielectric64(cos_i, eta):
+    """Unpolarised Fresnel reflectance of a dielectric interface (Hecht 4.6) in float64, the
+    reference of the kernels' Fresnel: ``cos_i`` the incident cosine, ``eta = n1 / n2``; 1 beyond
+    the critical angle."""
+    cos_i = np.asarray(cos_i, dtype=np.float64)
+    sin2_t = eta**2 * (1.0 - cos_i**2)
+    cos_t = np.sqrt(np.maximum(0.0, 1.0 - sin2_t))
+    r_par = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
+    r_perp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
+    return np.where(sin2_t >= 1.0, 1.0, 0.5 * (r_par**2 + r_perp**2))
+
+
 def make_scene(shapes, render=None, camera=None, materials=None, lights=None, scene_dir=".", groups=None):
     """A validated ``Scene`` from inline tables, with a default camera and render settings."""
     doc = {"camera": camera or CAMERA, "shape": shapes, "light": lights or [], "group": groups or []}

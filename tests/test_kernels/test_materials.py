@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import warp as wp
 import wrt.kernels  # noqa: F401
-from conftest import make_scene
+from conftest import fresnel_dielectric64, make_scene
 from wrt.kernels.materials import (
     BSDF_DIFFUSE,
     BSDF_GLOSSY,
@@ -252,21 +252,13 @@ def glass_lobes(materials, thetas, eta):
     return [a.numpy() for a in out]
 
 
-def fresnel_float64(cos_i, eta):
-    sin2_t = eta**2 * (1 - cos_i**2)
-    cos_t = np.sqrt(1 - sin2_t)
-    r_par = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
-    r_perp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
-    return 0.5 * (r_par**2 + r_perp**2)
-
-
 def test_dielectric_lobes_split_by_fresnel_and_snell(materials):
     """Entering glass (eta = 1/1.5): F from the float64 Fresnel equations, 1 - F transmitted along
     Snell's direction, radiance scaled by eta^2 (issue 13: radiance transport, as pbrt-v4 and
     Mitsuba 3); leaving it (eta = 1.5) past the critical angle 41.8 deg: all reflected."""
     thetas = np.array([0.0, 20.0, 45.0, 70.0, 89.0])
     r, t, wt, tir = glass_lobes(materials, thetas, 1 / 1.5)
-    f = fresnel_float64(np.cos(np.radians(thetas)), 1 / 1.5)
+    f = fresnel_dielectric64(np.cos(np.radians(thetas)), 1 / 1.5)
     np.testing.assert_allclose(r[:, 0], f, rtol=1e-5, atol=1e-7)
     np.testing.assert_allclose(t[:, 0], (1.0 - f) / 1.5**2, rtol=1e-5)
     sin_t = np.sin(np.radians(thetas)) / 1.5
@@ -283,7 +275,7 @@ def test_dielectric_sampling_chooses_reflection_with_probability_f(materials):
     reflections is F."""
     wo = direction(70.0)
     wi, weight, pdf, flags, _, _ = sample(materials, "glass", wo, eta=1 / 1.5)
-    f = fresnel_float64(np.cos(np.radians(70.0)), 1 / 1.5)
+    f = fresnel_dielectric64(np.cos(np.radians(70.0)), 1 / 1.5)
     reflected = (flags & BSDF_TRANSMISSION) == 0
     assert reflected.mean() == pytest.approx(f, abs=4 * np.sqrt(f * (1 - f) / len(flags)))
     np.testing.assert_array_equal(weight[reflected], 1.0)

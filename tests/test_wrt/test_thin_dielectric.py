@@ -6,7 +6,7 @@ Mitsuba import."""
 import numpy as np
 import pytest
 import warp as wp
-from conftest import make_scene
+from conftest import fresnel_dielectric64, make_scene
 from test_mitsuba_xml import convert
 from wrt.kernels.materials import BSDF_THIN, BSDF_TRANSMISSION, MaterialData, bsdf_sample, specular_lobes
 from wrt_harness.mitsuba_peer import mitsuba_available
@@ -20,18 +20,9 @@ MITSUBA, MITSUBA_REASON = mitsuba_available()
 THETAS = np.radians([0.0, 20.0, 45.0, 60.0, 75.0, 85.0, 89.0])
 
 
-def fresnel64(cos_i, eta):
-    """The single-interface dielectric reflectance (unpolarised, exact Fresnel), float64; eta = n1 / n2."""
-    sin2_t = eta**2 * (1.0 - cos_i**2)
-    cos_t = np.sqrt(1.0 - sin2_t)
-    r_par = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
-    r_perp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
-    return 0.5 * (r_par**2 + r_perp**2)
-
-
 def summed64(cos_i, ior):
     """R' = R + T^2 R / (1 - R^2): the pane's internal reflections summed term by term."""
-    r = fresnel64(cos_i, 1.0 / ior)
+    r = fresnel_dielectric64(cos_i, 1.0 / ior)
     t = 1.0 - r
     return r + t * t * r / (1.0 - r * r)
 
@@ -77,7 +68,7 @@ def test_summed_reflectance_matches_float64_and_conserves_energy(ior):
     expected = summed64(np.cos(THETAS), ior)
     np.testing.assert_allclose(out[:, 0, 0], expected, rtol=2e-5, atol=1e-6)
     np.testing.assert_allclose(out[:, 0, :] + out[:, 1, :], 1.0, atol=1e-6)  # R' + T' = 1 without tints
-    assert (out[:, 0, 0] > fresnel64(np.cos(THETAS), 1.0 / ior) - 1e-6).all()  # more than one surface's R
+    assert (out[:, 0, 0] > fresnel_dielectric64(np.cos(THETAS), 1.0 / ior) - 1e-6).all()  # more than one surface's R
 
 
 def test_ior_is_relative_to_the_exterior_and_tints_scale_the_lobes():
