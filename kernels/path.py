@@ -222,7 +222,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
     trace_segment = make_trace_segment(record, trace)
     next_event = make_next_event(record, trace, features)
     environment_radiance = make_environment_radiance(features.environment_map)
-    surface_hit = make_surface_hit(features.smooth)
+    surface_hit = make_surface_hit(features.smooth, features.instances, features.disks or features.cylinders)
 
     @wp.func
     def path_radiance(

@@ -26,13 +26,14 @@ from .materials import BSDF_THIN, BSDF_TRANSMISSION, MaterialData, bsdf_flags, t
 from .media import beer_lambert, max_component
 from .record import SHADOW_BLOCKED, SHADOW_LIT, RayRecord, record_ray
 from .spawn import spawn_origin
-from .traverse import NO_HIT, GeometryData, Traversal, hit_point, prim_shape
+from .traverse import NO_HIT, GeometryData, Traversal, hit_point, make_surface_point, prim_shape
 
 SHADOW_CROSSINGS = wp.constant(16)  # dielectric surfaces a filtered shadow ray may pass
 
 
 def make_shadow_ray(record: bool, trace: Traversal):
     """``shadow_ray`` over the traversal ``trace``, recording when ``record`` (compiled out otherwise)."""
+    surface_point = make_surface_point(trace.features.disks or trace.features.cylinders)
 
     @wp.func
     def passes(geometry: GeometryData, materials: MaterialData, prim: wp.int32) -> bool:
@@ -61,7 +62,10 @@ def make_shadow_ray(record: bool, trace: Traversal):
                 return wp.cw_mul(out, beer_lambert(sigma_now, t)), t_total + t, prim, inst
             if not passes(geometry, materials, prim):
                 return wp.vec3(0.0), t_total + t, prim, inst
-            p, n, err = hit_point(geometry, prim, inst, o, w, t, time)
+            if wp.static(trace.features.instances):
+                p, n, err = hit_point(geometry, prim, inst, o, w, t, time)
+            else:
+                p, n, err = surface_point(geometry, prim, o, w, t, time)
             m = materials.shape_material[prim_shape(geometry, prim)]
             if (bsdf_flags(materials, m) & BSDF_THIN) != 0:  # a pane: the medium goes on beyond it
                 passed = thin_transmittance(materials, m, wp.dot(w, n))

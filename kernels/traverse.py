@@ -521,77 +521,87 @@ def closest_hit_brute_force(geometry: GeometryData, o: wp.vec3, d: wp.vec3, time
     return t_max, hit, hit_inst
 
 
-@wp.func
-def surface_point(geometry: GeometryData, prim: wp.int32, o: wp.vec3, d: wp.vec3, t: float, time: float):
-    """The hit of unit ray ``o + s d`` at ``t`` on primitive ``prim`` (at ray time ``time``):
-    ``(p, n, err)``, the point recomputed on the primitive's surface, its unit geometric normal
-    and a bound on the distance of ``p`` from the float32 surface (``wrt.kernels.spawn``).
+@functools.cache
+def make_surface_point(quadrics: bool):
+    """``surface_point``, with the disk and cylinder case compiled in only with ``quadrics`` (unused,
+    it still costs a path tracer about a fifth of its time on the CPU)."""
 
-    ``o + t d`` carries the rounding of wherever the ray started (1e4 units away, several
-    hundredths of a unit), so it is only the first guess: spheres reproject it onto the sphere,
-    ``c + r (q - c) / |q - c|``; triangles, polygons and planes project it onto their plane,
-    ``q - (n . (q - a)) n`` (pbrt-v4 and Mitsuba 3 do the same); disks and cylinders take it to
-    their object space (float64), set ``z' = 0`` (disk) or scale ``(x', y')`` to unit length
-    (tube), and map it back with ``quadric_to_world``. What is left is the rounding of that
-    recomputation, a few ulps of the point and of the primitive's own coordinates (a quadric's:
-    its translation plus the reach of its axes, as the float32 ``quadric_to_world`` is the inverse
-    of ``quadric_to_object`` to an ulp of those), however far the ray came from.
+    @wp.func
+    def surface_point(geometry: GeometryData, prim: wp.int32, o: wp.vec3, d: wp.vec3, t: float, time: float):
+        """The hit of unit ray ``o + s d`` at ``t`` on primitive ``prim`` (at ray time ``time``):
+        ``(p, n, err)``, the point recomputed on the primitive's surface, its unit geometric normal
+        and a bound on the distance of ``p`` from the float32 surface (``wrt.kernels.spawn``).
 
-    Normals: spheres outward; triangles ``cross(v1 - v0, v2 - v0)`` (the winding normal);
-    polygons and planes the normal given in the scene (polygons: by Newell's method from the
-    winding); disks and cylinders their object normal (+z; the radial direction, outward) by
-    ``quadric_normal``, the inverse transpose of the placement (negated for inward normals).
-    """
-    kind = prim & KIND_MASK
-    i = prim >> KIND_BITS
-    shift = wp.vec3(0.0)
-    if geometry.moving != 0:  # work in the primitive's frame at ``time``
-        shift = time * geometry.surface_velocity[prim_shape(geometry, prim)]
-    q = (o - shift) + t * d
-    n = wp.vec3(0.0)
-    extent = float(0.0)
-    if kind == SPHERE:
-        c = geometry.sphere_center[i]
-        r = geometry.sphere_radius[i]
-        n = wp.normalize(q - c)
-        q = c + r * n
-        extent = max_abs(c) + r
-    elif kind == DISK or kind == CYLINDER:
-        to_world = geometry.quadric_to_world[i]
-        local = wp.transform_point(wp.mat44d(geometry.quadric_to_object[i]), wp.vec3d(q))
-        n_local = wp.vec3(0.0, 0.0, 1.0)
-        reach = wp.abs(wp.vec3(to_world[0, 0], to_world[1, 0], to_world[2, 0])) + wp.abs(
-            wp.vec3(to_world[0, 1], to_world[1, 1], to_world[2, 1])
-        )
-        if kind == DISK:
-            local[2] = wp.float64(0.0)
+        ``o + t d`` carries the rounding of wherever the ray started (1e4 units away, several
+        hundredths of a unit), so it is only the first guess: spheres reproject it onto the sphere,
+        ``c + r (q - c) / |q - c|``; triangles, polygons and planes project it onto their plane,
+        ``q - (n . (q - a)) n`` (pbrt-v4 and Mitsuba 3 do the same); disks and cylinders take it to
+        their object space (float64), set ``z' = 0`` (disk) or scale ``(x', y')`` to unit length
+        (tube), and map it back with ``quadric_to_world``. What is left is the rounding of that
+        recomputation, a few ulps of the point and of the primitive's own coordinates (a quadric's:
+        its translation plus the reach of its axes, as the float32 ``quadric_to_world`` is the inverse
+        of ``quadric_to_object`` to an ulp of those), however far the ray came from.
+
+        Normals: spheres outward; triangles ``cross(v1 - v0, v2 - v0)`` (the winding normal);
+        polygons and planes the normal given in the scene (polygons: by Newell's method from the
+        winding); disks and cylinders their object normal (+z; the radial direction, outward) by
+        ``quadric_normal``, the inverse transpose of the placement (negated for inward normals).
+        """
+        kind = prim & KIND_MASK
+        i = prim >> KIND_BITS
+        shift = wp.vec3(0.0)
+        if geometry.moving != 0:  # work in the primitive's frame at ``time``
+            shift = time * geometry.surface_velocity[prim_shape(geometry, prim)]
+        q = (o - shift) + t * d
+        n = wp.vec3(0.0)
+        extent = float(0.0)
+        if kind == SPHERE:
+            c = geometry.sphere_center[i]
+            r = geometry.sphere_radius[i]
+            n = wp.normalize(q - c)
+            q = c + r * n
+            extent = max_abs(c) + r
+        elif wp.static(quadrics) and (kind == DISK or kind == CYLINDER):
+            to_world = geometry.quadric_to_world[i]
+            local = wp.transform_point(wp.mat44d(geometry.quadric_to_object[i]), wp.vec3d(q))
+            n_local = wp.vec3(0.0, 0.0, 1.0)
+            reach = wp.abs(wp.vec3(to_world[0, 0], to_world[1, 0], to_world[2, 0])) + wp.abs(
+                wp.vec3(to_world[0, 1], to_world[1, 1], to_world[2, 1])
+            )
+            if kind == DISK:
+                local[2] = wp.float64(0.0)
+            else:
+                radial = wp.sqrt(local[0] * local[0] + local[1] * local[1])
+                local[0] = local[0] / radial
+                local[1] = local[1] / radial
+                n_local = wp.vec3(wp.float32(local[0]), wp.float32(local[1]), 0.0)
+                reach += wp.abs(wp.vec3(to_world[0, 2], to_world[1, 2], to_world[2, 2]))
+            q = wp.vec3(wp.transform_point(wp.mat44d(to_world), local))
+            n = wp.normalize(geometry.quadric_normal[i] * n_local)
+            extent = max_abs(wp.vec3(to_world[0, 3], to_world[1, 3], to_world[2, 3])) + max_abs(reach)
         else:
-            radial = wp.sqrt(local[0] * local[0] + local[1] * local[1])
-            local[0] = local[0] / radial
-            local[1] = local[1] / radial
-            n_local = wp.vec3(wp.float32(local[0]), wp.float32(local[1]), 0.0)
-            reach += wp.abs(wp.vec3(to_world[0, 2], to_world[1, 2], to_world[2, 2]))
-        q = wp.vec3(wp.transform_point(wp.mat44d(to_world), local))
-        n = wp.normalize(geometry.quadric_normal[i] * n_local)
-        extent = max_abs(wp.vec3(to_world[0, 3], to_world[1, 3], to_world[2, 3])) + max_abs(reach)
-    else:
-        if kind == TRIANGLE:
-            a = geometry.tri_verts[3 * i]
-            n = wp.normalize(wp.cross(geometry.tri_verts[3 * i + 1] - a, geometry.tri_verts[3 * i + 2] - a))
-            q = q - wp.dot(n, q - a) * n
-            extent = max_abs(a)
-        elif kind == POLYGON:
-            n = geometry.poly_normal[i]
-            offset = geometry.poly_offset[i]
-            q = q - (wp.dot(n, q) - offset) * n
-            extent = wp.abs(offset)
-        else:
-            a = geometry.plane_point[i]
-            n = geometry.plane_normal[i]
-            q = q - wp.dot(n, q - a) * n
-            extent = max_abs(a)
-    p = q + shift
-    return p, n, point_error(p, max_abs(q) + extent)
+            if kind == TRIANGLE:
+                a = geometry.tri_verts[3 * i]
+                n = wp.normalize(wp.cross(geometry.tri_verts[3 * i + 1] - a, geometry.tri_verts[3 * i + 2] - a))
+                q = q - wp.dot(n, q - a) * n
+                extent = max_abs(a)
+            elif kind == POLYGON:
+                n = geometry.poly_normal[i]
+                offset = geometry.poly_offset[i]
+                q = q - (wp.dot(n, q) - offset) * n
+                extent = wp.abs(offset)
+            else:
+                a = geometry.plane_point[i]
+                n = geometry.plane_normal[i]
+                q = q - wp.dot(n, q - a) * n
+                extent = max_abs(a)
+        p = q + shift
+        return p, n, point_error(p, max_abs(q) + extent)
+
+    return surface_point
+
+
+surface_point = make_surface_point(True)
 
 
 @wp.func

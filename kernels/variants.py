@@ -32,7 +32,7 @@ def relevant(integrator: str, features: Features) -> Features:
     """``features`` with the flags that do not pay for a variant of ``integrator`` set: each
     variant costs a compilation (seconds) the first time it is used, so only flags that remove
     measurable work are specialised on (see docs/performance.md): the geometry (primitive kinds,
-    moving surfaces) and the pixel loop's camera (lens, orthographic) and shutter sampling for
+    instances, moving surfaces) and the pixel loop's camera (lens, orthographic) and shutter sampling for
     every integrator; lights, the branch stack and smooth shading for whitted; lights, dielectrics,
     smooth shading, environment maps and emissive triangles for path (its mirror test is a load
     and a compare: path ignores ``specular``; raycast's one shading normal per camera ray is not
@@ -47,6 +47,7 @@ def relevant(integrator: str, features: Features) -> Features:
         "polygons": features.polygons,
         "disks": features.disks,
         "cylinders": features.cylinders,
+        "instances": features.instances,
     }
     if integrator == "raycast":
         return Features(**every_integrator)
