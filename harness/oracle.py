@@ -19,7 +19,7 @@ import threading
 
 import numpy as np
 
-from wrt.scene import AreaLight, Cylinder, Disk, Instance, Mesh, Plane, Polygon, Scene, Sphere, SphereLight, Triangle
+from wrt.scene import AreaLight, Cylinder, Disk, Instance, Plane, Polygon, Scene, Sphere, SphereLight, Triangle
 
 QUADRIC_SIDES = 512  # vertices of the rims of disks and tubes: chords within 2e-5 of the radius (1 - cos(pi/512))
 ID_BITS = 24  # an id travels as one 8-bit RGB colour
@@ -62,44 +62,11 @@ def _decode(image: np.ndarray) -> np.ndarray:
     return np.where(v >= 1 << (ID_BITS - 1), v - (1 << ID_BITS), v) - 1
 
 
-def _corners(shape) -> list:
-    """Points whose box holds a bounded shape (none for a plane)."""
-    if isinstance(shape, Sphere):
-        return [np.asarray(shape.center) - shape.radius, np.asarray(shape.center) + shape.radius]
-    if isinstance(shape, (Triangle, Polygon)):
-        return list(np.asarray(shape.vertices, dtype=float))
-    if isinstance(shape, Mesh):
-        return [shape.vertices.min(axis=0), shape.vertices.max(axis=0)]
-    if isinstance(shape, (Disk, Cylinder)):
-        vertices, _ = shape.triangles(QUADRIC_SIDES)
-        return [vertices.min(axis=0), vertices.max(axis=0)]
-    return []
-
-
-def _light_corners(light) -> list:
-    """Points whose box holds a light's surface (none for a light that is not a surface)."""
-    if isinstance(light, SphereLight):
-        return [np.asarray(light.center) - light.radius, np.asarray(light.center) + light.radius]
-    if isinstance(light, AreaLight):
-        return list(light.corners())
-    return []
-
-
 def scene_extent(scene: Scene) -> tuple[np.ndarray, float]:
     """Centre and radius of a sphere around the bounded shapes, the light surfaces and the camera."""
-    points = [np.asarray(scene.camera.origin), np.asarray(scene.camera.look_at)]
-    points += [p for light in scene.lights for p in _light_corners(light)]
-    for s in scene.shapes:
-        if isinstance(s, Instance):  # the group's box, its corners through the instance's transform
-            inner = np.asarray([p for member in scene.groups[s.group].shapes for p in _corners(member)])
-            lo, hi = inner.min(axis=0), inner.max(axis=0)
-            box = np.array([[(lo, hi)[(c >> a) & 1][a] for a in range(3)] for c in range(8)])
-            points += list(box @ s.matrix[:3, :3].T + s.matrix[:3, 3])
-        elif isinstance(s, Plane):
-            points.append(np.asarray(s.point))
-        else:
-            points += _corners(s)
-    p = np.asarray(points, dtype=float)
+    planes = [np.asarray(s.point, dtype=float) for s in scene.shapes if isinstance(s, Plane)]
+    camera = [np.asarray(scene.camera.origin, dtype=float), np.asarray(scene.camera.look_at, dtype=float)]
+    p = np.concatenate([np.array(camera + planes), scene.surface_points(QUADRIC_SIDES)])
     center = 0.5 * (p.min(axis=0) + p.max(axis=0))
     return center, float(np.linalg.norm(p.max(axis=0) - p.min(axis=0))) / 2 + 1e-9
 

@@ -55,11 +55,9 @@ from .scene import (
     Mesh,
     Plane,
     PointLight,
-    Polygon,
     Sphere,
     SphereLight,
     SpotLight,
-    Triangle,
 )
 
 # colour of each kind (indices of wrt.kernels.record.KIND_NAMES)
@@ -97,28 +95,9 @@ def _bounds(tree: RayTree) -> tuple[np.ndarray, np.ndarray]:
     """World-space box around the camera, every segment end that is not a miss, the bounded shapes
     and the light surfaces."""
     points = [np.asarray(tree.scene.camera.origin, dtype=np.float64)[None], tree.origin, tree.end[~tree.escaped]]
-    points += [light.corners() for light in tree.scene.lights if isinstance(light, AreaLight)]
-    points += [_shape_points(light) for light in tree.scene.lights if isinstance(light, SphereLight)]
-    for shape in tree.scene.shapes:
-        if isinstance(shape, Instance):  # its group's shapes through its transform
-            m = shape.matrix
-            points += [_shape_points(s) @ m[:3, :3].T + m[:3, 3] for s in tree.scene.groups[shape.group].shapes]
-        else:
-            points.append(_shape_points(shape))
+    points.append(tree.scene.surface_points(QUADRIC_SIDES))
     points = np.concatenate([np.asarray(p, dtype=np.float64).reshape(-1, 3) for p in points])
     return points.min(axis=0), points.max(axis=0)
-
-
-def _shape_points(shape) -> np.ndarray:
-    """Points (n, 3) whose box holds a bounded shape or a sphere light; none for a plane."""
-    if isinstance(shape, (Sphere, SphereLight)):
-        c = np.asarray(shape.center)
-        return np.stack([c - shape.radius, c + shape.radius])
-    if isinstance(shape, (Triangle, Polygon, Mesh)):
-        return np.asarray(shape.vertices, dtype=np.float64).reshape(-1, 3)
-    if isinstance(shape, (Disk, Cylinder)):
-        return shape.triangles(QUADRIC_SIDES)[0]
-    return np.zeros((0, 3))
 
 
 def _shape_mesh(shape, centre: np.ndarray, size: float, scene) -> pv.PolyData:

@@ -349,3 +349,39 @@ class Scene:
     path: str = "<memory>"
     approximations: tuple[str, ...] = ()
     groups: tuple[Group, ...] = ()
+
+    def surface_points(self, sides: int) -> np.ndarray:
+        """Points (n, 3), float64, whose box holds every bounded shape and every light surface:
+        an instance by the corners of its group's box through its transform, a disk or tube by its
+        rims as polygons of ``sides`` vertices; planes and lights without a surface add none."""
+        boxes = [_box(_points(shape, sides) for shape in group.shapes) for group in self.groups]
+        points = [_points(item, sides) for item in (*self.lights, *self.shapes) if not isinstance(item, Instance)]
+        for shape in self.shapes:
+            if isinstance(shape, Instance):
+                m = shape.matrix
+                points.append(boxes[shape.group] @ m[:3, :3].T + m[:3, 3])
+        return np.concatenate([np.zeros((0, 3)), *points])
+
+
+def _points(item, sides: int) -> np.ndarray:
+    """Points (n, 3) whose box holds a bounded shape or a light's surface (none otherwise)."""
+    if isinstance(item, (Sphere, SphereLight)):
+        c = np.asarray(item.center, dtype=np.float64)
+        return np.stack([c - item.radius, c + item.radius])
+    if isinstance(item, (Triangle, Polygon)):
+        return np.asarray(item.vertices, dtype=np.float64).reshape(-1, 3)
+    if isinstance(item, Mesh):
+        return np.stack([item.vertices.min(axis=0), item.vertices.max(axis=0)])
+    if isinstance(item, (Disk, Cylinder)):
+        vertices, _ = item.triangles(sides)
+        return np.stack([vertices.min(axis=0), vertices.max(axis=0)])
+    if isinstance(item, AreaLight):
+        return item.corners()
+    return np.zeros((0, 3))
+
+
+def _box(points) -> np.ndarray:
+    """The eight corners (8, 3) of the box of some (n, 3) point sets."""
+    p = np.concatenate(list(points))
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    return np.array([[(lo, hi)[(c >> a) & 1][a] for a in range(3)] for c in range(8)])
