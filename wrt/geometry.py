@@ -21,7 +21,20 @@ from wrt.kernels.bvh import LEAF_COUNT_BITS, LEAF_COUNT_MASK, WideNode
 from wrt.kernels.traverse import CYLINDER, DISK, INSTANCE, KIND_BITS, KIND_MASK, PLANE, POLYGON, SPHERE, TRIANGLE
 
 from .bvh import DeviceBvh, build_bvh
-from .scene import AreaLight, Cylinder, Disk, Instance, Mesh, Plane, Polygon, Scene, Sphere, SphereLight, Triangle
+from .scene import (
+    AreaLight,
+    Cylinder,
+    Disk,
+    Instance,
+    Mesh,
+    Plane,
+    Polygon,
+    Scene,
+    Sphere,
+    SphereLight,
+    Triangle,
+    box_corners,
+)
 
 FLOAT32_EPS = float(np.finfo(np.float32).eps)
 
@@ -347,7 +360,7 @@ def _instance_boxes(to_world: np.ndarray, group_bounds: list, group: np.ndarray)
     lo, hi = np.zeros((len(group), 3)), np.zeros((len(group), 3))
     for k, (g_lo, g_hi) in enumerate(group_bounds):
         box_lo, box_hi = g_lo.min(axis=0).astype(np.float64), g_hi.max(axis=0).astype(np.float64)
-        corners = np.array([[(box_lo, box_hi)[(c >> a) & 1][a] for a in range(3)] for c in range(8)])
+        corners = box_corners(box_lo, box_hi)
         mine = np.flatnonzero(group == k)
         m = to_world[mine]
         world = np.einsum("nij,cj->nci", m[:, :3, :3], corners) + m[:, None, :3, 3]

@@ -383,5 +383,9 @@ def _points(item, sides: int) -> np.ndarray:
 def _box(points) -> np.ndarray:
     """The eight corners (8, 3) of the box of some (n, 3) point sets."""
     p = np.concatenate(list(points))
-    lo, hi = p.min(axis=0), p.max(axis=0)
-    return np.array([[(lo, hi)[(c >> a) & 1][a] for a in range(3)] for c in range(8)])
+    return box_corners(p.min(axis=0), p.max(axis=0))
+
+
+def box_corners(lo, hi) -> np.ndarray:
+    """The eight corners (8, 3) of the box [lo, hi]; corner c takes ``hi`` along axis a where bit a of c is set."""
+    return np.array([[(lo, hi)[(c >> a) & 1][a] for a in range(3)] for c in range(8)], dtype=np.float64)
