@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
 from .transforms import as_list
@@ -50,14 +48,9 @@ def environment_map(doc: Document, p: Plugin, matrix: np.ndarray) -> dict:
     """The ``environment`` table of an ``envmap``: its file (found as Mitsuba finds it), ``scale``
     and the rotation of its ``to_world`` (the translation does nothing to directions; a matrix
     that is not a rotation distorts Mitsuba's map: approximated by its nearest rotation)."""
-    filename = p.string("filename", None)
-    if filename is None:
-        raise doc.error(p.element, "an envmap needs a filename")
-    found = doc.find_file(p.element, filename)
-    if found is None:
-        raise doc.error(p.element, f"no such environment map {filename!r} {doc.searched(p.element)}")
+    file = p.file("an envmap", "environment map")
     p.boolean("mis_compensation", False)  # changes the sampling density only: the noise, not the image
-    light = {"type": "environment", "file": os.path.relpath(found, os.path.dirname(doc.path) or ".")}
+    light = {"type": "environment", "file": file}
     scale = p.number("scale", 1.0)
     if scale != 1.0:
         light["scale"] = scale

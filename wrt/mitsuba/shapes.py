@@ -4,8 +4,6 @@ emitter on a rectangle or sphere, the area or sphere light it becomes."""
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
 from .bsdfs import Materials
@@ -108,13 +106,7 @@ def mesh(doc: Document, p: Plugin, matrix: np.ndarray) -> dict:
     turned around, as Mitsuba negates both its normals). A mirroring ``to_world`` needs nothing:
     Mitsuba's face normals follow the mirrored winding, its computed normals too, and the file's
     normals go by the inverse transpose, as wrt's do."""
-    filename = p.string("filename", None)
-    if filename is None:
-        raise doc.error(p.element, "a mesh needs a filename")
-    found = doc.find_file(p.element, filename)
-    if found is None:
-        raise doc.error(p.element, f"no such mesh file {filename!r} {doc.searched(p.element)}")
-    table = {"type": "mesh", "file": os.path.relpath(found, os.path.dirname(doc.path) or ".")}
+    table = {"type": "mesh", "file": p.file("a mesh", "mesh file")}
     if not p.boolean("face_normals", False):
         table["shading"] = "smooth"
     if p.boolean("flip_normals", False):

@@ -460,6 +460,19 @@ class Plugin:
         element = self.value(name, ("string",))
         return default if element is None else self.doc.attr(element, "value")
 
+    def file(self, subject: str, kind: str) -> str:
+        """The ``filename`` parameter, required, as a path relative to the scene file's folder (how
+        wrt's scene format takes files), found as `Document.find_file` finds it: its absence is
+        "``subject`` needs a filename", a file found nowhere "no such ``kind``" with the folders
+        searched."""
+        filename = self.string("filename", None)
+        if filename is None:
+            raise self.doc.error(self.element, f"{subject} needs a filename")
+        found = self.doc.find_file(self.element, filename)
+        if found is None:
+            raise self.doc.error(self.element, f"no such {kind} {filename!r} {self.doc.searched(self.element)}")
+        return os.path.relpath(found, os.path.dirname(self.doc.path) or ".")
+
     def color(self, name: str, default: float, *, emission: bool = False, unbounded: bool = False) -> list[float]:
         """An RGB parameter given as ``<rgb>``, ``<float>`` or ``<spectrum>``, in linear sRGB as
         Mitsuba's RGB variants read it (`spectra` says how a spectrum converts). ``emission``
