@@ -440,6 +440,16 @@ def test_shadow_rays_end_on_the_drawn_sphere_light(tmp_path):
     assert np.linalg.norm(closest - ends, axis=1).max() < 0.5 * (1 - np.cos(np.pi / 32)) + 1e-3  # tessellation
 
 
+def automatic_view(tree):
+    """``(direction toward the eye, view up)`` of the view ``rayview.draw`` sets up for ``tree``."""
+    plotter = pv.Plotter(off_screen=True)
+    try:
+        rayview.draw(plotter, tree)
+        return np.subtract(plotter.camera.position, plotter.camera.focal_point), np.asarray(plotter.camera.up)
+    finally:
+        plotter.close()
+
+
 @pytest.mark.parametrize("up", ["+y", "+z"])
 def test_automatic_view_keeps_the_scene_up_vertical(up):
     """The automatic view of `wrt rays` looks down at most ``MAX_ELEVATION`` above the scene's
@@ -447,13 +457,7 @@ def test_automatic_view_keeps_the_scene_up_vertical(up):
     tree = cornell_rays(up)
     scene_up = np.asarray(tree.scene.camera.up) / np.linalg.norm(tree.scene.camera.up)
     np.testing.assert_allclose(scene_up, [0, 1, 0] if up == "+y" else [0, 0, 1])
-    plotter = pv.Plotter(off_screen=True)
-    try:
-        rayview.draw(plotter, tree)
-        eye = np.subtract(plotter.camera.position, plotter.camera.focal_point)
-        view_up = np.asarray(plotter.camera.up)
-    finally:
-        plotter.close()
+    eye, view_up = automatic_view(tree)
     eye /= np.linalg.norm(eye)
     assert 0 <= np.dot(eye, scene_up) <= np.sin(np.radians(rayview.MAX_ELEVATION)) + 1e-9
     projected = scene_up - np.dot(scene_up, eye) * eye
@@ -467,13 +471,7 @@ def test_automatic_view_of_a_level_fan_looks_from_behind_the_camera(up):
     ``MAX_ELEVATION`` above the horizon, from behind the camera, with the scene's up up the picture."""
     scene = cornell_box(up)
     tree = trace_rays(scene, [(x, y) for x in range(0, 400, 25) for y in (199, 200)], max_depth=1)
-    plotter = pv.Plotter(off_screen=True)
-    try:
-        rayview.draw(plotter, tree)
-        eye = np.subtract(plotter.camera.position, plotter.camera.focal_point)
-        view_up = np.asarray(plotter.camera.up)
-    finally:
-        plotter.close()
+    eye, view_up = automatic_view(tree)
     turn = np.eye(3) if up == "+y" else Y_TO_Z
     elevation = np.radians(rayview.MAX_ELEVATION)  # the camera looks down -z (+y up): behind it is +z
     np.testing.assert_allclose(eye / np.linalg.norm(eye), turn @ [0, np.sin(elevation), np.cos(elevation)], atol=1e-6)
