@@ -10,6 +10,7 @@ work is in ``wrt_harness.commands``, imported when a verb runs. The harness's ow
 from __future__ import annotations
 
 import argparse
+import contextlib
 from collections.abc import Callable
 
 from wrt.errors import WrtError
@@ -17,8 +18,38 @@ from wrt.errors import WrtError
 Run = Callable[[argparse.Namespace], int]
 
 
+def add_matrix_options(parser: argparse.ArgumentParser) -> None:
+    """``--features FILE --refs DIR``: a project's own feature list and references folder."""
+    parser.add_argument(
+        "--features",
+        dest="features_file",
+        metavar="FILE",
+        help="the feature list (default: wrt's own); its scene paths are relative to its folder; needs --refs",
+    )
+    parser.add_argument("--refs", metavar="DIR", help="the folder of its reference images (default: wrt's own)")
+
+
+def add_scheduler_option(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--scheduler ADDRESS``: run on a Dask distributed cluster (``wrt.distributed``)."""
+    parser.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help=f"run on the Dask distributed cluster whose scheduler is at ADDRESS (tcp://host:8786), one task per "
+        f"{what}: the same results (needs the cluster extra; see docs/cluster.md)",
+    )
+
+
+def _cluster(scheduler: str | None):
+    """The ``wrt.distributed.Cluster`` at ``scheduler`` (a context), or for None a null one: run here."""
+    if scheduler is None:
+        return contextlib.nullcontext()
+    from wrt.distributed import Cluster
+
+    return Cluster(scheduler)
+
+
 def matrix_verb(verbs) -> Run:
-    """``wrt matrix [FEATURE...] [--device] [--jobs N] [--report DIR]``."""
+    """``wrt matrix [FEATURE...] [--device] [--jobs N] [--report DIR] [--wrong] [--features FILE --refs DIR]``."""
     m = verbs.add_parser(
         "matrix",
         help="run the feature test matrix (visual regression harness)",
@@ -30,19 +61,36 @@ def matrix_verb(verbs) -> Run:
     m.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
     m.add_argument("--jobs", type=int, default=1, help="features rendered at once (default 1; each uses all cores)")
     m.add_argument("--report", metavar="DIR", help="write an HTML report (DIR/index.html and PNGs)")
+    m.add_argument(
+        "--wrong", action="store_true", help="render the wrong variants instead; exit 1 when one of them passes"
+    )
+    add_matrix_options(m)
+    add_scheduler_option(m, "feature")
 
     def run(args: argparse.Namespace) -> int:
         if args.jobs < 1:
             raise WrtError(f"--jobs {args.jobs}: must be >= 1")
+        if args.jobs > 1 and args.scheduler is not None:
+            raise WrtError(f"--jobs {args.jobs}: not with --scheduler (the cluster runs a feature per worker thread)")
         from .commands import matrix
 
-        return matrix(args.features, args.device, args.jobs, args.report)
+        with _cluster(args.scheduler) as cluster:
+            return matrix(
+                args.features,
+                args.device,
+                args.jobs,
+                args.report,
+                args.features_file,
+                args.refs,
+                args.wrong,
+                cluster=cluster,
+            )
 
     return run
 
 
 def refs_verb(verbs) -> Run:
-    """``wrt refs regenerate|calibrate [FEATURE...]``."""
+    """``wrt refs regenerate|calibrate [FEATURE...] [--features FILE --refs DIR]``."""
     refs = verbs.add_parser(
         "refs", help="regenerate or calibrate reference images", description="Manage the matrix's reference images."
     )
@@ -57,6 +105,8 @@ def refs_verb(verbs) -> Run:
     regen.add_argument("--failed", action="store_true", help="only features that fail (or lack a valid reference)")
     regen.add_argument("--spp", type=int, help="reference spp (default: the matrix entry's reference_spp)")
     regen.add_argument("--device", default="cpu")
+    add_matrix_options(regen)
+    add_scheduler_option(regen, "reference batch and calibration render")
     cal = actions.add_parser(
         "calibrate",
         help="set SSIM thresholds from renders with several seeds",
@@ -65,6 +115,7 @@ def refs_verb(verbs) -> Run:
     )
     cal.add_argument("features", nargs="*", metavar="FEATURE")
     cal.add_argument("--device", default="cpu")
+    add_matrix_options(cal)
 
     def run(args: argparse.Namespace) -> int:
         from .commands import refs_calibrate, refs_regenerate
@@ -72,8 +123,11 @@ def refs_verb(verbs) -> Run:
         if args.refs_verb == "regenerate":
             if args.spp is not None and args.spp < 1:
                 raise WrtError(f"--spp {args.spp}: must be >= 1")
-            return refs_regenerate(args.features, args.failed, args.spp, args.device)
-        return refs_calibrate(args.features, args.device)
+            with _cluster(args.scheduler) as cluster:
+                return refs_regenerate(
+                    args.features, args.failed, args.spp, args.device, args.features_file, args.refs, cluster=cluster
+                )
+        return refs_calibrate(args.features, args.device, args.features_file, args.refs)
 
     return run
 

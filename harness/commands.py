@@ -1,9 +1,15 @@
 """What the harness's verbs do (``wrt matrix``, ``wrt refs``, ``wrt compare``; their arguments are
 parsed by ``wrt_harness.cli``). Each returns the process exit code: 0 all good, 1 a regression,
-2 bad input (``WrtError``, raised to the CLI)."""
+2 bad input (``WrtError``, raised to the CLI).
+
+``features_file`` and ``refs`` (``--features FILE --refs DIR``) name a project's own feature list
+and the folder of its references; None for wrt's own (``harness/features.toml`` and
+``reference_images/``). A features file of one's own needs a folder of its own.
+"""
 
 from __future__ import annotations
 
+import os
 import sys
 
 from tqdm import tqdm
@@ -11,11 +17,12 @@ from tqdm import tqdm
 from wrt.errors import WrtError
 from wrt.imageio import read_image
 
-from .matrix import load_features, select
+from .matrix import FEATURES_FILE, Feature, load_features, select
 from .references import (
     ReferenceError,
     calibrate,
     load_reference,
+    refs_command,
     render_reference,
     store,
     store_calibration,
@@ -34,61 +41,114 @@ def _table(results) -> str:
     return "\n".join(lines)
 
 
-def matrix(names: list[str], device: str, jobs: int, report: str | None) -> int:
-    features = select(load_features(), names)
+def _features(names: list[str], features_file: str | None, refs: str | None, made: bool = True) -> list[Feature]:
+    """The features called ``names`` (all when empty) of ``features_file``; ``WrtError`` when a
+    features file comes without ``refs``, or (``made``) when the folder ``refs`` does not exist."""
+    features = select(load_features(features_file or FEATURES_FILE), names)
+    if features_file is not None and refs is None:
+        raise WrtError(f"--features {features_file}: name the folder of its references with --refs DIR")
+    if made and refs is not None and not os.path.isdir(refs):
+        make = refs_command("regenerate", features_file, refs)
+        raise WrtError(f"--refs {refs}: no such folder; make its references with: {make}")
+    return features
+
+
+def matrix(
+    names: list[str],
+    device: str,
+    jobs: int,
+    report: str | None,
+    features_file: str | None = None,
+    refs: str | None = None,
+    wrong: bool = False,
+    cluster=None,
+) -> int:
+    """Run the matrix (with ``wrong``: render the wrong variants, each of which must fail); on
+    ``cluster`` (a ``wrt.distributed.Cluster``), one task per feature."""
+    features = _features(names, features_file, refs)
+    if wrong:
+        missing = [f for f in features if not f.wrong]
+        if missing:
+            raise WrtError(f"{missing[0].features_file}: feature {missing[0].name!r} has no wrong variant (key wrong)")
     with tqdm(total=len(features), desc="wrt matrix", unit="feature", file=sys.stderr, disable=None) as bar:
 
         def progress(result):
             bar.set_postfix_str(f"{result.feature.name}: {'pass' if result.passed else 'FAIL'}")
             bar.update(1)
 
-        results = run_matrix(features, device=device, jobs=jobs, progress=progress)
+        results = run_matrix(
+            features, device=device, jobs=jobs, progress=progress, refs=refs, wrong=wrong, cluster=cluster
+        )
+    if wrong:
+        print("wrong variants: each must FAIL")
     print(_table(results))
     failed = [r.feature.name for r in results if not r.passed]
     if report:
         from .report import write_report
 
         print(f"report: {write_report(results, report, device)}")
+    if wrong:
+        missed = [r.feature.name for r in results if r.passed]
+        print(
+            f"{len(failed)} wrong variants caught, {len(missed)} missed" + (f": {', '.join(missed)}" if missed else "")
+        )
+        return 1 if missed else 0
     print(f"{len(results) - len(failed)} passed, {len(failed)} failed")
     return 1 if failed else 0
 
 
-def refs_regenerate(names: list[str], failed_only: bool, spp: int | None, device: str) -> int:
-    features = select(load_features(), names)
+def refs_regenerate(
+    names: list[str],
+    failed_only: bool,
+    spp: int | None,
+    device: str,
+    features_file: str | None = None,
+    refs: str | None = None,
+    cluster=None,
+) -> int:
+    """Re-render and calibrate references; the folder ``refs`` is made if missing. On ``cluster``
+    (a ``wrt.distributed.Cluster``), one task per reference batch, calibration render and
+    (``--failed``) feature."""
+    features = _features(names, features_file, refs, made=False)
+    if refs is not None:
+        try:
+            os.makedirs(refs, exist_ok=True)
+        except OSError as e:
+            raise WrtError(f"--refs {refs}: cannot make the folder ({e.strerror})") from None
     if failed_only:
         todo = []
         for feature in features:
             try:
-                if not evaluate(feature, device=device).passed:
+                if not evaluate(feature, device=device, refs=refs, cluster=cluster).passed:
                     todo.append(feature)
             except ReferenceError:
                 todo.append(feature)
         features = todo
     for feature in features:
         try:
-            old = load_reference(feature, calibration=False)
+            old = load_reference(feature, refs, calibration=False)
         except ReferenceError:
             old = None
-        new = render_reference(feature, spp=spp, device=device)
+        new = render_reference(feature, spp=spp, device=device, cluster=cluster)
         change = (
             "new reference"
             if old is None or old.rgb.shape != new.rgb.shape
             else f"SSIM old vs new {ssim(new.rgb, old.rgb):.4f}, RMSE {rmse(new.rgb, old.rgb):.2e}"
         )
-        store(feature, new)
-        stored = load_reference(feature, calibration=False)
-        cal = calibrate(feature, stored, device=device)
-        store_calibration(feature, cal)
+        store(feature, new, refs)
+        stored = load_reference(feature, refs, calibration=False)
+        cal = calibrate(feature, stored, device=device, cluster=cluster)
+        store_calibration(feature, cal, refs)
         print(f"{feature.name}: {new.spp} spp, {change}; SSIM threshold {cal['ssim_threshold']:.4f} (calibrated)")
     if not features:
         print("nothing to regenerate")
     return 0
 
 
-def refs_calibrate(names: list[str], device: str) -> int:
-    for feature in select(load_features(), names):
-        cal = calibrate(feature, load_reference(feature, calibration=False), device=device)
-        store_calibration(feature, cal)
+def refs_calibrate(names: list[str], device: str, features_file: str | None = None, refs: str | None = None) -> int:
+    for feature in _features(names, features_file, refs):
+        cal = calibrate(feature, load_reference(feature, refs, calibration=False), device=device)
+        store_calibration(feature, cal, refs)
         print(
             f"{feature.name}: SSIM {min(cal['ssim']):.4f}..{max(cal['ssim']):.4f} over seeds {cal['seeds']}, "
             f"threshold {cal['ssim_threshold']:.4f}"

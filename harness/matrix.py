@@ -1,6 +1,7 @@
-"""The feature matrix: one entry per renderer feature, read from ``harness/features.toml``.
+"""The feature matrix: one entry per renderer feature, read from a features file: wrt's own is
+``harness/features.toml``; a project's own is any file of the same form (``wrt matrix --features``).
 
-Each entry names its scene (a TOML file, relative to ``features.toml``), the integrator, image
+Each entry names its scene (a TOML file, relative to the features file), the integrator, image
 size, spp and seed it is tested at, the spp of its reference, the SSIM threshold of its geometry
 oracle, and a deliberately wrong variant that must fail (the harness's own sensitivity check).
 A new feature is one new entry and one scene file. Scenes are patched in memory with ``set``
@@ -26,7 +27,7 @@ import tomllib
 
 from wrt.errors import WrtError
 from wrt.loader import override_render, parse_scene
-from wrt.scene import EnvironmentLight, Mesh, Scene
+from wrt.scene import INTEGRATORS, EnvironmentLight, Mesh, Scene
 
 from .score import SSIM_WINDOW, check_threshold
 
@@ -37,6 +38,9 @@ FEATURES_FILE = os.path.join(HARNESS_DIR, "features.toml")
 GEOMETRY_THRESHOLD = 0.98
 MATRIX_SAMPLER = "independent"  # unless a feature's scene names one (see load_feature_scene)
 _PATH_PART = re.compile(r"^(?P<key>[A-Za-z_]\w*)(\[(?P<sel>[^\]]+)\])?$")
+# a feature's name names its reference files (NAME.exr ...) and the report's row
+_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
+_KEYS = "name scene integrator width height spp seed reference_spp geometry_threshold wrong".split()  # of an entry
 
 
 @dataclass(frozen=True)
@@ -53,6 +57,7 @@ class Feature:
     reference_spp: int
     geometry_threshold: float
     wrong: dict = field(default_factory=dict)  # {"description": str, "set": {path: value}}
+    features_file: str = FEATURES_FILE  # the features file that lists it, as given to load_features
 
     @property
     def stochastic(self) -> bool:
@@ -118,11 +123,19 @@ def scene_path(spec: str, base: str) -> str:
 
 
 def load_features(path: str = FEATURES_FILE) -> list[Feature]:
-    """All matrix entries, in file order."""
+    """All entries of the features file ``path``, in file order. A missing or malformed file, an
+    entry that is not a table, lacks a key, has an unknown one, a value of the wrong type or out of
+    range, names a scene file that does not exist or an unknown integrator, or a duplicate name is a
+    ``WrtError`` naming the file, the entry and the key."""
     doc = _read_toml(path)
     base = os.path.dirname(os.path.abspath(path))
+    entries = doc.get("feature")
+    if entries is None:
+        raise WrtError(f"{path}: no [[feature]] tables")
+    if not isinstance(entries, list) or not entries or not all(isinstance(e, dict) for e in entries):
+        raise WrtError(f"{path}: feature = {entries!r}: must be one or more [[feature]] tables")
     features = []
-    for i, entry in enumerate(doc.get("feature", [])):
+    for i, entry in enumerate(entries):
         where = f"{path}: feature[{i}]"
 
         def integer(key, default=None, least=1):
@@ -132,12 +145,30 @@ def load_features(path: str = FEATURES_FILE) -> list[Feature]:
                 raise WrtError(f"{where}.{key} = {value!r}: must be an integer >= {least}")
             return value
 
+        def text(key, allowed=None):
+            """``entry[key]``: a string (one of ``allowed``, if given)."""
+            value = entry[key]
+            if not isinstance(value, str) or (allowed and value not in allowed):
+                raise WrtError(
+                    f"{where}.{key} = {value!r}: must be " + (f"one of {', '.join(allowed)}" if allowed else "a string")
+                )
+            return value
+
+        unknown = sorted(set(entry) - set(_KEYS))
+        if unknown:
+            raise WrtError(f"{where}: unknown key {unknown[0]!r} (known: {', '.join(_KEYS)})")
         try:
+            name = text("name")
+            if not _NAME.fullmatch(name):
+                raise WrtError(f"{where}.name = {name!r}: must be letters, digits, '_', '.' or '-' (it names files)")
+            scene = scene_path(text("scene"), base)
+            if not os.path.isfile(scene):
+                raise WrtError(f"{where}.scene = {entry['scene']!r}: no such file {scene}")
             spp = integer("spp", 1)
             feature = Feature(
-                name=str(entry["name"]),
-                scene=scene_path(str(entry["scene"]), base),
-                integrator=str(entry["integrator"]),
+                name=name,
+                scene=scene,
+                integrator=text("integrator", INTEGRATORS),
                 width=integer("width", least=SSIM_WINDOW),
                 height=integer("height", least=SSIM_WINDOW),
                 spp=spp,
@@ -146,18 +177,31 @@ def load_features(path: str = FEATURES_FILE) -> list[Feature]:
                 geometry_threshold=check_threshold(
                     entry.get("geometry_threshold", GEOMETRY_THRESHOLD), f"{where}.geometry_threshold"
                 ),
-                wrong=dict(entry.get("wrong", {})),
+                wrong=_wrong_variant(entry.get("wrong", {}), f"{where}.wrong"),
+                features_file=path,
             )
         except KeyError as e:
             raise WrtError(f"{where}: missing key {e.args[0]!r}") from None
-        except (TypeError, ValueError) as e:
-            raise WrtError(f"{where}: {e}") from None
         features.append(feature)
     names = [f.name for f in features]
     duplicates = {n for n in names if names.count(n) > 1}
     if duplicates:
         raise WrtError(f"{path}: duplicate feature names: {', '.join(sorted(duplicates))}")
     return features
+
+
+def _wrong_variant(wrong, where: str) -> dict:
+    """A feature's ``wrong`` table: ``{}`` (none), or a ``description`` string and a non-empty
+    ``set`` table of patches."""
+    if wrong == {}:
+        return {}
+    if not isinstance(wrong, dict) or set(wrong) != {"description", "set"}:
+        raise WrtError(f"{where} = {wrong!r}: must be a table with keys description and set")
+    if not isinstance(wrong["description"], str):
+        raise WrtError(f"{where}.description = {wrong['description']!r}: must be a string")
+    if not isinstance(wrong["set"], dict) or not wrong["set"]:
+        raise WrtError(f"{where}.set = {wrong['set']!r}: must be a table of one or more patches")
+    return wrong
 
 
 def select(features: list[Feature], names: list[str]) -> list[Feature]:
@@ -183,7 +227,7 @@ def scene_document(feature: Feature, wrong: bool = False) -> dict:
         if not feature.wrong.get("set"):
             raise WrtError(f"feature {feature.name!r} has no wrong variant")
         for path, value in feature.wrong["set"].items():
-            _set_path(doc, path, value, f"feature {feature.name!r} wrong.set")
+            _set_path(doc, path, value, f"{feature.features_file}: feature {feature.name!r} wrong.set")
     return doc
 
 

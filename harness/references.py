@@ -1,6 +1,7 @@
 """Reference images of the feature matrix: rendering, storing, checking and calibrating them.
 
-Per feature, in ``reference_images/``:
+Per feature, in a references folder (wrt's own: ``reference_images/``, installed with the harness;
+a project's own: ``wrt matrix --refs DIR``; the functions below take it as ``refs``, None for wrt's):
 
 - ``NAME.exr``: the converged mean (RGB, half float) and the per-sample variance of every pixel
   (``var.R/G/B``), with metadata ``wrt:scene_hash``, ``wrt:spp``, ``wrt:seed``, ``wrt:version``,
@@ -27,6 +28,7 @@ import datetime
 import hashlib
 import json
 import os
+import shlex
 import statistics
 from dataclasses import dataclass
 from importlib import resources
@@ -38,7 +40,7 @@ from wrt.errors import WrtError
 from wrt.files import write_json
 from wrt.imageio import read_image, write_image
 
-from .matrix import Feature, load_feature_scene, scene_hash
+from .matrix import FEATURES_FILE, Feature, load_feature_scene, scene_hash
 from .score import check_spp, check_threshold, image_problem, ssim, z_test
 
 REFERENCE_DIR = str(
@@ -51,12 +53,25 @@ HALF_MAX = float(np.finfo(np.float16).max)  # the largest RGB value a reference 
 CALIBRATION_MARGIN = 0.002  # threshold = min(SSIM) - max(CALIBRATION_MARGIN, 3 std(SSIM))
 
 
-class ReferenceError(WrtError):
-    """A reference that is missing, unreadable or does not match its feature."""
+def refs_command(action: str, features_file: str | None, refs: str | None, *names: str) -> str:
+    """The command line ``wrt refs ACTION [--features FILE] [--refs DIR] NAME...``, with the options
+    only where they are not wrt's own (None)."""
+    words = ["wrt", "refs", action]
+    if features_file not in (None, FEATURES_FILE):
+        words += ["--features", features_file]
+    if refs is not None:
+        words += ["--refs", refs]
+    return shlex.join([*words, *names])
 
-    def __init__(self, feature: str, problem: str, action: str = "regenerate"):
-        super().__init__(f"reference of {feature!r}: {problem}; run: wrt refs {action} {feature}")
-        self.feature = feature
+
+class ReferenceError(WrtError):
+    """A reference that is missing, unreadable or does not match its feature; the message ends
+    with the command that fixes it."""
+
+    def __init__(self, feature: Feature, problem: str, action: str = "regenerate", refs: str | None = None):
+        fix = refs_command(action, feature.features_file, refs, feature.name)
+        super().__init__(f"reference of {feature.name!r}: {problem}; run: {fix}")
+        self.feature = feature.name
 
 
 @dataclass
@@ -68,10 +83,10 @@ class Reference:
     calibration: dict | None
 
 
-def paths(name: str, folder: str | None = None) -> dict[str, str]:
-    """The reference files of feature ``name`` in ``folder`` (default ``REFERENCE_DIR``)."""
-    folder = folder or REFERENCE_DIR
-    return {ext: os.path.join(folder, f"{name}.{ext}") for ext in ("exr", "json", "png")}
+def paths(name: str, refs: str | None = None) -> dict[str, str]:
+    """The reference files of feature ``name`` in the folder ``refs`` (default ``REFERENCE_DIR``)."""
+    refs = refs or REFERENCE_DIR
+    return {ext: os.path.join(refs, f"{name}.{ext}") for ext in ("exr", "json", "png")}
 
 
 def file_sha256(path: str) -> str:
@@ -86,38 +101,54 @@ def render_feature(
     wrong: bool = False,
     device: str = "cpu",
     threads: int | None = None,
+    scene=None,
 ):
-    """Render a feature's scene (or its wrong variant) at its test spp and seed unless overridden."""
-    return wrt.render(load_feature_scene(feature, wrong), spp=spp, seed=seed, device=device, threads=threads)
+    """Render a feature's scene (or its wrong variant) at its test spp and seed unless overridden;
+    ``scene``: that scene already loaded (on a cluster worker, which has no scene files)."""
+    scene = load_feature_scene(feature, wrong) if scene is None else scene
+    return wrt.render(scene, spp=spp, seed=seed, device=device, threads=threads)
 
 
-def load_reference(feature: Feature, folder: str | None = None, calibration: bool = True) -> Reference:
-    """The stored reference of ``feature``; ``ReferenceError`` naming the fix when it is missing,
-    corrupt, of the wrong size, made from another scene, or (with ``calibration``) when its
+def render_images(
+    feature: Feature, seeds, spp: int | None = None, device: str = "cpu", threads: int | None = None, cluster=None
+) -> list[np.ndarray]:
+    """The RGB render of ``feature`` (at ``spp``, default its test spp) for each of ``seeds``: here,
+    or on ``cluster`` (a ``wrt.distributed.Cluster``: one task each, the same images bit for bit)."""
+    if cluster is not None:
+        return cluster.images(load_feature_scene(feature), list(seeds), spp=spp, device=device)
+    return [render_feature(feature, spp=spp, seed=seed, device=device, threads=threads).rgb for seed in seeds]
+
+
+def load_reference(feature: Feature, refs: str | None = None, calibration: bool = True) -> Reference:
+    """The stored reference of ``feature`` in ``refs``; ``ReferenceError`` naming the fix when it is
+    missing, corrupt, of the wrong size, made from another scene, or (with ``calibration``) when its
     calibration file belongs to another reference image."""
-    p = paths(feature.name, folder)
+    p = paths(feature.name, refs)
     if not os.path.exists(p["exr"]):
-        raise ReferenceError(feature.name, f"{p['exr']} is missing")
+        raise ReferenceError(feature, f"{p['exr']} is missing", refs=refs)
     try:
         image = read_image(p["exr"])
     except WrtError as e:
-        raise ReferenceError(feature.name, f"unreadable ({e})") from None
+        raise ReferenceError(feature, f"unreadable ({e})", refs=refs) from None
     if image.rgb.shape != (feature.height, feature.width, 3) or "variance" not in image.aovs:
         raise ReferenceError(
-            feature.name,
+            feature,
             f"{p['exr']} is {image.rgb.shape[1]}x{image.rgb.shape[0]} without the expected channels, the matrix wants "
             f"{feature.width}x{feature.height}",
+            refs=refs,
         )
     problem = image_problem(image.rgb, image.aovs["variance"])
     if problem:
-        raise ReferenceError(feature.name, f"{p['exr']} is corrupt: {problem}")
+        raise ReferenceError(feature, f"{p['exr']} is corrupt: {problem}", refs=refs)
     try:
         spp = check_spp(image.metadata.get("spp"), f"{p['exr']}: wrt:spp")
     except WrtError as e:
-        raise ReferenceError(feature.name, str(e)) from None
+        raise ReferenceError(feature, str(e), refs=refs) from None
     if image.metadata.get("scene_hash") != scene_hash(feature):
         raise ReferenceError(
-            feature.name, "the scene or the matrix entry changed since the reference was made (scene hash differs)"
+            feature,
+            "the scene or the matrix entry changed since the reference was made (scene hash differs)",
+            refs=refs,
         )
     stored = None
     if calibration and os.path.exists(p["json"]):
@@ -125,8 +156,8 @@ def load_reference(feature: Feature, folder: str | None = None, calibration: boo
             with open(p["json"]) as f:
                 stored = json.load(f)
         except (OSError, ValueError) as e:
-            raise ReferenceError(feature.name, f"{p['json']} is unreadable ({e})") from None
-        stored = _checked_calibration(feature, stored, p["json"], p["exr"])
+            raise ReferenceError(feature, f"{p['json']} is unreadable ({e})", refs=refs) from None
+        stored = _checked_calibration(feature, stored, p["json"], p["exr"], refs)
     return Reference(
         rgb=image.rgb,
         variance=image.aovs["variance"],
@@ -146,52 +177,51 @@ _JSON_KINDS = {
 }
 
 
-def _checked_calibration(feature: Feature, stored, path: str, exr: str) -> dict:
+def _checked_calibration(feature: Feature, stored, path: str, exr: str, refs: str | None) -> dict:
     """The calibration ``stored`` (read from ``path``), with its ``ssim_threshold`` as a float, if
     it is an object that belongs to the image ``exr`` and has a usable threshold; else a
     ``ReferenceError`` naming the file and the key."""
     if not isinstance(stored, dict):
         raise ReferenceError(
-            feature.name,
+            feature,
             f"{path} is not a JSON object (it holds {_JSON_KINDS.get(type(stored), 'something else')})",
             "calibrate",
+            refs,
         )
     for key in ("reference_sha256", "ssim_threshold"):
         if key not in stored:
-            raise ReferenceError(feature.name, f"{path}: missing key {key!r}", "calibrate")
+            raise ReferenceError(feature, f"{path}: missing key {key!r}", "calibrate", refs)
     sha = stored["reference_sha256"]
     if not isinstance(sha, str):
         raise ReferenceError(
-            feature.name, f"{path}: reference_sha256 = {sha!r}: must be the SHA-256 text of {exr}", "calibrate"
+            feature, f"{path}: reference_sha256 = {sha!r}: must be the SHA-256 text of {exr}", "calibrate", refs
         )
     if sha != file_sha256(exr):
         raise ReferenceError(
-            feature.name,
+            feature,
             "its calibration belongs to another reference image (run wrt refs calibrate, or regenerate)",
+            refs=refs,
         )
     try:
         threshold = check_threshold(stored["ssim_threshold"], f"{path}: ssim_threshold")
     except WrtError as e:
-        raise ReferenceError(feature.name, str(e), "calibrate") from None
+        raise ReferenceError(feature, str(e), "calibrate", refs) from None
     return {**stored, "ssim_threshold": threshold}
 
 
 def render_reference(
-    feature: Feature, spp: int | None = None, device: str = "cpu", threads: int | None = None
+    feature: Feature, spp: int | None = None, device: str = "cpu", threads: int | None = None, cluster=None
 ) -> Reference:
-    """Render a converged reference in ``BATCHES`` batches and check that it reproduces.
+    """Render a converged reference in ``BATCHES`` batches (on ``cluster``: one task each, see
+    ``render_images``) and check that it reproduces.
 
     Deterministic features (1 spp at the pixel centre) have one exact batch and zero variance.
     """
     spp = spp or feature.reference_spp
     batches = min(BATCHES, spp) if feature.stochastic else 1
     per_batch = max(1, spp // batches)
-    means = np.stack(
-        [
-            render_feature(feature, spp=per_batch, seed=REFERENCE_SEED + i, device=device, threads=threads).rgb
-            for i in range(batches)
-        ]
-    ).astype(np.float64)
+    seeds = [REFERENCE_SEED + i for i in range(batches)]
+    means = np.stack(render_images(feature, seeds, per_batch, device, threads, cluster)).astype(np.float64)
     mean = means.mean(axis=0)
     total = per_batch * batches
     variance = np.zeros_like(mean)
@@ -232,13 +262,14 @@ def render_reference(
     )
 
 
-def calibrate(feature: Feature, reference: Reference, device: str = "cpu", threads: int | None = None) -> dict:
-    """Render the feature at its test spp with ``CALIBRATION_SEEDS`` and set its SSIM threshold
-    under the spread: ``min - max(CALIBRATION_MARGIN, 3 std)``."""
+def calibrate(
+    feature: Feature, reference: Reference, device: str = "cpu", threads: int | None = None, cluster=None
+) -> dict:
+    """Render the feature at its test spp with ``CALIBRATION_SEEDS`` (on ``cluster``: one task
+    each) and set its SSIM threshold under the spread: ``min - max(CALIBRATION_MARGIN, 3 std)``."""
     seeds = CALIBRATION_SEEDS if feature.stochastic else CALIBRATION_SEEDS[:1]
     scores = []
-    for seed in seeds:
-        rgb = render_feature(feature, seed=seed, device=device, threads=threads).rgb
+    for seed, rgb in zip(seeds, render_images(feature, seeds, device=device, threads=threads, cluster=cluster)):
         problem = image_problem(rgb)
         if problem:
             raise WrtError(
@@ -260,13 +291,14 @@ def calibrate(feature: Feature, reference: Reference, device: str = "cpu", threa
     }
 
 
-def store(feature: Feature, reference: Reference, folder: str | None = None) -> None:
-    """Write the reference EXR (half RGB, float variance) and its preview PNG, atomically each."""
-    p = paths(feature.name, folder)
+def store(feature: Feature, reference: Reference, refs: str | None = None) -> None:
+    """Write the reference EXR (half RGB, float variance) and its preview PNG into ``refs``,
+    atomically each."""
+    p = paths(feature.name, refs)
     write_image(p["exr"], reference.rgb, aovs={"variance": reference.variance}, metadata=reference.metadata, half=True)
     write_image(p["png"], reference.rgb)
 
 
-def store_calibration(feature: Feature, calibration: dict, folder: str | None = None) -> None:
-    p = paths(feature.name, folder)
+def store_calibration(feature: Feature, calibration: dict, refs: str | None = None) -> None:
+    p = paths(feature.name, refs)
     write_json(p["json"], {**calibration, "reference_sha256": file_sha256(p["exr"])})

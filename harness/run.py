@@ -58,17 +58,48 @@ def score_render(feature: Feature, rgb: np.ndarray, spp: int, reference, thresho
     return s, z, s >= threshold and z.passed
 
 
-def evaluate(feature: Feature, device: str = "cpu", threads: int | None = None, wrong: bool = False) -> FeatureResult:
-    """Render and score one feature (or its deliberately wrong variant).
+def evaluate(
+    feature: Feature,
+    device: str = "cpu",
+    threads: int | None = None,
+    wrong: bool = False,
+    refs: str | None = None,
+    cluster=None,
+) -> FeatureResult:
+    """Render and score one feature (or its deliberately wrong variant) against its reference in
+    the folder ``refs`` (default: wrt's own, ``references.REFERENCE_DIR``) and its geometry oracle.
+    On ``cluster`` (a ``wrt.distributed.Cluster``) the renders and the scores against the
+    reference are one task (``score_against_reference``: the parsed scene and the reference travel
+    with it); the geometry oracle runs here.
 
     Raises ``ReferenceError`` when the reference is missing, stale or not calibrated.
     """
-    reference = load_reference(feature)
+    reference = load_reference(feature, refs)
     if reference.calibration is None:
-        raise ReferenceError(feature.name, "it has no calibration")
+        raise ReferenceError(feature, "it has no calibration", "calibrate", refs)
+    scene = load_feature_scene(feature, wrong)
+    if cluster is None:
+        out = score_against_reference(feature, scene, reference, device, threads, wrong)
+    else:
+        out = cluster.submit(score_against_reference, feature, scene, reference, device, 1, wrong).result()
+    ids = rasterize_ids(scene)
+    out.geometry_ssim = ssim(palette(out.images["ids"]), palette(ids))
+    if not out.geometry_ssim >= feature.geometry_threshold:
+        out.failures.append(f"geometry SSIM {out.geometry_ssim:.4f} < {feature.geometry_threshold}")
+    out.passed = not out.failures
+    out.images["raster_ids"] = ids
+    return out
+
+
+def score_against_reference(
+    feature: Feature, scene, reference, device: str = "cpu", threads: int | None = None, wrong: bool = False
+) -> FeatureResult:
+    """The part of ``evaluate`` that renders: render ``scene`` (the feature's, or its wrong
+    variant's), score it against ``reference``, re-render a stochastic miss at 4x spp, check
+    convergence. ``images["ids"]``: the first render's ``object_id`` AOV, for the geometry oracle."""
     threshold = float(reference.calibration["ssim_threshold"])
     start = time.perf_counter()
-    result = render_feature(feature, wrong=wrong, device=device, threads=threads)
+    result = render_feature(feature, device=device, threads=threads, scene=scene)
     elapsed = time.perf_counter() - start
     out = FeatureResult(feature=feature, passed=False, ssim_threshold=threshold, time_s=elapsed)
     out.ssim, out.z, ok = score_render(feature, result.rgb, result.spp, reference, threshold)
@@ -79,9 +110,9 @@ def evaluate(feature: Feature, device: str = "cpu", threads: int | None = None, 
             feature,
             spp=4 * result.spp,
             seed=feature.seed + RERENDER_SEED_OFFSET,
-            wrong=wrong,
             device=device,
             threads=threads,
+            scene=scene,
         )
         out.rerendered = True
         out.ssim, out.z, ok = score_render(feature, again.rgb, again.spp, reference, threshold)
@@ -94,15 +125,12 @@ def evaluate(feature: Feature, device: str = "cpu", threads: int | None = None, 
             f"SSIM {out.ssim:.4f} (threshold {threshold:.4f}), Z-test "
             f"{'pass' if out.z.passed else f'{out.z.rejected} pixel channels rejected'}"
         )
-    ids = rasterize_ids(load_feature_scene(feature, wrong))
-    out.geometry_ssim = ssim(palette(result.aovs["object_id"]), palette(ids))
-    if not out.geometry_ssim >= feature.geometry_threshold:
-        out.failures.append(f"geometry SSIM {out.geometry_ssim:.4f} < {feature.geometry_threshold}")
     if feature.stochastic and not wrong:
         spps = [feature.spp, 4 * feature.spp, 16 * feature.spp]
         errors = [out.rmse] + [
             rmse(
-                render_feature(feature, spp=n, seed=feature.seed + k, device=device, threads=threads).rgb, reference.rgb
+                render_feature(feature, spp=n, seed=feature.seed + k, device=device, threads=threads, scene=scene).rgb,
+                reference.rgb,
             )
             for k, n in enumerate(spps[1:], 1)
         ]
@@ -110,23 +138,34 @@ def evaluate(feature: Feature, device: str = "cpu", threads: int | None = None, 
         out.convergence = {"spp": spps, "rmse": errors, "slope": slope}
         if not slope <= CONVERGENCE_SLOPE_MAX:  # NaN (a non-finite error) fails
             out.failures.append(f"RMSE does not converge: slope {slope:.2f} > {CONVERGENCE_SLOPE_MAX} over spp {spps}")
-    out.passed = not out.failures
-    out.images = {"render": rgb, "reference": reference.rgb, "ids": result.aovs["object_id"], "raster_ids": ids}
+    out.images = {"render": rgb, "reference": reference.rgb, "ids": result.aovs["object_id"]}
     return out
 
 
-def run_matrix(features: list[Feature], device: str = "cpu", jobs: int = 1, progress=None) -> list[FeatureResult]:
-    """Evaluate ``features`` (``jobs`` at a time); ``progress(result)`` is called as each finishes.
+def run_matrix(
+    features: list[Feature],
+    device: str = "cpu",
+    jobs: int = 1,
+    progress=None,
+    refs: str | None = None,
+    wrong: bool = False,
+    cluster=None,
+) -> list[FeatureResult]:
+    """Evaluate ``features`` (or, with ``wrong``, their wrong variants) against their references
+    in ``refs`` (see ``evaluate``), ``jobs`` at a time; ``progress(result)`` is called as each
+    finishes. On ``cluster`` (a ``wrt.distributed.Cluster``), each feature's renders are one task
+    and as many features run at once as the cluster has worker threads (``jobs`` is ignored).
 
     References are all loaded first, so a missing or stale one stops the run before any render.
     """
     for feature in features:
-        load_reference(feature)
+        load_reference(feature, refs)
+    jobs = jobs if cluster is None else cluster.threads()
     threads = None if jobs <= 1 else max(1, (os.cpu_count() or 1) // jobs)
 
     def one(feature: Feature) -> FeatureResult:
         try:
-            result = evaluate(feature, device=device, threads=threads)
+            result = evaluate(feature, device=device, threads=threads, wrong=wrong, refs=refs, cluster=cluster)
         except WrtError:
             raise
         except Exception as e:  # a crash of the renderer is a failed feature, not a crashed run

@@ -13,6 +13,7 @@ Modules, in data-flow order:
 - ``spawn``         the one origin offset for rays leaving a surface
 - ``optics``        reflection, Snell refraction, Fresnel
 - ``materials``     material parameters and the BSDF interface (flags, eval, pdf, sample); ``microfacet``: GGX
+- ``textures``      textured material parameters: checkerboard and bitmap lookups at a hit's uv
 - ``hit``           the surface hit integrators shade (point, normals, material, error bound)
 - ``lights``        light parameters and delta lights; ``emitters``: sampling lights with area
 - ``media``         nested and overlapping dielectrics along a ray, Beer-Lambert absorption

@@ -23,7 +23,15 @@ import functools
 import warp as wp
 
 from .materials import MaterialData
-from .traverse import GeometryData, hit_point, hit_shape, make_surface_point, prim_shape, shading_normal
+from .traverse import (
+    GeometryData,
+    hit_point,
+    hit_shape,
+    make_surface_point,
+    make_surface_uv,
+    prim_shape,
+    shading_normal,
+)
 
 
 @wp.struct
@@ -37,16 +45,19 @@ class Hit:
     material: wp.int32
     entering: bool  # the ray hits the geometric front side (dot(d, n) < 0): media, dielectric interfaces
     front: bool  # the ray hits the shading front side (dot(d, shading normal) < 0): the BSDF's side, emission
+    uv: wp.vec2  # texture coordinates (surface_uv); (0, 0) where the scene has no textures
 
 
 @functools.cache
-def make_surface_hit(smooth: bool, instances: bool, quadrics: bool):
+def make_surface_hit(smooth: bool, instances: bool, quadrics: bool, textures: bool):
     """``surface_hit``; without ``smooth`` (no smooth-shaded mesh in the scene) the shading normal
-    is the geometric one, and its interpolation is compiled out; without ``instances`` no hit goes
+    is the geometric one, and its interpolation is compiled out; without ``textures`` so is the
+    texture coordinates' computation (``uv`` stays (0, 0)); without ``instances`` no hit goes
     through an instance, and ``hit_point``'s transforms are compiled out; without ``quadrics`` (no
-    disk or cylinder) neither is their surface point (compiled in, each costs a path tracer a fifth
+    disk or cylinder) neither is their surface point nor uv (compiled in, each costs a path tracer a fifth
     to a quarter of its time on the CPU, even when not taken)."""
     surface_point = make_surface_point(quadrics)
+    surface_uv = make_surface_uv(quadrics)
 
     @wp.func
     def surface_hit(
@@ -79,9 +90,12 @@ def make_surface_hit(smooth: bool, instances: bool, quadrics: bool):
         hit.n_facing = wp.where(hit.front, ns, -ns)
         hit.material = materials.shape_material[prim_shape(geometry, prim)]
         hit.shape = hit_shape(geometry, prim, inst)
+        hit.uv = wp.vec2(0.0)
+        if wp.static(textures):
+            hit.uv = surface_uv(geometry, prim, inst, p, time)
         return hit
 
     return surface_hit
 
 
-surface_hit = make_surface_hit(True, True, True)
+surface_hit = make_surface_hit(True, True, True, True)

@@ -13,7 +13,11 @@ Per camera sample one path is traced:
   Phong, GGX visible normals for glossy);
 - mirrors reflect; dielectrics reflect with probability F (exact Fresnel) or refract, with
   Beer-Lambert absorption and the nested-media rules of ``wrt.kernels.media``; thin dielectrics
-  reflect with probability R' or let the path straight on, in the medium it was in;
+  reflect with probability R' or let the path straight on, in the medium it was in; rough
+  dielectrics are dielectrics whose reflection and refraction are glossy: lights are sampled on
+  both sides of them (a shadow ray across the surface crosses the medium beyond it), and a path
+  refracted through one changes medium as through a smooth one; plastics choose their coating or
+  their base by a 1D sample, as dielectrics choose reflection or refraction;
 - the back side of a one-sided material (``two_sided = false``) reflects nothing: the path ends
   there, without next-event estimation;
 - emission is added where the path hits an emitter's front: fully after the camera or a specular
@@ -56,10 +60,8 @@ from .materials import (
     BSDF_TOTAL_INTERNAL,
     BSDF_TRANSMISSION,
     MaterialData,
-    bsdf_eval,
     bsdf_flags_from,
-    bsdf_pdf,
-    bsdf_sample,
+    make_bsdf,
     non_specular,
 )
 from .media import MEDIA_OVERFLOW, current_ior, dielectric_interface, max_component, medium_sigma, medium_transmittance
@@ -91,12 +93,24 @@ def light_dim(depth: wp.int32, i: wp.int32) -> wp.int32:
     return 1048576 + 2048 * depth + 2 * i
 
 
+@wp.func
+def seen_through(cos_theta: float, flags: wp.int32) -> float:
+    """The cosine that lights a surface of BSDF ``flags`` from a direction of cosine ``cos_theta``
+    with its shading normal: ``|cos|`` below a surface that transmits (a light seen through rough
+    glass), else ``cos`` (``<= 0``: not lit)."""
+    if cos_theta < 0.0 and (flags & BSDF_TRANSMISSION) != 0:
+        return -cos_theta
+    return cos_theta
+
+
 def make_next_event(record: bool, trace: Traversal, features: Features):
     """``next_event``, recording its shadow rays when ``record``, sampling environment maps and
-    emissive triangles when the scene has them (each compiled out otherwise)."""
+    emissive triangles when the scene has them, and lights across the surface when it has rough
+    dielectrics (each compiled out otherwise)."""
     shadow_ray = make_shadow_ray(record, trace)
     sample_light = sample_emitter_or_map if features.environment_map else sample_emitter
     sample_triangle = make_sample_emitting_triangle(features.smooth)
+    bsdf = make_bsdf(features.rough_dielectric, features.plastic)
 
     @wp.func
     def next_event(
@@ -111,11 +125,17 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
         rec: RayRecord,
         parent: wp.int32,
         beta: wp.vec3,
+        flags: wp.int32,
+        eta: float,
+        sigma_t: wp.vec3,
     ) -> wp.vec3:
         """Light reflected toward ``hit.wo`` from one sample of every light and one of the emissive
         triangles (the last emitter, ``i == lights.type.shape[0]``), MIS-weighted for emitters
         with area (W/(m^2 sr), before the path's throughput ``beta``); ``sigma`` is the absorption
         of the medium ``hit`` lies in, applied along the shadow rays as along BSDF-sampled paths.
+        ``flags`` are the BSDF's; a light below a surface with glossy transmission is seen through
+        it (``seen_through``), ``eta`` the ratio of the iors on either side and ``sigma_t`` the
+        absorption beyond it.
 
         Recording: each shadow ray is a segment of ``depth + 1`` segments whose parent is record
         ``parent``, carrying ``beta`` when it reaches its light and 0 when blocked (then ending at
@@ -140,8 +160,10 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
                 wi, dist, irradiance = light_incident(lights, i, hit.p)
                 t_max = dist
                 cos_theta = wp.dot(n, wi)
+                if wp.static(features.rough_dielectric):
+                    cos_theta = seen_through(cos_theta, flags)
                 if cos_theta > 0.0 and max_component(irradiance) > 0.0:
-                    contribution = wp.cw_mul(bsdf_eval(materials, m, n, wo, wi), irradiance) * cos_theta
+                    contribution = wp.cw_mul(wp.static(bsdf.eval)(materials, m, n, wo, wi, eta), irradiance) * cos_theta
             else:
                 u = sample_2d(sampler, ray.pixel, ray.sample, light_dim(depth, i))
                 dist = float(0.0)
@@ -159,10 +181,17 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
                 if kind != ENVIRONMENT:
                     t_max = dist * (1.0 - SHADOW_MARGIN)
                 cos_theta = wp.dot(n, wi)
+                if wp.static(features.rough_dielectric):
+                    cos_theta = seen_through(cos_theta, flags)
                 if pdf > 0.0 and cos_theta > 0.0 and max_component(radiance) > 0.0:
-                    mis = power_heuristic(pdf, bsdf_pdf(materials, m, n, wo, wi))
-                    contribution = wp.cw_mul(bsdf_eval(materials, m, n, wo, wi), radiance) * (cos_theta * mis / pdf)
+                    mis = power_heuristic(pdf, wp.static(bsdf.pdf)(materials, m, n, wo, wi, eta))
+                    f = wp.static(bsdf.eval)(materials, m, n, wo, wi, eta)
+                    contribution = wp.cw_mul(f, radiance) * (cos_theta * mis / pdf)
             if max_component(contribution) > 0.0:
+                shadow_sigma = sigma
+                if wp.static(features.rough_dielectric):
+                    if wp.dot(n, wi) < 0.0:  # a light seen through the surface: the medium beyond it
+                        shadow_sigma = sigma_t
                 visible = shadow_ray(
                     geometry,
                     materials,
@@ -171,7 +200,7 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
                     wi,
                     t_max,
                     ray.time,
-                    sigma,
+                    shadow_sigma,
                     rec,
                     ray.pixel,
                     ray.sample,
@@ -222,7 +251,10 @@ def make_path_radiance(record: bool, features: Features = ALL):
     trace_segment = make_trace_segment(record, trace)
     next_event = make_next_event(record, trace, features)
     environment_radiance = make_environment_radiance(features.environment_map)
-    surface_hit = make_surface_hit(features.smooth, features.instances, features.disks or features.cylinders)
+    bsdf = make_bsdf(features.rough_dielectric, features.plastic)
+    surface_hit = make_surface_hit(
+        features.smooth, features.instances, features.disks or features.cylinders, features.textures
+    )
 
     @wp.func
     def path_radiance(
@@ -332,20 +364,38 @@ def make_path_radiance(record: bool, features: Features = ALL):
                     sigma = wp.vec3(0.0)
                     if wp.static(features.dielectric):
                         sigma = medium_sigma(materials, media, n_media)
+                    sigma_t = sigma
+                    if wp.static(features.rough_dielectric):
+                        sigma_t = medium_sigma(materials, media_t, n_media_t)
                     radiance += wp.cw_mul(
                         beta,
-                        next_event(geometry, materials, lights, hit, sampler, ray, depth, sigma, rec, current, beta),
+                        next_event(
+                            geometry,
+                            materials,
+                            lights,
+                            hit,
+                            sampler,
+                            ray,
+                            depth,
+                            sigma,
+                            rec,
+                            current,
+                            beta,
+                            flags,
+                            eta,
+                            sigma_t,
+                        ),
                     )
 
             # Sample the BSDF for the next direction
             uc = float(0.0)
             u = wp.vec2(0.0)
             if wp.static(features.specular):
-                if (flags & BSDF_TRANSMISSION) != 0:
+                if (flags & BSDF_TRANSMISSION) != 0 or wp.static(features.plastic):  # a plastic: coating or base
                     uc = sample_1d(sampler, ray.pixel, ray.sample, bounce_dim(depth, 2))
             if non_specular(flags):
                 u = sample_2d(sampler, ray.pixel, ray.sample, bounce_dim(depth, 0))
-            bs = bsdf_sample(materials, hit.material, hit.n_facing, hit.wo, eta, uc, u)
+            bs = wp.static(bsdf.sample)(materials, hit.material, hit.n_facing, hit.wo, eta, uc, u)
             if bs.pdf == 0.0:
                 break
             beta = wp.cw_mul(beta, bs.weight)
@@ -365,6 +415,10 @@ def make_path_radiance(record: bool, features: Features = ALL):
                 prev_p = hit.p
                 specular = False
                 segment_kind = SCATTERED
+                if wp.static(features.rough_dielectric):
+                    if (bs.flags & BSDF_TRANSMISSION) != 0:  # refracted through a rough dielectric
+                        media = media_t
+                        n_media = n_media_t
 
             # Spawn the next segment; Russian roulette past RR_DEPTH
             if straight:

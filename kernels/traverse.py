@@ -56,6 +56,7 @@ INSTANCE = wp.constant(6)  # an instance of a group: its own BVH in the group's 
 NO_HIT = wp.constant(-1)
 StackInt = wp.types.vector(length=STACK_SIZE, dtype=wp.int32)
 StackFloat = wp.types.vector(length=STACK_SIZE, dtype=wp.float32)
+mat24 = wp.types.matrix(shape=(2, 4), dtype=wp.float32)  # an affine map of points to texture coordinates
 
 
 @wp.struct
@@ -93,6 +94,9 @@ class GeometryData:
     quadric_to_world: wp.array(dtype=wp.mat44)  # object -> world: the unit disk or tube placed
     quadric_normal: wp.array(dtype=wp.mat33)  # object normal -> world normal (up to length; see wrt.geometry)
     quadric_shape: wp.array(dtype=wp.int32)
+    tri_uvs: wp.array(dtype=wp.vec2)  # parallel to tri_verts: texture coordinates; empty without textures
+    poly_uv: wp.array(dtype=mat24)  # per polygon: uv = M (p, 1) (wrt.geometry.polygon_uv); empty without textures
+    plane_uv: wp.array(dtype=mat24)  # per plane, likewise (wrt.geometry.plane_uv)
 
 
 @wp.func
@@ -645,24 +649,102 @@ def shading_normal(geometry: GeometryData, prim: wp.int32, inst: wp.int32, p: wp
     n0 = geometry.tri_normals[3 * i]
     if n0[0] == 0.0 and n0[1] == 0.0 and n0[2] == 0.0:  # a flat triangle
         return n
-    q = p  # in the frame of the triangle's vertices
-    if inst >= 0:
-        q, _d = to_object(geometry, inst, p, n, time)
-    else:
-        q = ray_origin_at(geometry, prim, p, time)
-    a = geometry.tri_verts[3 * i]
-    e1 = geometry.tri_verts[3 * i + 1] - a
-    e2 = geometry.tri_verts[3 * i + 2] - a
-    w = q - a
-    m = wp.cross(e1, e2)
-    b1 = wp.dot(wp.cross(w, e2), m) / wp.dot(m, m)
-    b2 = wp.dot(wp.cross(e1, w), m) / wp.dot(m, m)
+    b1, b2 = barycentric(geometry, i, object_point(geometry, prim, inst, p, time))
     ns = (1.0 - b1 - b2) * n0 + b1 * geometry.tri_normals[3 * i + 1] + b2 * geometry.tri_normals[3 * i + 2]
     if inst >= 0:
         ns = wp.transform_vector(wp.transpose(geometry.inst_to_object[inst]), ns)
     if not (wp.length_sq(ns) > 0.0):  # also NaN (a degenerate triangle)
         return n
     return wp.normalize(ns)
+
+
+@wp.func
+def object_point(geometry: GeometryData, prim: wp.int32, inst: wp.int32, p: wp.vec3, time: float) -> wp.vec3:
+    """World point ``p`` of a hit ``(prim, inst)`` at ray time ``time`` in the frame the primitive's
+    own coordinates are in: its group's object space through instance ``inst``, the primitive's
+    frame at time 0 for a moving one."""
+    if inst >= 0:
+        q, _d = to_object(geometry, inst, p, p, time)
+        return q
+    return ray_origin_at(geometry, prim, p, time)
+
+
+@wp.func
+def barycentric(geometry: GeometryData, i: wp.int32, q: wp.vec3):
+    """Barycentric coordinates ``(b1, b2)`` of point ``q`` (projected onto the plane) with respect to
+    the second and third corners of triangle ``i``."""
+    a = geometry.tri_verts[3 * i]
+    e1 = geometry.tri_verts[3 * i + 1] - a
+    e2 = geometry.tri_verts[3 * i + 2] - a
+    w = q - a
+    m = wp.cross(e1, e2)
+    return wp.dot(wp.cross(w, e2), m) / wp.dot(m, m), wp.dot(wp.cross(e1, w), m) / wp.dot(m, m)
+
+
+@wp.func
+def unit_angle_z(v: wp.vec3) -> float:
+    """The angle (radians) between unit vector ``v`` and +z, accurate near both poles (Mitsuba 3's)."""
+    if v[2] >= 0.0:
+        return 2.0 * wp.asin(wp.min(1.0, 0.5 * wp.length(v - wp.vec3(0.0, 0.0, 1.0))))
+    return wp.pi - 2.0 * wp.asin(wp.min(1.0, 0.5 * wp.length(v + wp.vec3(0.0, 0.0, 1.0))))
+
+
+@wp.func
+def turns(y: float, x: float) -> float:
+    """The angle of ``(x, y)`` from +x counter-clockwise, in turns in [0, 1)."""
+    phi = wp.atan2(y, x) / (2.0 * wp.pi)
+    return wp.where(phi < 0.0, phi + 1.0, phi)
+
+
+@functools.cache
+def make_surface_uv(quadrics: bool):
+    """``surface_uv``, with the disk and cylinder case compiled in only with ``quadrics``."""
+
+    @wp.func
+    def surface_uv(geometry: GeometryData, prim: wp.int32, inst: wp.int32, p: wp.vec3, time: float) -> wp.vec2:
+        """Texture coordinates (u, v) of the hit point ``p`` (world space) of ``(prim, inst)`` from
+        ``closest_hit`` at ray time ``time``, computed in the primitive's object space (a group's for
+        a hit through an instance), as Mitsuba 3's shapes of the same kind:
+
+        - triangles: the corners' ``tri_uvs`` interpolated (a mesh without texture coordinates, or a
+          ``triangle`` shape: ``(b1, b2)``, the barycentric coordinates of the second and third corners);
+        - spheres: ``(phi / 2 pi, theta / pi)``, phi the azimuth around +z from +x in [0, 2 pi), theta
+          the angle from +z (the scene's axes: a sphere has no frame of its own);
+        - disks: ``(r, phi / 2 pi)`` of the unit disk's point (object space, ``wrt.scene.Disk``);
+        - cylinders: ``(phi / 2 pi, z)`` of the unit tube's point;
+        - polygons and planes: the affine maps ``poly_uv`` and ``plane_uv`` (``wrt.geometry``).
+        """
+        q = object_point(geometry, prim, inst, p, time)
+        kind = prim & KIND_MASK
+        i = prim >> KIND_BITS
+        if kind == TRIANGLE:
+            b1, b2 = barycentric(geometry, i, q)
+            return (
+                (1.0 - b1 - b2) * geometry.tri_uvs[3 * i]
+                + b1 * geometry.tri_uvs[3 * i + 1]
+                + b2 * geometry.tri_uvs[3 * i + 2]
+            )
+        if kind == SPHERE:
+            local = wp.normalize(q - geometry.sphere_center[i])
+            return wp.vec2(turns(local[1], local[0]), unit_angle_z(local) / wp.pi)
+        if wp.static(quadrics):
+            if kind == DISK or kind == CYLINDER:
+                local = wp.transform_point(geometry.quadric_to_object[i], q)
+                phi = turns(local[1], local[0])
+                if kind == DISK:
+                    return wp.vec2(wp.sqrt(local[0] * local[0] + local[1] * local[1]), phi)
+                return wp.vec2(phi, local[2])
+        m = mat24()
+        if kind == POLYGON:
+            m = geometry.poly_uv[i]
+        else:
+            m = geometry.plane_uv[i]
+        return m * wp.vec4(q[0], q[1], q[2], 1.0)
+
+    return surface_uv
+
+
+surface_uv = make_surface_uv(True)
 
 
 def _trace_kernels(trace: Traversal, module: str | None):

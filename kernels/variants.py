@@ -33,10 +33,10 @@ def relevant(integrator: str, features: Features) -> Features:
     variant costs a compilation (seconds) the first time it is used, so only flags that remove
     measurable work are specialised on (see docs/performance.md): the geometry (primitive kinds,
     instances, moving surfaces) and the pixel loop's camera (lens, orthographic) and shutter sampling for
-    every integrator; lights, the branch stack and smooth shading for whitted; lights, dielectrics,
-    smooth shading, environment maps and emissive triangles for path (its mirror test is a load
-    and a compare: path ignores ``specular``; raycast's one shading normal per camera ray is not
-    worth one)."""
+    every integrator; lights, the branch stack, smooth shading and textures for whitted; lights,
+    dielectrics, rough dielectrics, plastics, smooth shading, textures, environment maps and emissive
+    triangles for path (its mirror test is a load and a compare: path ignores ``specular``;
+    raycast's one shading normal per camera ray is not worth one)."""
     every_integrator = {
         "lens": features.lens,
         "orthographic": features.orthographic,
@@ -57,6 +57,7 @@ def relevant(integrator: str, features: Features) -> Features:
             specular=features.specular,
             dielectric=features.dielectric,
             smooth=features.smooth,
+            textures=features.textures,
             **every_integrator,
         )
     return Features(
@@ -64,7 +65,10 @@ def relevant(integrator: str, features: Features) -> Features:
         environment_map=features.environment_map,
         emissive=features.emissive,
         dielectric=features.dielectric,
+        rough_dielectric=features.rough_dielectric,
+        plastic=features.plastic,
         smooth=features.smooth,
+        textures=features.textures,
         **every_integrator,
     )
 

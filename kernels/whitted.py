@@ -170,7 +170,9 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
     trace = traversal(features)
     trace_segment = make_trace_segment(record, trace)
     direct_light = make_direct_light(record, trace)
-    surface_hit = make_surface_hit(features.smooth, features.instances, features.disks or features.cylinders)
+    surface_hit = make_surface_hit(
+        features.smooth, features.instances, features.disks or features.cylinders, features.textures
+    )
 
     @wp.func
     def whitted_radiance(

@@ -162,6 +162,12 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
         metavar="N",
         help="also write the image to the output every N samples per pixel (its metadata spp: the samples done)",
     )
+    r.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="render on the Dask distributed cluster whose scheduler is at ADDRESS (tcp://host:8786), in pixel tiles: "
+        "the same image, bit for bit (needs the cluster extra; see docs/cluster.md)",
+    )
 
     rays = verbs.add_parser(
         "rays",
@@ -285,9 +291,13 @@ def _render(args) -> int:
         raise WrtError(f"{args.output}: unsupported output format {ext or '(none)'!r} (use .exr or .png)")
     if args.aov and ext != ".exr":
         raise WrtError(f"{args.output}: --aov needs an .exr output")
+    if args.scheduler is not None and args.target_error is not None:
+        raise WrtError("--target-error: adaptive sampling runs locally only, not with --scheduler")
+    if args.scheduler is not None and args.threads is not None:
+        raise WrtError("--threads: not with --scheduler (each worker thread renders one tile at a time)")
     check_writable(args.output, protect=(args.scene,))  # before the work, not after it
     messages = init_warp()
-    if args.device.startswith("cuda") and messages:
+    if args.device.startswith("cuda") and args.scheduler is None and messages:  # with a scheduler: the workers' GPUs
         print(messages, end="", file=sys.stderr)
     scene = override_render(
         load_scene(args.scene, approximate=args.approximate),
@@ -299,6 +309,11 @@ def _render(args) -> int:
         max_depth=args.max_depth,
     )
     pixels = scene.render.width * scene.render.height
+    cluster = contextlib.nullcontext()
+    if args.scheduler is not None:
+        from .distributed import Cluster
+
+        cluster = Cluster(args.scheduler)
 
     def write(result) -> None:
         metadata = {
@@ -325,7 +340,7 @@ def _render(args) -> int:
         file=sys.stderr,
         disable=True if scene.render.spp == 1 else None,  # None: shown on a terminal only
     )
-    with bar, _stop_on_signal() as stop:
+    with cluster, bar, _stop_on_signal() as stop:
 
         def on_pass(done: int, spp: int, elapsed: float, snapshot) -> bool:
             if args.target_error is None:
@@ -341,15 +356,11 @@ def _render(args) -> int:
                 write(snapshot())
             return not stop.is_set()
 
-        result = render(
-            scene,
-            device=args.device,
-            threads=args.threads,
-            progress=on_pass,
-            progress_every=args.checkpoint_every,
-            target_error=args.target_error,
-            stop=stop,
-        )
+        options = {"device": args.device, "progress": on_pass, "progress_every": args.checkpoint_every, "stop": stop}
+        if args.scheduler is None:
+            result = render(scene, threads=args.threads, target_error=args.target_error, **options)
+        else:
+            result = cluster.render(scene, **options)
     what = "interrupted" if stop.signum == signal.SIGINT else "terminated"  # when a signal came
     if result.spp == 0:  # a signal before the first pass ended: no sample to write
         print(f"wrt: {what} before the first pass ended: nothing written", file=sys.stderr)

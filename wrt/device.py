@@ -26,6 +26,7 @@ from wrt.kernels.lights import (
     LightData,
 )
 from wrt.kernels.materials import (
+    COATING_RES,
     CONDUCTOR,
     DIELECTRIC,
     DIFFUSE,
@@ -33,18 +34,24 @@ from wrt.kernels.materials import (
     GLOSSY,
     MIRROR,
     PHONG,
+    PLASTIC,
+    ROUGH_DIELECTRIC,
+    ROUGH_PLASTIC,
     THIN_DIELECTRIC,
     MaterialData,
+    lobe_flags,
 )
 from wrt.kernels.media import MEDIA, Media
 from wrt.kernels.sampling import INDEPENDENT, SOBOL, STRATIFIED, Sampler
-from wrt.kernels.traverse import GeometryData
+from wrt.kernels.textures import TextureData
+from wrt.kernels.traverse import GeometryData, mat24
 
 from .conductors import normal_reflectance
 from .emitting import emitting_triangles
 from .envmap import environment_distribution
 from .errors import WrtError
 from .geometry import Primitives
+from .plastics import fresnel_diffuse_reflectance, rough_coating, specular_weight
 from .scene import (
     SURFACE_LIGHTS,
     AreaLight,
@@ -60,6 +67,7 @@ from .scene import (
     SphereLight,
     SpotLight,
 )
+from .textures import texture_table
 
 SAMPLER_CODES = {"independent": INDEPENDENT, "stratified": STRATIFIED, "sobol": SOBOL}
 FILTER_CODES = {"box": BOX, "tent": TENT, "gaussian": GAUSSIAN}
@@ -72,7 +80,11 @@ MATERIAL_CODES = {
     "emitter": EMITTER,
     "conductor": CONDUCTOR,
     "thin_dielectric": THIN_DIELECTRIC,
+    "rough_dielectric": ROUGH_DIELECTRIC,
+    "plastic": PLASTIC,
+    "rough_plastic": ROUGH_PLASTIC,
 }
+RELATIVE_IOR = ("thin_dielectric", "plastic", "rough_plastic")  # their ior is over the scene's exterior_ior
 
 
 def init_warp() -> str:
@@ -158,6 +170,9 @@ def upload_geometry(p: Primitives, device) -> GeometryData:
     s.quadric_to_world = wp.array(to_world.astype(np.float32), dtype=wp.mat44, device=device)
     s.quadric_normal = wp.array(normal, dtype=wp.mat33, device=device)
     s.quadric_shape = _int(p.quadric_shape, device)
+    s.tri_uvs = wp.array(p.tri_uvs.astype(np.float32).reshape(-1, 2), dtype=wp.vec2, device=device)
+    s.poly_uv = wp.array(p.poly_uv.astype(np.float32), dtype=mat24, device=device)
+    s.plane_uv = wp.array(p.plane_uv.astype(np.float32), dtype=mat24, device=device)
     return s
 
 
@@ -171,6 +186,7 @@ def _base_color(mat) -> tuple:
         "glossy": mat.reflectance,
         "dielectric": mat.transmittance,
         "thin_dielectric": mat.transmittance,
+        "rough_dielectric": mat.transmittance,
         "emitter": mat.emission,
     }.get(mat.type, mat.albedo)
 
@@ -198,13 +214,14 @@ def upload_materials(scene: Scene, device) -> MaterialData:
     m = MaterialData()
     m.shape_material = _int(surfaces or [0], device)
     m.type = _int([MATERIAL_CODES[mat.type] for mat in mats], device)
+    m.flags = _int([lobe_flags(MATERIAL_CODES[mat.type], mat.roughness) for mat in mats], device)
     m.base_color = _vec3([_base_color(mat) for mat in mats], device)
     m.albedo = _vec3([mat.albedo for mat in mats], device)
     m.specular = _vec3([mat.specular for mat in mats], device)
     m.exponent = _float([mat.exponent for mat in mats], device)
     m.reflectance = _vec3([mat.reflectance for mat in mats], device)
-    exterior = scene.render.exterior_ior  # a thin dielectric sits in it: its ior is relative to it
-    m.ior = _float([mat.ior / exterior if mat.type == "thin_dielectric" else mat.ior for mat in mats], device)
+    exterior = scene.render.exterior_ior  # a thin dielectric or a plastic sits in it: its ior is relative to it
+    m.ior = _float([mat.ior / exterior if mat.type in RELATIVE_IOR else mat.ior for mat in mats], device)
     with np.errstate(divide="ignore"):
         m.sigma = _vec3([np.minimum(-np.log(mat.transmittance), 1e30) for mat in mats], device)
     m.transmittance = _vec3([mat.transmittance for mat in mats], device)
@@ -214,7 +231,45 @@ def upload_materials(scene: Scene, device) -> MaterialData:
     m.k = _vec3([mat.k for mat in mats], device)
     m.emission = _vec3([mat.emission for mat in mats], device)
     m.two_sided = _int([mat.two_sided for mat in mats], device)
+    _upload_plastics(m, mats, exterior, device)
     return m
+
+
+def upload_textures(scene: Scene, device) -> TextureData:
+    """Every texture of the scene's materials and which material parameter each gives
+    (``wrt.kernels.textures``; materials numbered as ``surface_materials``)."""
+    table = texture_table(surface_materials(scene)[1])
+    t = TextureData()
+    t.slot = wp.array(table.slot, dtype=wp.int32, device=device)
+    t.kind = _int(table.kind, device)
+    t.to_uv = wp.array(table.to_uv, dtype=wp.mat33, device=device)
+    t.color0 = _vec3(table.color0, device)
+    t.color1 = _vec3(table.color1, device)
+    t.offset = _int(table.offset, device)
+    t.width = _int(table.width, device)
+    t.height = _int(table.height, device)
+    t.filter = _int(table.filter, device)
+    t.wrap = _int(table.wrap, device)
+    t.texels = _vec3(table.texels, device)
+    return t
+
+
+def _upload_plastics(m: MaterialData, mats: list[Material], exterior_ior: float, device) -> None:
+    """The plastics' constants (``wrt.plastics``), computed once per material; rough plastics'
+    coating tables in rows of their material index (one row of zeros without any)."""
+    internal, weight = np.zeros(len(mats)), np.zeros(len(mats))
+    tables = np.zeros((len(mats) if any(mat.type == "rough_plastic" for mat in mats) else 1, COATING_RES))
+    for i, mat in enumerate(mats):
+        eta = mat.ior / exterior_ior
+        if mat.type == "plastic":
+            internal[i] = fresnel_diffuse_reflectance(1.0 / eta)
+        elif mat.type == "rough_plastic":
+            tables[i], internal[i] = rough_coating(mat.roughness, eta)
+        weight[i] = specular_weight(mat.albedo, mat.reflectance)
+    m.nonlinear = _int([mat.nonlinear for mat in mats], device)
+    m.internal_reflectance = _float(internal, device)
+    m.specular_weight = _float(weight, device)
+    m.coating_transmittance = wp.array(tables.astype(np.float32), dtype=float, device=device)
 
 
 def upload_lights(scene: Scene, device, prims: Primitives | None = None) -> LightData:
@@ -311,7 +366,7 @@ def camera_media(scene: Scene) -> list[int]:
     o = np.asarray(scene.camera.origin, dtype=np.float64) + scene.camera.near_clip * forward
     inside = []
     for index, shape in enumerate(scene.shapes):
-        if scene.materials[shape.material].type != "dielectric":
+        if scene.materials[shape.material].type not in ("dielectric", "rough_dielectric"):
             continue
         if isinstance(shape, Sphere):
             if np.linalg.norm(o - np.asarray(shape.center)) < shape.radius:

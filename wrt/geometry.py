@@ -12,6 +12,7 @@ for memory locality.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -61,6 +62,10 @@ class Primitives:
     quadric_kind: np.ndarray  # (Q,) DISK or CYLINDER
     quadric_flip: np.ndarray  # (Q,) bool: normals inward
     quadric_shape: np.ndarray
+    # texture coordinates (wrt.kernels.traverse.surface_uv), empty in scenes without textures:
+    tri_uvs: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 2), np.float32))  # (T, 3, 2) per corner
+    poly_uv: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 4)))  # (P, 2, 4): uv = M (p, 1)
+    plane_uv: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 4)))  # (L, 2, 4)
     surface_velocity: np.ndarray | None = None  # (shapes + lights, 3): scene units per unit time
     num_shapes: int = 0  # surfaces numbered from here on belong to lights
     bvh: DeviceBvh | None = None  # over the bounded primitives, on the render device
@@ -187,9 +192,10 @@ def _f32(a: np.ndarray) -> np.ndarray:
 
 
 def flatten(scene: Scene) -> Primitives:
-    """Collect the primitives of every shape, tagged with the shape's index in file order."""
+    """Collect the primitives of every shape, tagged with the shape's index in file order (with
+    their texture coordinates when a material of the scene has textures)."""
     spheres, tris, polys, planes, quadrics, insts = [], [], [], [], [], []
-    tri_blocks, tri_shape_blocks, normal_blocks = [], [], []
+    tri_blocks, tri_shape_blocks, normal_blocks, uv_blocks = [], [], [], []
     for i, shape in enumerate(scene.shapes):
         if isinstance(shape, Sphere):
             spheres.append((shape.center, shape.radius, i))
@@ -198,10 +204,11 @@ def flatten(scene: Scene) -> Primitives:
         elif isinstance(shape, Triangle):
             tris.append((shape.vertices, i))
         elif isinstance(shape, Polygon):
-            polys.append((shape.vertices, shape.normal, i))
+            polys.append((shape.vertices, shape.normal, i, shape.uvs))
         elif isinstance(shape, Mesh):
             tri_blocks.append(shape.vertices.astype(np.float32)[shape.faces])
             tri_shape_blocks.append(np.full(len(shape.faces), i, dtype=np.int32))
+            uv_blocks.append(None if shape.uvs is None else shape.uvs.astype(np.float32)[shape.faces])
             normal_blocks.append(
                 None if shape.normals is None else _corner_normals(shape.normals[shape.faces], tri_blocks[-1])
             )
@@ -217,7 +224,7 @@ def flatten(scene: Scene) -> Primitives:
             spheres.append((light.center, light.radius, surface))
         elif isinstance(light, AreaLight):
             normal = np.cross(np.asarray(light.edge_u, dtype=np.float64), light.edge_v)
-            polys.append((light.corners(), tuple(normal / np.linalg.norm(normal)), surface))
+            polys.append((light.corners(), tuple(normal / np.linalg.norm(normal)), surface, None))
     members = sum(len(group.shapes) for group in scene.groups)  # their surfaces follow the lights'
     velocity = [shape.velocity for shape in scene.shapes] + [(0.0, 0.0, 0.0)] * (len(scene.lights) + members)
     tri_blocks.insert(0, np.asarray([v for v, _ in tris], dtype=np.float32).reshape(-1, 3, 3))
@@ -226,6 +233,9 @@ def flatten(scene: Scene) -> Primitives:
     if any(block is not None for block in normal_blocks):
         blocks = [None, *normal_blocks]  # the [[shape]] triangles' first: flat
         tri_normals = _joined([np.zeros_like(t) if n is None else n for n, t in zip(blocks, tri_blocks)])
+    textured = any(material.textures for material in scene.materials)
+    barycentric = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], dtype=np.float32)  # uv = (b1, b2)
+    uv_blocks.insert(0, None)  # the [[shape]] triangles'
     return Primitives(
         sphere_center=np.asarray([c for c, _, _ in spheres], dtype=np.float64).reshape(-1, 3),
         sphere_radius=np.asarray([r for _, r, _ in spheres], dtype=np.float64),
@@ -233,9 +243,9 @@ def flatten(scene: Scene) -> Primitives:
         tri_verts=_joined(tri_blocks),
         tri_shape=_joined(tri_shape_blocks),
         tri_normals=tri_normals,
-        poly_verts=[np.asarray(v, dtype=np.float64) for v, _, _ in polys],
-        poly_normal=np.asarray([n for _, n, _ in polys], dtype=np.float64).reshape(-1, 3),
-        poly_shape=np.asarray([s for _, _, s in polys], dtype=np.int32),
+        poly_verts=[np.asarray(v, dtype=np.float64) for v, _, _, _ in polys],
+        poly_normal=np.asarray([n for _, n, _, _ in polys], dtype=np.float64).reshape(-1, 3),
+        poly_shape=np.asarray([s for _, _, s, _ in polys], dtype=np.int32),
         plane_point=np.asarray([p for p, _, _ in planes], dtype=np.float64).reshape(-1, 3),
         plane_normal=np.asarray([n for _, n, _ in planes], dtype=np.float64).reshape(-1, 3),
         plane_shape=np.asarray([s for _, _, s in planes], dtype=np.int32),
@@ -243,12 +253,56 @@ def flatten(scene: Scene) -> Primitives:
         quadric_kind=np.asarray([k for _, k, _, _ in quadrics], dtype=np.int32),
         quadric_flip=np.asarray([f for _, _, f, _ in quadrics], dtype=bool),
         quadric_shape=np.asarray([s for _, _, _, s in quadrics], dtype=np.int32),
+        tri_uvs=_joined(
+            [np.broadcast_to(barycentric, (len(t), 3, 2)) if uv is None else uv for uv, t in zip(uv_blocks, tri_blocks)]
+        )
+        if textured
+        else np.zeros((0, 3, 2), np.float32),
+        poly_uv=np.asarray([polygon_uv(v, n, uv) for v, n, _, uv in polys] if textured else []).reshape(-1, 2, 4),
+        plane_uv=np.asarray([plane_uv(p, n) for p, n, _ in planes] if textured else []).reshape(-1, 2, 4),
         surface_velocity=np.asarray(velocity, dtype=np.float64).reshape(-1, 3),
         num_shapes=len(scene.shapes),
         inst_to_world=np.asarray([m for m, _, _ in insts], dtype=np.float64).reshape(-1, 4, 4),
         inst_shape=np.asarray([s for _, s, _ in insts], dtype=np.int32),
         inst_group=np.asarray([g for _, _, g in insts], dtype=np.int32),
     )
+
+
+def polygon_uv(vertices, normal, uvs) -> np.ndarray:
+    """The affine map (2, 4) taking a point ``p`` of a polygon's plane to its texture coordinates,
+    ``M (p, 1)``: the least-squares fit (exact for an affine image) of the vertices' ``uvs``
+    (None: vertices 0, 1, 2 at (0, 0), (1, 0), (1, 1), ``wrt.scene.Polygon``), constant along the
+    unit ``normal``."""
+    v = np.asarray(vertices, dtype=np.float64)
+    if uvs is None:
+        v, uvs = v[:3], [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0)]
+    e1, e2 = _plane_axes(normal)
+    q = np.column_stack([(v - v[0]) @ e1, (v - v[0]) @ e2, np.ones(len(v))])
+    fit = np.linalg.lstsq(q, np.asarray(uvs, dtype=np.float64), rcond=None)[0]  # (3, 2): uv = (q1, q2, 1) fit
+    m = np.zeros((2, 4))
+    m[:, :3] = fit[0][:, None] * e1 + fit[1][:, None] * e2
+    m[:, 3] = fit[2] - m[:, :3] @ v[0]
+    return m
+
+
+def plane_uv(point, normal) -> np.ndarray:
+    """The map (2, 4) of an unbounded plane's texture coordinates: the point's coordinates from
+    ``point`` along the axes ``_plane_axes(normal)``, ``M (p, 1)``."""
+    e1, e2 = _plane_axes(normal)
+    m = np.zeros((2, 4))
+    m[:, :3] = [e1, e2]
+    m[:, 3] = -m[:, :3] @ np.asarray(point, dtype=np.float64)
+    return m
+
+
+def _plane_axes(normal) -> tuple[np.ndarray, np.ndarray]:
+    """Unit axes ``(e1, e2)`` with ``(e1, e2, normal)`` right-handed and orthonormal (Duff et al.
+    2017, as ``wrt.loader``'s frames of disks and cylinders)."""
+    x, y, z = np.asarray(normal, dtype=np.float64)
+    sign = math.copysign(1.0, z)
+    a = -1.0 / (sign + z)
+    b = x * y * a
+    return np.array([1.0 + sign * x * x * a, sign * b, -sign * x]), np.array([b, sign + y * y * a, -y])
 
 
 def _joined(blocks: list[np.ndarray]) -> np.ndarray:
@@ -327,8 +381,12 @@ def _build_tree(p: Primitives, shutter: tuple[float, float], device) -> None:
         p.tri_verts, p.tri_shape = p.tri_verts[t], p.tri_shape[t]
         if len(p.tri_normals):
             p.tri_normals = p.tri_normals[t]
+        if len(p.tri_uvs):
+            p.tri_uvs = p.tri_uvs[t]
     if counts[2]:
         p.poly_verts, p.poly_normal, p.poly_shape = [p.poly_verts[k] for k in g], p.poly_normal[g], p.poly_shape[g]
+        if len(p.poly_uv):
+            p.poly_uv = p.poly_uv[g]
     if counts[3]:
         p.quadric_to_world, p.quadric_kind = p.quadric_to_world[q], p.quadric_kind[q]
         p.quadric_flip, p.quadric_shape = p.quadric_flip[q], p.quadric_shape[q]
@@ -401,9 +459,11 @@ def _append_groups(p: Primitives, groups: list[Primitives], device) -> None:
         p.sphere_shape = np.concatenate([p.sphere_shape, g.sphere_shape])
         p.tri_verts = _joined([p.tri_verts, g.tri_verts])
         p.tri_normals = _joined_normals(p, g)
+        p.tri_uvs = _joined([p.tri_uvs, g.tri_uvs])
         p.tri_shape = _joined([p.tri_shape, g.tri_shape])
         p.poly_verts = p.poly_verts + g.poly_verts
         p.poly_normal = np.concatenate([p.poly_normal, g.poly_normal])
+        p.poly_uv = np.concatenate([p.poly_uv, g.poly_uv])
         p.poly_shape = np.concatenate([p.poly_shape, g.poly_shape])
         p.quadric_to_world = np.concatenate([p.quadric_to_world, g.quadric_to_world])
         p.quadric_kind = np.concatenate([p.quadric_kind, g.quadric_kind])

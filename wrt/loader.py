@@ -49,6 +49,7 @@ from .scene import (
     SpotLight,
     Triangle,
 )
+from .textures import SLOTS, Bitmap, read_texture
 
 UTF8_BOM = b"\xef\xbb\xbf"
 TOP_LEVEL = ("render", "camera", "material", "group", "shape", "light")
@@ -313,6 +314,9 @@ _MATERIAL_KEYS = {
     "glossy": ("roughness", "reflectance", "two_sided"),
     "conductor": ("reflectance", "two_sided"),  # and those of _conductor
     "thin_dielectric": ("ior", "reflectance", "transmittance"),
+    "rough_dielectric": ("ior", "roughness", "transmittance", "priority"),
+    "plastic": ("albedo", "reflectance", "ior", "nonlinear", "two_sided"),
+    "rough_plastic": ("albedo", "reflectance", "ior", "roughness", "nonlinear", "two_sided"),
 }
 
 
@@ -334,7 +338,27 @@ def _conductor(t: _Table) -> dict:
     return {"roughness": roughness, "eta": eta, "k": k}
 
 
-def _material(file: str, index: int, data) -> Material:
+def _texture(t: _Table, key: str, scene_dir: str) -> tuple:
+    """Material parameter ``key`` given by a texture (an inline table, ``wrt.textures.read_texture``):
+    ``(texture, value)``, its values checked against the parameter's range (roughness: as the
+    kernels read it, ``texture_float``), ``value`` their mean (the parameter where a constant is read)."""
+    t.used.add(key)
+    tt = _Table(t.file, f"{t.name}.{key}", t.data[key])
+    texture = read_texture(tt, scene_dir)
+    values = texture.numbers() if key == "roughness" else texture.values()
+    lo, hi = (1e-3, 1.0) if key == "roughness" else (0.0, 1.0)
+    if values.min() < lo or values.max() > hi:
+        what = "the file's texels" if isinstance(texture, Bitmap) else "its colours"
+        raise tt.error(
+            "file" if isinstance(texture, Bitmap) else "texture",
+            f"{what} range over [{values.min():.4g}, {values.max():.4g}]: {key} must stay in [{lo:g}, {hi:g}]",
+            tt.data.get("file", tt.data.get("texture")),
+        )
+    mean = values.mean(axis=0)
+    return texture, float(mean) if key == "roughness" else tuple(float(c) for c in mean)
+
+
+def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
     t = _Table(file, f"material[{index}]", data)
     kind = t.string("type", "diffuse", MATERIAL_TYPES)
     values = {"name": t.string("name"), "type": kind, "emission": t.vec3("emission", Material.emission, lo=0.0)}
@@ -348,9 +372,15 @@ def _material(file: str, index: int, data) -> Material:
         "priority": lambda: t.number("priority", Material.priority, integer=True, lo=-1000, hi=1000),
         "roughness": lambda: t.number("roughness", Material.roughness, lo=1e-3, hi=1.0),
         "two_sided": lambda: t.boolean("two_sided", Material.two_sided),
+        "nonlinear": lambda: t.boolean("nonlinear", Material.nonlinear),
     }
+    textures = []
     for key in _MATERIAL_KEYS[kind]:
-        values[key] = readers[key]()
+        if key in SLOTS and isinstance(t.data.get(key), Mapping):
+            texture, values[key] = _texture(t, key, scene_dir)
+            textures.append((key, texture))
+        else:
+            values[key] = readers[key]()
     if kind == "conductor":
         values.update(_conductor(t))
     if "two_sided" in t.data and "two_sided" not in values:
@@ -358,7 +388,7 @@ def _material(file: str, index: int, data) -> Material:
             "two_sided", f"does not apply to a {kind}: it reflects and refracts on both sides", t.data["two_sided"]
         )
     t.finish()
-    material = Material(**values)
+    material = Material(**values, textures=tuple(textures))
     if kind == "phong" and any(a + s > 1.0 for a, s in zip(material.albedo, material.specular)):
         raise t.error(
             "specular",
@@ -471,19 +501,29 @@ def _cylinder_to_world(t: _Table) -> np.ndarray:
     return _placed(t, "cylinder", placement)
 
 
-def _mesh(t: _Table, scene_dir: str, material: int) -> Mesh:
+def _mesh(t: _Table, scene_dir: str, material: int, textured: bool) -> Mesh:
     """A ``mesh`` table: its ``file`` placed by its ``transform``; with ``shading = "smooth"`` the
     file's vertex normals (by the inverse transpose), or Mitsuba 3's computed from the placed
-    vertices when it has none; ``flip_normals`` reverses the winding and turns the normals around."""
+    vertices when it has none; ``flip_normals`` reverses the winding and turns the normals around;
+    with a ``textured`` material, the file's texture coordinates."""
     name = t.string("file")
     matrix = _transform(t)
     smooth = t.string("shading", "flat", choices=MESH_SHADING) == "smooth"
     flip = t.boolean("flip_normals", False)
     path = os.path.join(scene_dir, name)
     try:
-        vertices, faces, normals = load_mesh(path, return_normals=True) if smooth else (*load_mesh(path), None)
+        read_all = smooth or textured  # an OBJ file is then read as Mitsuba 3 numbers its vertices
+        vertices, faces, normals, uvs = (
+            load_mesh(path, return_normals=True, return_uvs=True) if read_all else (*load_mesh(path), None, None)
+        )
     except MeshFileError as e:
         raise t.error("file", str(e), name) from None
+    if not smooth:
+        normals = None
+    if not textured:
+        uvs = None
+    elif uvs is not None and not np.all(np.abs(uvs) <= MAX_MAGNITUDE):
+        raise t.error("file", f"texture coordinates {BEYOND_FLOAT32}", name)
     if flip:
         faces = np.ascontiguousarray(faces[:, ::-1])
         normals = None if normals is None else -normals
@@ -492,7 +532,7 @@ def _mesh(t: _Table, scene_dir: str, material: int) -> Mesh:
         raise t.error("file", f"vertices (after the transform) {BEYOND_FLOAT32}", name)
     if smooth:
         normals = vertex_normals(vertices, faces) if normals is None else transform_normals(normals, matrix)
-    return Mesh(file=path, vertices=vertices, faces=faces, material=material, normals=normals)
+    return Mesh(file=path, vertices=vertices, faces=faces, material=material, normals=normals, uvs=uvs)
 
 
 def _shape(
@@ -502,9 +542,11 @@ def _shape(
     material_index: Mapping[str, int],
     scene_dir: str,
     group_index: Mapping[str, int] | None = None,
+    textured: frozenset = frozenset(),
 ):
     """The shape of table ``name`` (``shape[3]``, or ``group[0].shape[1]`` without ``group_index``:
-    a group's shapes are bounded, still and not instances)."""
+    a group's shapes are bounded, still and not instances); ``textured``: the indices of materials
+    with textures (their meshes' texture coordinates are read)."""
     t = _Table(file, name, data)
     kind = t.string("type", choices=SHAPE_TYPES if group_index is not None else GROUP_SHAPE_TYPES)
     name = t.get("material", None)
@@ -524,9 +566,10 @@ def _shape(
         shape = Triangle(vertices=t.vectors("vertices", count=3), material=material)
     elif kind == "polygon":
         vertices = t.vectors("vertices", min_count=3)
-        shape = Polygon(vertices=vertices, normal=_newell_normal(t, vertices), material=material)
+        uvs = _polygon_uvs(t, len(vertices))
+        shape = Polygon(vertices=vertices, normal=_newell_normal(t, vertices), material=material, uvs=uvs)
     elif kind == "mesh":
-        shape = _mesh(t, scene_dir, material)
+        shape = _mesh(t, scene_dir, material, material in textured)
     elif kind == "disk":
         shape = Disk(to_world=_disk_to_world(t), material=material)
     elif kind == "cylinder":
@@ -545,14 +588,33 @@ def _shape(
     return dataclasses.replace(shape, velocity=velocity) if velocity != STILL else shape
 
 
-def _group(file: str, index: int, data, material_index: Mapping[str, int], scene_dir: str) -> Group:
+def _polygon_uvs(t: _Table, count: int) -> tuple | None:
+    """A polygon's ``uv``: texture coordinates [u, v] of its ``count`` vertices (None when absent)."""
+    uvs = t.get("uv", None)
+    if uvs is None:
+        return None
+    if (
+        not isinstance(uvs, list)
+        or len(uvs) != count
+        or not all(isinstance(uv, list) and len(uv) == 2 for uv in uvs)
+        or not all(not isinstance(c, bool) and isinstance(c, (int, float)) for uv in uvs for c in uv)
+    ):
+        raise t.error("uv", f"must be a list of {count} pairs [u, v], one per vertex", uvs)
+    _check_float32(t, "uv", [c for uv in uvs for c in uv], uvs)
+    return tuple((float(u), float(v)) for u, v in uvs)
+
+
+def _group(
+    file: str, index: int, data, material_index: Mapping[str, int], scene_dir: str, textured: frozenset = frozenset()
+) -> Group:
     t = _Table(file, f"group[{index}]", data)
     name = t.string("name")
     tables = t.get("shape", None)
     if not isinstance(tables, list) or not tables or not all(isinstance(x, dict) for x in tables):
         raise t.error("shape", "must be a non-empty array of tables, written [[group.shape]]", tables)
     shapes = tuple(
-        _shape(file, f"group[{index}].shape[{j}]", table, material_index, scene_dir) for j, table in enumerate(tables)
+        _shape(file, f"group[{index}].shape[{j}]", table, material_index, scene_dir, textured=textured)
+        for j, table in enumerate(tables)
     )
     t.finish()
     return Group(name=name, shapes=shapes)
@@ -644,7 +706,7 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
         raise SceneError(file, "camera", None, "is required")
     render = _render(file, doc.get("render", {}))
     camera = _camera(file, doc["camera"])
-    materials = [_material(file, i, m) for i, m in enumerate(_array_of_tables(file, doc, "material"))]
+    materials = [_material(file, i, m, scene_dir) for i, m in enumerate(_array_of_tables(file, doc, "material"))]
     material_index: dict[str, int] = {}
     for i, m in enumerate(materials):
         if m.name in material_index or m.name == DEFAULT_MATERIAL.name:
@@ -652,13 +714,17 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
         material_index[m.name] = i
     material_index[DEFAULT_MATERIAL.name] = len(materials)
     materials.append(DEFAULT_MATERIAL)
-    groups = [_group(file, i, g, material_index, scene_dir) for i, g in enumerate(_array_of_tables(file, doc, "group"))]
+    textured = frozenset(i for i, m in enumerate(materials) if m.textures)
+    groups = [
+        _group(file, i, g, material_index, scene_dir, textured)
+        for i, g in enumerate(_array_of_tables(file, doc, "group"))
+    ]
     group_index: dict[str, int] = {}
     for i, group in enumerate(groups):
         if group_index.setdefault(group.name, i) != i:
             raise SceneError(file, f"group[{i}]", "name", "is already used", group.name)
     shapes = [
-        _shape(file, f"shape[{i}]", s, material_index, scene_dir, group_index)
+        _shape(file, f"shape[{i}]", s, material_index, scene_dir, group_index, textured)
         for i, s in enumerate(_array_of_tables(file, doc, "shape"))
     ]
     longest_time = max(abs(c) for c in camera.shutter)
@@ -687,6 +753,15 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
                     "the whitted integrator takes point, directional and spot lights (area, sphere and environment "
                     'lights need integrator = "path")',
                     light.type,
+                )
+        for i, material in enumerate(materials):
+            if material.type == "rough_dielectric":
+                raise SceneError(
+                    file,
+                    f"material[{i}]",
+                    "type",
+                    'the whitted integrator traces delta lobes only (a rough dielectric needs integrator = "path")',
+                    material.type,
                 )
     return Scene(
         render=render,

@@ -34,7 +34,7 @@ MESH_FORMATS = (".ply", ".obj", ".stl", ".vtk", ".vtp", ".vtu", ".vtm")
 """File extensions `load_mesh` reads (case-insensitive)."""
 
 
-def load_mesh(path, *, return_normals=False):
+def load_mesh(path, *, return_normals=False, return_uvs=False):
     """Read a triangle mesh from a file.
 
     Parameters
@@ -44,6 +44,8 @@ def load_mesh(path, *, return_normals=False):
         STL (ASCII or binary), or a VTK dataset (``.vtk``, ``.vtp``, ``.vtu``, ``.vtm``).
     return_normals : bool, default False
         Also return the file's vertex normals.
+    return_uvs : bool, default False
+        Also return the file's vertex texture coordinates (after the normals, if asked for).
 
     Returns
     -------
@@ -56,6 +58,13 @@ def load_mesh(path, *, return_normals=False):
         normalised; a zero row where an OBJ face corner names no normal), or None where the file
         has none: a PLY file without ``nx``, ``ny``, ``nz`` vertex properties, an OBJ file without
         ``vn`` lines, an STL file, a VTK dataset without point normals.
+    uvs : numpy.ndarray of float64, shape (V, 2), or None
+        Only with `return_uvs`: the file's texture coordinates (u, v) in Mitsuba 3's convention,
+        where v = 0 is the top row of an image: a PLY file's ``u, v`` (or ``s, t``, ``texture_u,
+        texture_v``, ``texture_s, texture_t``) vertex properties as written, an OBJ file's ``vt``
+        as ``(u, 1 - v)`` (OBJ's v = 0 is the bottom row; Mitsuba flips it so; (0, 0) where a face
+        corner names none), a VTK dataset's active texture coordinates; None where the file has
+        none (an STL file).
 
     Raises
     ------
@@ -82,23 +91,24 @@ def load_mesh(path, *, return_normals=False):
     _check_mesh_path(path)
     suffix = path.suffix.lower()
     if suffix == ".ply":
-        points, counts, indices, normals = _read_ply(path)
+        points, counts, indices, normals, uvs = _read_ply(path)
         _check_face_indices(counts, indices, len(points), path)  # before VTK, which can crash on them
         if len(counts) and np.all(counts == 3):
-            mesh = _checked_triangles(points, indices.reshape(-1, 3), normals, path)
+            mesh = _checked_triangles(points, indices.reshape(-1, 3), normals, uvs, path)
         else:
-            mesh = _triangles(_polydata(points, counts, indices, normals), path)
-    elif suffix == ".obj" and return_normals:
+            mesh = _triangles(_polydata(points, counts, indices, normals, uvs), path)
+    elif suffix == ".obj" and (return_normals or return_uvs):
         mesh = _read_obj(path)
     else:
         mesh = _triangles(_read_with_vtk(path), path)
-    if not return_normals:
-        return mesh[:2]
-    if mesh[2] is not None:
+    if return_normals and mesh[2] is not None:
         bad = np.count_nonzero(~np.all(np.isfinite(mesh[2]), axis=1))
         if bad:
             raise MeshFileError(f"{path}: {bad} of {len(mesh[2])} vertex normals are NaN or infinite")
-    return mesh
+    if return_uvs and mesh[3] is not None and not np.all(np.isfinite(mesh[3])):
+        bad = np.count_nonzero(~np.all(np.isfinite(mesh[3]), axis=1))
+        raise MeshFileError(f"{path}: {bad} of {len(mesh[3])} texture coordinates are NaN or infinite")
+    return mesh[:2] + (mesh[2],) * return_normals + (mesh[3],) * return_uvs
 
 
 def vertex_normals(vertices, faces):
@@ -347,19 +357,19 @@ def _check_face_indices(counts, indices, n_points, path):
         )
 
 
-def _checked_triangles(points, faces, normals, path):
-    """``(vertices, faces, normals)`` of a triangle mesh whose face indices are valid
+def _checked_triangles(points, faces, normals, uvs, path):
+    """``(vertices, faces, normals, uvs)`` of a triangle mesh whose face indices are valid
     (`_check_face_indices`) if its vertices are finite, else MeshFileError (the check of
     ``_triangles``, without VTK)."""
     bad_points = np.count_nonzero(~np.all(np.isfinite(points), axis=1))
     if bad_points:
         raise MeshFileError(f"{path}: {bad_points} of {len(points)} vertices are NaN or infinite")
-    return np.asarray(points, dtype=np.float64), faces.astype(np.int32), normals
+    return np.asarray(points, dtype=np.float64), faces.astype(np.int32), normals, uvs
 
 
 def _triangles(dataset, path):
-    """Validate a dataset read from `path` and return its surface as (vertices, faces, normals)
-    arrays, ``normals`` its point normals (None without)."""
+    """Validate a dataset read from `path` and return its surface as (vertices, faces, normals, uvs)
+    arrays, ``normals`` its point normals and ``uvs`` its texture coordinates (None without)."""
     import pyvista as pv
 
     n_points = dataset.n_points
@@ -382,7 +392,13 @@ def _triangles(dataset, path):
     vertices = np.array(surface.points, dtype=np.float64)
     faces = surface.faces.reshape(-1, 4)[:, 1:].astype(np.int32)
     normals = surface.point_data.active_normals
-    return vertices, faces, None if normals is None else np.array(normals, dtype=np.float64)
+    uvs = surface.point_data.active_texture_coordinates
+    return (
+        vertices,
+        faces,
+        None if normals is None else np.array(normals, dtype=np.float64),
+        None if uvs is None else np.array(uvs, dtype=np.float64),
+    )
 
 
 def _cell_point_ids(dataset):
@@ -406,13 +422,14 @@ def _cell_point_ids(dataset):
 
 
 def _read_obj(path):
-    """``(vertices, faces, normals)`` of an OBJ file read Mitsuba's way (above): normals None
-    without ``vn`` lines, else a zero row for a vertex whose index triple names no normal."""
+    """``(vertices, faces, normals, uvs)`` of an OBJ file read Mitsuba's way (above): normals None
+    without ``vn`` lines, else a zero row for a vertex whose index triple names no normal; uvs
+    None without ``vt`` lines, else ``(u, 1 - v)`` ((0, 0) where the triple names none)."""
     try:
         data = path.read_bytes()
     except OSError as err:
         raise MeshFileError(f"{path}: cannot read ({err.strerror})") from None
-    positions, normals, texcoords = [], [], 0
+    positions, normals, texcoords = [], [], []
     corners, sizes, face_lines = [], [], []
     for number, line in enumerate(data.splitlines(), start=1):
         words = line.split()
@@ -423,7 +440,9 @@ def _read_obj(path):
                 if len(words) < 4:
                     raise ValueError
             elif tag == b"vt":
-                texcoords += 1
+                texcoords.append([float(x) for x in words[1:3]] + [0.0] * (3 - len(words)))
+                if len(words) < 2:
+                    raise ValueError
             elif tag == b"f":
                 for word in words[1:]:
                     indices = [int(x) if x else 0 for x in word.split(b"/")]
@@ -435,7 +454,7 @@ def _read_obj(path):
                 sizes.append(len(words) - 1)
                 face_lines.append(number)
         except ValueError:
-            what = "corners v, v/vt, v//vn or v/vt/vn (integers)" if tag == b"f" else "3 numbers"
+            what = {b"f": "corners v, v/vt, v//vn or v/vt/vn (integers)", b"vt": "1 to 3 numbers"}.get(tag, "3 numbers")
             text = line.decode(errors="replace").strip()
             raise MeshFileError(f"{path}: line {number}: '{tag.decode()}' takes {what}, got {text!r}") from None
     if not sizes:
@@ -447,7 +466,7 @@ def _read_obj(path):
     corner_lines = np.repeat(face_lines, sizes)
     for column, count, what, table in (
         (0, len(positions), "vertex", "vertices"),
-        (1, texcoords, "texture coordinate", "texture coordinates"),
+        (1, len(texcoords), "texture coordinate", "texture coordinates"),
         (2, len(normals), "normal", "normals"),
     ):
         index = keys[:, column]  # 1-based; 0: none named (a vertex must be)
@@ -475,7 +494,12 @@ def _read_obj(path):
     if normals:
         table = np.vstack([np.zeros((1, 3)), np.asarray(normals, dtype=np.float64)])  # index 0: none named
         vertex_normals_read = table[vertex_keys[:, 2]]
-    return points[vertex_keys[:, 0] - 1], faces.astype(np.int32), vertex_normals_read
+    uvs = None
+    if texcoords:
+        table = np.vstack([np.zeros((1, 2)), np.asarray(texcoords, dtype=np.float64)[:, :2]])
+        uvs = table[vertex_keys[:, 1]] * [1.0, -1.0] + [0.0, 1.0]
+        uvs[vertex_keys[:, 1] == 0] = 0.0
+    return points[vertex_keys[:, 0] - 1], faces.astype(np.int32), vertex_normals_read, uvs
 
 
 # --- PLY ------------------------------------------------------------------------------------
@@ -496,6 +520,8 @@ _PLY_ENDIAN = {"binary_little_endian": "<", "binary_big_endian": ">"}
 _PLY_ENCODINGS = ("ascii", *_PLY_ENDIAN)
 _PLY_FACE_LISTS = ("vertex_indices", "vertex_index")
 _PLY_NORMALS = ("nx", "ny", "nz")
+_PLY_UVS = (("u", "v"), ("s", "t"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
+"""Vertex property pairs a PLY file's texture coordinates are read from (the first present), as Mitsuba 3's."""
 _PLY_MAX_LIST = 2**31
 """Lists are at most this long (a longer one is a corrupt length field)."""
 
@@ -534,8 +560,9 @@ class _PlyHeader:
 
 
 def _read_ply(path):
-    """Parse a PLY file into its vertices (V, 3), face sizes (F,), flat vertex indices and vertex
-    normals (V, 3) (None without ``nx``, ``ny``, ``nz``).
+    """Parse a PLY file into its vertices (V, 3), face sizes (F,), flat vertex indices, vertex
+    normals (V, 3) (None without ``nx``, ``ny``, ``nz``) and texture coordinates (V, 2) (None
+    without a pair of ``_PLY_UVS``).
 
     Raises MeshFileError for any file that is not a complete, well-formed PLY file.
     """
@@ -550,8 +577,8 @@ def _read_ply(path):
 
 
 def _ply_arrays(data):
-    """Vertices, face sizes (each at least 3), flat face vertex indices and vertex normals (or None)
-    from the bytes of a PLY file; raise _PlyError if they are malformed."""
+    """Vertices, face sizes (each at least 3), flat face vertex indices, vertex normals and texture
+    coordinates (or None) from the bytes of a PLY file; raise _PlyError if they are malformed."""
     header = _parse_ply_header(data)
     if header.encoding == "ascii":
         values = _read_ascii_body(data[header.body_start :], header.elements, header.body_line)
@@ -562,6 +589,8 @@ def _ply_arrays(data):
     normals = None
     if "nx" in vertex:
         normals = np.column_stack([np.asarray(vertex[axis], dtype=np.float64) for axis in _PLY_NORMALS])
+    pair = next((pair for pair in _PLY_UVS if pair[0] in vertex and pair[1] in vertex), None)
+    uvs = None if pair is None else np.column_stack([np.asarray(vertex[name], dtype=np.float64) for name in pair])
     face = values.get("face", {})
     counts, indices = next((face[name] for name in _PLY_FACE_LISTS if name in face), ([], []))
     counts, indices = _integers(counts, "face size"), _integers(indices, "vertex index")
@@ -569,12 +598,12 @@ def _ply_arrays(data):
     if small.size:
         others = f"; {small.size} faces have fewer than 3" if small.size > 1 else ""
         raise _PlyError(f"face {small[0]} has {counts[small[0]]} vertices (a face needs at least 3{others})")
-    return points, counts, indices, normals
+    return points, counts, indices, normals, uvs
 
 
-def _polydata(points, counts, indices, normals):
+def _polydata(points, counts, indices, normals, uvs):
     """A PolyData of polygon faces (``counts[i]`` vertices each, listed in ``indices``), with
-    point ``normals`` where not None."""
+    point ``normals`` and texture coordinates ``uvs`` where not None."""
     import pyvista as pv
 
     starts = np.cumsum(counts) - counts
@@ -582,6 +611,8 @@ def _polydata(points, counts, indices, normals):
     if normals is not None:
         polydata.point_data.set_array(normals, "Normals")
         polydata.point_data.active_normals_name = "Normals"
+    if uvs is not None:
+        polydata.point_data.active_texture_coordinates = uvs
     return polydata
 
 
@@ -672,7 +703,8 @@ def _check_ply_header(formats, elements, body_size):
     normals = [axis for axis in _PLY_NORMALS if axis in vertex]
     if normals and len(normals) < 3:
         raise _PlyError(f"element 'vertex' has {', '.join(normals)} but not all of nx, ny and nz (a vertex normal)")
-    for axis in ("x", "y", "z", *normals):
+    uvs = next((pair for pair in _PLY_UVS if pair[0] in vertex and pair[1] in vertex), ())
+    for axis in ("x", "y", "z", *normals, *uvs):
         if vertex[axis].count_type:
             raise _PlyError(f"property '{axis}' of element 'vertex' is a list, not a number")
     if "face" in checked:

@@ -42,6 +42,7 @@ from .device import (
     upload_geometry,
     upload_lights,
     upload_materials,
+    upload_textures,
 )
 from .emitting import emitting_shapes
 from .errors import WrtError
@@ -82,9 +83,11 @@ def scene_features(scene: Scene) -> Features:
         lights=bool(scene.lights),
         environment_map=any(isinstance(light, EnvironmentLight) and light.image is not None for light in scene.lights),
         emissive=bool(emitting_shapes(scene)),
-        specular=bool(kinds & {"mirror", "dielectric", "thin_dielectric"})
+        specular=bool(kinds & {"mirror", "dielectric", "thin_dielectric", "rough_dielectric", "plastic"})
         or any(m.type == "conductor" and not m.roughness for m in used),
-        dielectric="dielectric" in kinds,
+        dielectric=bool(kinds & {"dielectric", "rough_dielectric"}),
+        rough_dielectric="rough_dielectric" in kinds,
+        plastic=bool(kinds & {"plastic", "rough_plastic"}),
         lens=scene.camera.aperture_radius > 0.0,
         orthographic=scene.camera.type == "orthographic",
         motion=moving and scene.camera.shutter[1] > scene.camera.shutter[0],
@@ -96,6 +99,7 @@ def scene_features(scene: Scene) -> Features:
         cylinders=Cylinder in shapes,
         instances=Instance in shapes,
         smooth=any(isinstance(shape, Mesh) and shape.normals is not None for shape in (*scene.shapes, *members)),
+        textures=any(m.textures for m in used),
     )
 
 
@@ -142,6 +146,7 @@ class DeviceScene:
     build_time_s: float  # wall seconds of the BVH build
     sampler: str  # [render] sampler
     no_active: wp.array  # empty: every pixel of the launch's range is sampled
+    textures: object = None  # wrt.kernels.textures.TextureData
 
     def launch(
         self,
@@ -179,6 +184,20 @@ class DeviceScene:
         }
 
 
+def new_film(pixels: int, dev: wp.context.Device) -> Film:
+    """A film of ``pixels`` pixels on ``dev``, zeroed."""
+    film = Film()
+    film.rgb = wp.zeros(pixels, dtype=wp.vec3, device=dev)
+    film.rgb_sum = wp.zeros(pixels, dtype=wp.vec3, device=dev)
+    film.luminance_sq_sum = wp.zeros(pixels, dtype=wp.float32, device=dev)
+    film.rejected = wp.zeros(pixels, dtype=wp.int32, device=dev)
+    film.depth = wp.zeros(pixels, dtype=wp.float32, device=dev)
+    film.normal = wp.zeros(pixels, dtype=wp.vec3, device=dev)
+    film.object_id = wp.zeros(pixels, dtype=wp.int32, device=dev)
+    film.position = wp.zeros(pixels, dtype=wp.vec3, device=dev)
+    return film
+
+
 def prepare(scene: Scene, dev: wp.context.Device) -> DeviceScene:
     """Build the BVH of ``scene`` and upload it, its materials, lights, settings, camera and a film."""
     w, h = scene.render.width, scene.render.height
@@ -186,15 +205,7 @@ def prepare(scene: Scene, dev: wp.context.Device) -> DeviceScene:
     prims = build(scene, dev)
     build_time = time.perf_counter() - t0
     with wp.ScopedDevice(dev):
-        film = Film()
-        film.rgb = wp.zeros(w * h, dtype=wp.vec3, device=dev)
-        film.rgb_sum = wp.zeros(w * h, dtype=wp.vec3, device=dev)
-        film.luminance_sq_sum = wp.zeros(w * h, dtype=wp.float32, device=dev)
-        film.rejected = wp.zeros(w * h, dtype=wp.int32, device=dev)
-        film.depth = wp.zeros(w * h, dtype=wp.float32, device=dev)
-        film.normal = wp.zeros(w * h, dtype=wp.vec3, device=dev)
-        film.object_id = wp.zeros(w * h, dtype=wp.int32, device=dev)
-        film.position = wp.zeros(w * h, dtype=wp.vec3, device=dev)
+        film = new_film(w * h, dev)
         return DeviceScene(
             device=dev,
             width=w,
@@ -208,6 +219,7 @@ def prepare(scene: Scene, dev: wp.context.Device) -> DeviceScene:
             build_time_s=build_time,
             sampler=scene.render.sampler,
             no_active=wp.empty(0, dtype=wp.int32, device=dev),
+            textures=upload_textures(scene, dev),
         )
 
 

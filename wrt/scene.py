@@ -89,7 +89,18 @@ class Camera:
         ), forward + sx * t * aspect * right + sy * t * up
 
 
-MATERIAL_TYPES = ("diffuse", "phong", "mirror", "dielectric", "glossy", "conductor", "thin_dielectric")
+MATERIAL_TYPES = (
+    "diffuse",
+    "phong",
+    "mirror",
+    "dielectric",
+    "glossy",
+    "conductor",
+    "thin_dielectric",
+    "rough_dielectric",
+    "plastic",
+    "rough_plastic",
+)
 
 
 @dataclass(frozen=True)
@@ -105,9 +116,14 @@ class Material:
     where dielectrics overlap): dielectric; a thin dielectric (a window pane: no medium inside, in the
     scene's ``exterior_ior``) reflects ``reflectance`` times its summed Fresnel term R' at ``ior`` and
     lets ``transmittance`` (a tint, not per unit length) times 1 - R' straight through;
+    a rough dielectric is a dielectric (``ior``, ``transmittance``, ``priority``) whose surface is GGX of
+    alpha ``roughness``; a plastic (rough plastic: of GGX alpha ``roughness``) is a dielectric coating of
+    ``ior`` (over the scene's ``exterior_ior``) reflecting ``reflectance`` times its Fresnel term over a
+    Lambertian base of ``albedo``, its internal scattering tinting the base where ``nonlinear``;
     ``emission``: radiance in W/(m^2 sr) leaving the front side;
     ``two_sided``: both sides reflect (diffuse, phong, mirror, glossy, conductor; a dielectric always does), else
-    the back side (facing away from the surface's normal) reflects nothing, as Mitsuba 3's one-sided BSDFs.
+    the back side (facing away from the surface's normal) reflects nothing, as Mitsuba 3's one-sided BSDFs;
+    ``textures``: parameters (``wrt.kernels.textures.SLOTS``) given by a texture over the surface's uv.
     """
 
     name: str
@@ -124,6 +140,8 @@ class Material:
     k: tuple[float, float, float] = (1.0, 1.0, 1.0)
     emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
     two_sided: bool = True
+    nonlinear: bool = False
+    textures: tuple = ()  # (parameter, wrt.textures texture) pairs; the parameter's own value is its mean
 
 
 STILL = (0.0, 0.0, 0.0)
@@ -158,12 +176,16 @@ class Triangle:
 
 @dataclass(frozen=True)
 class Polygon:
-    """Planar simple or non-simple polygon (even-odd rule); ``normal`` is unit (Newell's method)."""
+    """Planar simple or non-simple polygon (even-odd rule); ``normal`` is unit (Newell's method).
+    ``uvs``: texture coordinates (u, v) of its vertices, mapped affinely over its plane (a least-
+    squares fit when they are not an affine image of the vertices); None: vertices 0, 1, 2 at
+    (0, 0), (1, 0), (1, 1), so that a parallelogram's corners are those of the unit square."""
 
     vertices: tuple[tuple[float, float, float], ...]
     normal: tuple[float, float, float]
     material: int
     velocity: tuple[float, float, float] = STILL
+    uvs: tuple[tuple[float, float], ...] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -172,7 +194,9 @@ class Mesh:
 
     ``normals`` are its shading normals with ``shading = "smooth"`` (None: flat, the face
     normals): world space, unit, one per vertex, interpolated over each triangle; a zero row is a
-    vertex without a normal, whose triangles take their face normal at it."""
+    vertex without a normal, whose triangles take their face normal at it. ``uvs`` are the file's
+    texture coordinates (read for textured meshes only; None: a triangle's uv is its barycentric
+    coordinates (b1, b2) of its second and third corners, as in Mitsuba 3)."""
 
     file: str
     vertices: np.ndarray  # (V, 3) float64, world space
@@ -180,6 +204,7 @@ class Mesh:
     material: int
     velocity: tuple[float, float, float] = STILL
     normals: np.ndarray | None = None  # (V, 3) float64, world space, unit or zero
+    uvs: np.ndarray | None = None  # (V, 2) float64, Mitsuba 3's convention (wrt.meshio.load_mesh)
 
 
 @dataclass(frozen=True, eq=False)

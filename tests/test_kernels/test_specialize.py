@@ -15,6 +15,8 @@ from wrt.renderer import scene_features
 DIFFUSE = [{"name": "white", "albedo": [0.7, 0.7, 0.7]}]
 GLASS = {"name": "glass", "type": "dielectric", "ior": 1.5, "transmittance": [0.9, 0.8, 0.7]}
 MIRROR = {"name": "mirror", "type": "mirror"}
+ROUGH_GLASS = {"name": "rough_glass", "type": "rough_dielectric", "ior": 1.5, "roughness": 0.3}
+PLASTIC = {"name": "plastic", "type": "plastic", "albedo": [0.7, 0.2, 0.1]}
 FLOOR = {"type": "plane", "point": [0, -1, 0], "normal": [0, 1, 0], "material": "white"}
 POINT = {"type": "point", "position": [2, 3, 3], "intensity": [10, 10, 10]}
 AREA = {"type": "area", "corner": [-1, 3, -1], "edge_u": [2, 0, 0], "edge_v": [0, 0, 2], "radiance": [4, 4, 4]}
@@ -41,6 +43,9 @@ def test_features_follow_the_scene():
         cylinders=False,
         instances=False,
         smooth=False,
+        textures=False,
+        rough_dielectric=False,
+        plastic=False,
     )
     mesh = make_scene([{"type": "mesh", "file": "examples/meshes/tetra.obj"}], scene_dir=".")
     assert (scene_features(mesh).triangles, scene_features(mesh).spheres, scene_features(mesh).polygons) == (
@@ -65,8 +70,23 @@ def test_features_follow_the_scene():
     )
     # a lens: perspective
     assert scene_features(rich) == dataclasses.replace(
-        ALL, environment_map=False, emissive=False, orthographic=False, instances=False, smooth=False
+        ALL,
+        environment_map=False,
+        emissive=False,
+        orthographic=False,
+        instances=False,
+        smooth=False,
+        textures=False,
+        rough_dielectric=False,
+        plastic=False,
     )
+    for material, flags in [
+        (ROUGH_GLASS, (True, True, True, False)),  # a rough dielectric bounds a medium: dielectric too
+        (PLASTIC, (True, False, False, True)),  # a smooth coating is a delta lobe
+        ({**PLASTIC, "type": "rough_plastic"}, (False, False, False, True)),
+    ]:
+        f = scene_features(make_scene([{**FLOOR, "material": material["name"]}], materials=[material]))
+        assert (f.specular, f.dielectric, f.rough_dielectric, f.plastic) == flags
     sky = {"type": "environment", "file": str(EXAMPLES / "envmaps" / "sky.exr")}
     assert scene_features(make_scene([FLOOR], materials=DIFFUSE, lights=[sky])).environment_map
     flat = make_scene([FLOOR], materials=DIFFUSE, camera={**CAMERA, "type": "orthographic", "width": 2.0})
@@ -135,6 +155,17 @@ SCENES = {
         "path",
     ),
     "path disk and cylinder": ([FLOOR, DISK, CYLINDER], DIFFUSE, [AREA], {}, "path"),
+    "path rough glass and plastics": (
+        [
+            {**FLOOR, "material": "rough_plastic"},
+            {"type": "sphere", "center": [-1, 0, 0], "radius": 0.8, "material": "rough_glass"},
+            {"type": "sphere", "center": [1, 0, 0], "radius": 0.8, "material": "plastic"},
+        ],
+        [ROUGH_GLASS, PLASTIC, {**PLASTIC, "name": "rough_plastic", "type": "rough_plastic"}],
+        [AREA, POINT],
+        {},
+        "path",
+    ),
     "path emissive triangles": (
         [FLOOR, {"type": "triangle", "vertices": [[-1, 2, -1], [1, 2, -1], [1, 2, 1]], "material": "lamp"}],
         DIFFUSE + [{"name": "lamp", "albedo": [0, 0, 0], "emission": [3, 3, 3]}],

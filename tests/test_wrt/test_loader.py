@@ -227,6 +227,28 @@ BAD = [
         "must be in [1, 10]",
     ),
     (
+        "roughness 0 of a rough dielectric",
+        GOOD.replace(
+            'name = "red"\nalbedo = [0.8, 0.1, 0.1]', 'name = "red"\ntype = "rough_dielectric"\nroughness = 0'
+        ),
+        "material[0].roughness = 0",
+        "must be in [0.001, 1]",
+    ),
+    (
+        "nonlinear on a diffuse material",
+        GOOD.replace('name = "red"', 'name = "red"\nnonlinear = true'),
+        "material[0].nonlinear",
+        "unknown key",
+    ),
+    (
+        "a rough dielectric with the whitted integrator",
+        GOOD.replace("spp = 1", 'spp = 1\nintegrator = "whitted"').replace(
+            'name = "red"\nalbedo = [0.8, 0.1, 0.1]', 'name = "red"\ntype = "rough_dielectric"'
+        ),
+        "material[0].type = 'rough_dielectric'",
+        "whitted integrator traces delta lobes only",
+    ),
+    (
         "point light without intensity",
         GOOD + '[[light]]\ntype = "point"\nposition = [0, 1, 0]\n',
         "light[0].intensity",

@@ -25,6 +25,8 @@ CASES = {  # scene: (width, height, spp), each renderer ~3-10 s on 2 cores
     "envmap": (64, 48, 1024),  # an environment map with a sun, rotated by to_world (issue 15)
     "thin_dielectric": (64, 48, 1024),  # a window pane, R' = 2R / (1 + R) (one surface's R: means -3.2 to -4.1%)
     "emissive_mesh": (64, 48, 1024),  # area emitters on OBJ meshes, sampled by NEE (BSDF sampling only: SSIM 0.88)
+    "rough_dielectric": (64, 48, 1024),  # GGX glass, lights sampled across its surface (means within 0.11%, SSIM 0.984)
+    "plastics": (64, 48, 1024),  # plastic and roughplastic, Mitsuba's constants (means within 0.01%, SSIM 0.996)
 }
 
 

@@ -461,6 +461,62 @@ def test_conductors(tmp_path):
     assert len(warnings) == 1 and "beckmann" in warnings[0]
 
 
+def test_rough_dielectric_and_plastics_convert_exactly(tmp_path):
+    """roughdielectric, plastic and roughplastic (GGX) become rough_dielectric, plastic and
+    rough_plastic without a warning, with Mitsuba's defaults (bk7 or polypropylene in air, alpha
+    0.1, diffuse 0.5); the plastics one-sided, their ext_ior the scene's exterior_ior;
+    ``sample_visible`` read, not warned about; beckmann (the default) approximated; equal iors
+    refused, as Mitsuba does."""
+    ggx = '<string name="distribution" value="ggx"/>'
+    body = f"""
+    <shape type="sphere"><bsdf type="roughdielectric" id="frosted">{ggx}
+        <float name="alpha" value="0.3"/><boolean name="sample_visible" value="false"/></bsdf></shape>
+    <shape type="sphere"><bsdf type="plastic" id="red">
+        <rgb name="diffuse_reflectance" value="0.7, 0.1, 0.1"/><boolean name="nonlinear" value="true"/></bsdf></shape>
+    <shape type="sphere"><bsdf type="roughplastic" id="blue">{ggx}
+        <rgb name="diffuse_reflectance" value="0.1, 0.1, 0.7"/><rgb name="specular_reflectance" value="0.5"/>
+        <string name="int_ior" value="pet"/></bsdf></shape>"""
+    doc, warnings = convert(tmp_path, body, approximate=False)
+    assert warnings == [] and doc["render"]["exterior_ior"] == 1.000277
+    assert doc["material"] == [
+        {"name": "frosted", "type": "rough_dielectric", "ior": 1.5046, "roughness": 0.3},
+        {
+            "name": "red",
+            "type": "plastic",
+            "albedo": [0.7, 0.1, 0.1],
+            "reflectance": [1.0, 1.0, 1.0],
+            "ior": 1.49,
+            "nonlinear": True,
+            "two_sided": False,
+        },
+        {
+            "name": "blue",
+            "type": "rough_plastic",
+            "albedo": [0.1, 0.1, 0.7],
+            "reflectance": [0.5, 0.5, 0.5],
+            "ior": 1.575,
+            "nonlinear": False,
+            "roughness": 0.1,
+            "two_sided": False,
+        },
+    ]
+    wrt.parse_scene(doc, scene_dir=str(tmp_path))
+    for kind in ("roughdielectric", "roughplastic"):
+        with pytest.raises(WrtError, match=r"scene.xml:2: .*distribution 'beckmann'"):
+            convert(tmp_path, f'<shape type="sphere"><bsdf type="{kind}"/></shape>', approximate=False)
+        with pytest.raises(WrtError, match=r"scene.xml:2: .*must differ"):
+            convert(
+                tmp_path,
+                f'<shape type="sphere"><bsdf type="{kind}">{ggx}<float name="int_ior" value="1.2"/>'
+                '<float name="ext_ior" value="1.2"/></bsdf></shape>',
+            )
+    with pytest.raises(WrtError, match=r"scene.xml:2: <bsdf type=\"roughdielectric\">: .*transmits"):
+        convert(
+            tmp_path,
+            f'<shape type="sphere"><bsdf type="twosided"><bsdf type="roughdielectric">{ggx}</bsdf></bsdf></shape>',
+        )
+
+
 def test_conductor_ior_converts_exactly(tmp_path):
     """A named material or eta and k become a wrt conductor without a warning; Mitsuba's
     refusals (both given, an unknown name) are errors."""
@@ -574,14 +630,14 @@ def test_unsupported_input_is_refused_or_approximated(tmp_path):
     body = """
     <shape type="linearcurve"/>
     <shape type="sphere"><float name="foo" value="1"/></shape>
-    <bsdf type="plastic" id="p"/>
+    <bsdf type="principled" id="p"/>
     <shape type="sphere"><ref id="p"/></shape>
     <medium type="homogeneous"/>"""
     doc, warnings = convert(tmp_path, body)
     assert [w.split(": ", 2)[:2] for w in warnings] == [
         [f"{tmp_path / 'scene.xml'}:2", '<shape type="linearcurve">'],
         [f"{tmp_path / 'scene.xml'}:3", '<float name="foo">'],
-        [f"{tmp_path / 'scene.xml'}:4", '<bsdf type="plastic" id="p">'],
+        [f"{tmp_path / 'scene.xml'}:4", '<bsdf type="principled" id="p">'],
         [f"{tmp_path / 'scene.xml'}:6", '<medium type="homogeneous">'],
     ]
     assert len(doc["shape"]) == 2

@@ -129,7 +129,8 @@ def test_mitsuba_disk_and_cylinder_convert_exactly(tmp_path):
         "normal": [0, 0, -1],
         "radius": 1,
     }
-    assert disk["transform"] == {"matrix": matrix} and sphere["type"] == "sphere"
+    flipped = [-x if k % 4 == 1 else x for k, x in enumerate(matrix)]  # to_world scale(1, -1, 1): Mitsuba's uv
+    assert disk["transform"] == {"matrix": flipped} and sphere["type"] == "sphere"
     assert {k: tube[k] for k in ("type", "p0", "p1", "radius", "flip_normals")} == {
         "type": "cylinder",
         "p0": [1, 2, 3],

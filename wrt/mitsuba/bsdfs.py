@@ -10,6 +10,7 @@ from collections import Counter
 from dataclasses import dataclass
 
 from ..conductors import METALS
+from .textures import textured_color
 from .xml import Document, Element, Plugin
 
 IOR_TABLE = {
@@ -55,9 +56,12 @@ class Material:
 
     def reflects(self) -> bool:
         colour = self.params.get("albedo", self.params.get("reflectance", [1.0]))
-        return self.params["type"] == "dielectric" or any(c > 0 for c in colour)
+        if isinstance(colour, dict):  # a texture (wrt.mitsuba.textures)
+            return True
+        return self.params["type"] in (*TRANSMITTING, "plastic", "rough_plastic") or any(c > 0 for c in colour)
 
 
+TRANSMITTING = ("dielectric", "rough_dielectric", "thin_dielectric")
 DEFAULT_BSDF = Material({"type": "diffuse", "albedo": [0.5, 0.5, 0.5]}, False)  # Mitsuba's (one-sided)
 
 
@@ -117,6 +121,27 @@ def conductor(p: Plugin, roughness: float) -> dict:
     if roughness:
         table["roughness"] = roughness
     return {**table, "reflectance": reflectance}
+
+
+def plastic(p: Plugin) -> dict:
+    """The ``[[material]]`` table of a ``plastic`` or ``roughplastic`` (GGX), exact:
+    ``diffuse_reflectance`` is wrt's ``albedo``, ``specular_reflectance`` its ``reflectance``,
+    ``int_ior`` its ``ior`` (over the scene's ``exterior_ior``, the ``ext_ior``), ``nonlinear`` the
+    same."""
+    interior = ior(p, "int_ior", "polypropylene")
+    table = {
+        "type": "plastic",
+        "albedo": p.color("diffuse_reflectance", 0.5),
+        "reflectance": p.color("specular_reflectance", 1.0),
+        "ior": interior,
+        "nonlinear": p.boolean("nonlinear", False),
+    }
+    if p.type == "roughplastic":
+        if interior == ior(p, "ext_ior", "air"):
+            raise p.doc.error(p.element, "int_ior and ext_ior must differ (Mitsuba rejects it)")
+        p.boolean("sample_visible", True)  # how Mitsuba samples it: the noise, not the image
+        table.update(type="rough_plastic", roughness=alpha(p))
+    return table
 
 
 class Materials:
@@ -187,20 +212,29 @@ class Materials:
                 self.doc.warn(inner[1], "a different BSDF on the back side is not supported: both sides use the first")
             p.finish()
             front = self._convert(inner[0])
-            if front.params["type"] in ("dielectric", "thin_dielectric"):
+            if front.params["type"] in TRANSMITTING:
                 raise self.doc.error(inner[0], "a twosided BSDF cannot nest a BSDF that transmits (Mitsuba rejects it)")
             return Material(front.params, True)
         if p.type == "diffuse":
-            material = Material({"type": "diffuse", "albedo": p.color("reflectance", 0.5)}, False)
+            material = Material({"type": "diffuse", "albedo": textured_color(p, "reflectance", 0.5)}, False)
         elif p.type in ("conductor", "roughconductor"):
             material = Material(conductor(p, alpha(p) if p.type == "roughconductor" else 0.0), False)
-        elif p.type == "dielectric":
+        elif p.type in ("dielectric", "roughdielectric"):
             interior, exterior = ior(p, "int_ior", "bk7"), ior(p, "ext_ior", "air")
             for name in ("specular_reflectance", "specular_transmittance"):
                 if p.color(name, 1.0) != [1.0, 1.0, 1.0]:
                     self.doc.warn(p.params[name], f"'{name}' (a non-physical scale) is not supported: ignored")
             self.ext_iors.append((exterior, element))
-            material = Material({"type": "dielectric", "ior": interior}, True)
+            table = {"type": "dielectric", "ior": interior}
+            if p.type == "roughdielectric":
+                if interior == exterior:
+                    raise self.doc.error(element, "int_ior and ext_ior must differ (Mitsuba rejects it)")
+                p.boolean("sample_visible", True)  # how Mitsuba samples it: the noise, not the image
+                table = {"type": "rough_dielectric", "ior": interior, "roughness": alpha(p)}
+            material = Material(table, True)
+        elif p.type in ("plastic", "roughplastic"):
+            material = Material(plastic(p), False)
+            self.ext_iors.append((ior(p, "ext_ior", "air"), element))
         elif p.type == "thindielectric":
             self.ext_iors.append((ior(p, "ext_ior", "air"), element))
             material = Material(
@@ -223,13 +257,9 @@ class Materials:
         if p.type in ("bumpmap", "normalmap", "mask") and nested:
             self.doc.warn(p.element, "not supported: the nested BSDF is used without it")
             return self._convert(nested[0])
-        if p.type in ("plastic", "roughplastic", "principled"):
-            albedo = p.color("base_color" if p.type == "principled" else "diffuse_reflectance", 0.5)
+        if p.type == "principled":
+            albedo = p.color("base_color", 0.5)
             self.doc.warn(p.element, f"not supported: converted as diffuse, albedo {albedo}")
             return Material({"type": "diffuse", "albedo": albedo}, False)
-        if p.type == "roughdielectric":
-            self.doc.warn(p.element, "roughness is not supported: converted as a smooth dielectric")
-            self.ext_iors.append((ior(p, "ext_ior", "air"), p.element))
-            return Material({"type": "dielectric", "ior": ior(p, "int_ior", "bk7")}, True)
         self.doc.warn(p.element, "not supported: converted as diffuse 0.5 (Mitsuba's default BSDF)")
         return Material({"type": "diffuse", "albedo": [0.5, 0.5, 0.5]}, False)

@@ -38,6 +38,7 @@ def shape(doc: Document, materials: Materials, element: Element, shapes: list, l
         doc.warn(extra, "a shape takes one BSDF and one emitter: ignored")
     front = -1.0 if p.boolean("flip_normals", False) else 1.0
     mirrored = mirrors(matrix[:3, :3]) != (front < 0)  # winding must be reversed to keep Mitsuba's front
+    textured = any(isinstance(v, dict) for v in materials.of(bsdfs[0] if bsdfs else None).params.values())
 
     if p.type == "sphere":
         radius, center = p.number("radius", 1.0, above=0.0), p.vector("center", (0.0, 0.0, 0.0))
@@ -52,6 +53,10 @@ def shape(doc: Document, materials: Materials, element: Element, shapes: list, l
             doc.warn(element, "non-uniform scale: the radius is the to_world x axis scale (as in Mitsuba)")
         if front < 0:
             doc.warn(p.params["flip_normals"], "flip_normals on a sphere is not supported: normals point outward")
+        if textured and not np.allclose(placed[:3, :3], radius * np.eye(3), rtol=0.0, atol=1e-9 * radius):
+            doc.warn(
+                element, "a textured sphere's to_world rotates it: wrt's texture coordinates follow the scene axes"
+            )
         tables = [{"type": "sphere", "center": as_list(placed[:3, 3]), "radius": radius}]
     elif p.type in ("rectangle", "cube"):
         loops = [RECTANGLE] if p.type == "rectangle" else cube_faces()
@@ -60,6 +65,12 @@ def shape(doc: Document, materials: Materials, element: Element, shapes: list, l
         if not np.all(np.isfinite(loops)):
             raise doc.error(element, f"to_world places the {p.type} {BEYOND_FLOAT64}")
         tables = [{"type": "polygon", "vertices": [as_list(v) for v in loop]} for loop in loops]
+        if textured and p.type == "cube":
+            doc.warn(element, "a textured cube: wrt's texture coordinates of its faces are not Mitsuba's")
+        elif textured:  # Mitsuba's rectangle: uv = (x + 1, y + 1) / 2 of its object-space point
+            tables[0]["uv"] = [
+                [(x + 1.0) / 2.0, (y + 1.0) / 2.0] for x, y, _ in (RECTANGLE[::-1] if mirrored else RECTANGLE)
+            ]
     elif p.type in ("disk", "cylinder"):
         tables = [quadric(doc, p, matrix, front, emitters)]
     elif p.type in ("obj", "ply"):
@@ -121,6 +132,8 @@ def quadric(doc: Document, p: Plugin, matrix: np.ndarray, front: float, emitters
     the tube's normals around. Warns about an emitter on a tube that is not right circular, which
     Mitsuba samples by a wrong area (it warns about the transform too)."""
     if p.type == "disk":
+        if front < 0:  # wrt's frame of normal -z has y negated: negate it back, so that uv stays Mitsuba's
+            matrix = matrix @ np.diag([1.0, -1.0, 1.0, 1.0])
         return placed({"type": "disk", "center": [0.0, 0.0, 0.0], "normal": [0.0, 0.0, front], "radius": 1.0}, matrix)
     radius = p.number("radius", 1.0, above=0.0)
     p0, p1 = p.vector("p0", (0.0, 0.0, 0.0)), p.vector("p1", (0.0, 0.0, 1.0))

@@ -1,0 +1,142 @@
+"""Textures on the device: material parameters that vary over a surface with its (u, v).
+
+Every texture of a scene sits in one ``TextureData``: per texture its ``kind``, its ``to_uv``
+transform (the 2D affine map applied to the surface's uv first, Mitsuba 3's ``to_uv``, as a 3x3
+matrix acting on ``(u, v, 1)``) and its parameters; the texels of every bitmap lie end to end in
+``texels`` (linear RGB, row-major, row 0 the top row of the file: uv (0, 0) is the image's top
+left corner, as in Mitsuba 3). ``slot[m, s]`` is the texture of parameter ``s`` (``ALBEDO``,
+``SPECULAR``, ...) of material ``m``, -1 where the parameter is the material's constant.
+
+Kinds, as Mitsuba 3's plugins of the same names:
+
+- ``CHECKERBOARD``: ``color0`` where the fractional parts of u and v are both above one half or
+  both not, ``color1`` elsewhere (squares of side 1/2 in uv);
+- ``BITMAP``: an image of ``width`` x ``height`` texels from ``offset`` in ``texels``, looked up
+  with ``filter`` ``NEAREST`` (the texel holding ``uv * size``) or ``BILINEAR`` (texel centres at
+  ``(i + 1/2) / size``, the four nearest weighted), integer texel coordinates outside the image
+  taken back by ``wrap`` ``REPEAT``, ``MIRROR`` or ``CLAMP``.
+
+``texture_rgb`` evaluates a texture (linear RGB), ``texture_float`` one number of it (Mitsuba 3's
+``eval_1``: a bitmap's luminance), ``material_rgb`` / ``material_float`` a material parameter,
+textured or constant.
+"""
+
+import warp as wp
+
+CHECKERBOARD = wp.constant(0)
+BITMAP = wp.constant(1)
+
+NEAREST = wp.constant(0)
+BILINEAR = wp.constant(1)
+
+REPEAT = wp.constant(0)
+MIRROR = wp.constant(1)
+CLAMP = wp.constant(2)
+
+ALBEDO = wp.constant(0)
+SPECULAR = wp.constant(1)
+REFLECTANCE = wp.constant(2)
+TRANSMITTANCE = wp.constant(3)
+ROUGHNESS = wp.constant(4)
+SLOTS = ("albedo", "specular", "reflectance", "transmittance", "roughness")
+"""The material parameters a texture can give, in slot order (``slot[m, s]``)."""
+
+
+@wp.struct
+class TextureData:
+    slot: wp.array2d(dtype=wp.int32)  # (materials, len(SLOTS)): texture index, -1 for the constant
+    kind: wp.array(dtype=wp.int32)
+    to_uv: wp.array(dtype=wp.mat33)  # affine map of (u, v, 1) applied before the lookup
+    color0: wp.array(dtype=wp.vec3)  # checkerboard colours, linear RGB
+    color1: wp.array(dtype=wp.vec3)
+    offset: wp.array(dtype=wp.int32)  # bitmap: its first texel in ``texels``
+    width: wp.array(dtype=wp.int32)
+    height: wp.array(dtype=wp.int32)
+    filter: wp.array(dtype=wp.int32)  # NEAREST or BILINEAR
+    wrap: wp.array(dtype=wp.int32)  # REPEAT, MIRROR or CLAMP
+    texels: wp.array(dtype=wp.vec3)  # every bitmap's texels, linear RGB, row-major from the top row
+
+
+@wp.func
+def wrap_texel(i: wp.int32, size: wp.int32, wrap: wp.int32) -> wp.int32:
+    """Integer texel coordinate ``i`` taken into ``0 .. size - 1``: periodically (``REPEAT``),
+    reflected at each edge with the edge texel repeated (``MIRROR``), or clamped (``CLAMP``)."""
+    if wrap == CLAMP:
+        return wp.clamp(i, 0, size - 1)
+    if wrap == REPEAT:
+        r = i % size
+        return wp.where(r < 0, r + size, r)
+    j = wp.where(i < 0, -i - 1, i) % (2 * size)
+    return wp.where(j < size, j, 2 * size - 1 - j)
+
+
+@wp.func
+def texel(textures: TextureData, t: wp.int32, x: wp.int32, y: wp.int32) -> wp.vec3:
+    """Texel ``(x, y)`` (column, row from the top; any integers, wrapped) of bitmap ``t``."""
+    w = textures.width[t]
+    h = textures.height[t]
+    wrap = textures.wrap[t]
+    return textures.texels[textures.offset[t] + wrap_texel(y, h, wrap) * w + wrap_texel(x, w, wrap)]
+
+
+@wp.func
+def bitmap_rgb(textures: TextureData, t: wp.int32, uv: wp.vec2) -> wp.vec3:
+    """Bitmap ``t`` at ``uv`` (already through ``to_uv``), nearest or bilinear."""
+    x = uv[0] * float(textures.width[t])
+    y = uv[1] * float(textures.height[t])
+    if textures.filter[t] == NEAREST:
+        return texel(textures, t, int(wp.floor(x)), int(wp.floor(y)))
+    x = x - 0.5
+    y = y - 0.5
+    x0 = wp.floor(x)
+    y0 = wp.floor(y)
+    fx = x - x0
+    fy = y - y0
+    i = int(x0)
+    j = int(y0)
+    top = (1.0 - fx) * texel(textures, t, i, j) + fx * texel(textures, t, i + 1, j)
+    bottom = (1.0 - fx) * texel(textures, t, i, j + 1) + fx * texel(textures, t, i + 1, j + 1)
+    return (1.0 - fy) * top + fy * bottom
+
+
+@wp.func
+def texture_rgb(textures: TextureData, t: wp.int32, uv: wp.vec2) -> wp.vec3:
+    """Texture ``t`` at surface coordinates ``uv``: linear RGB."""
+    m = textures.to_uv[t]
+    st = wp.vec2(m[0, 0] * uv[0] + m[0, 1] * uv[1] + m[0, 2], m[1, 0] * uv[0] + m[1, 1] * uv[1] + m[1, 2])
+    if textures.kind[t] == CHECKERBOARD:
+        above_u = st[0] - wp.floor(st[0]) > 0.5
+        above_v = st[1] - wp.floor(st[1]) > 0.5
+        return wp.where(above_u == above_v, textures.color0[t], textures.color1[t])
+    return bitmap_rgb(textures, t, st)
+
+
+@wp.func
+def texture_float(textures: TextureData, t: wp.int32, uv: wp.vec2) -> float:
+    """Texture ``t`` at ``uv`` as one number, as Mitsuba 3's ``eval_1``: a bitmap's luminance
+    (Rec. 709 weights), the mean of a checkerboard colour's channels (Mitsuba's ``eval_1`` of a
+    checkerboard also swaps its two colours, against its own ``eval``: not followed here)."""
+    weights = wp.vec3(1.0 / 3.0)
+    if textures.kind[t] == BITMAP:
+        weights = wp.vec3(0.212671, 0.715160, 0.072169)
+    return wp.dot(texture_rgb(textures, t, uv), weights)
+
+
+@wp.func
+def material_rgb(textures: TextureData, m: wp.int32, slot: wp.int32, uv: wp.vec2, constant: wp.vec3) -> wp.vec3:
+    """Colour parameter ``slot`` of material ``m`` at ``uv``: its texture's value, or ``constant``
+    (the material's own value) where it has none."""
+    t = textures.slot[m, slot]
+    if t < 0:
+        return constant
+    return texture_rgb(textures, t, uv)
+
+
+@wp.func
+def material_float(textures: TextureData, m: wp.int32, slot: wp.int32, uv: wp.vec2, constant: float) -> float:
+    """Number parameter ``slot`` of material ``m`` at ``uv`` (roughness): its texture's
+    ``texture_float``, or ``constant`` where it has none."""
+    t = textures.slot[m, slot]
+    if t < 0:
+        return constant
+    return texture_float(textures, t, uv)

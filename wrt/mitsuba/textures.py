@@ -1,0 +1,49 @@
+"""Converting Mitsuba's textures into wrt texture tables: ``checkerboard`` (constant colours) and
+``bitmap``, nested in a BSDF parameter or referenced by ``<ref>``, with their ``to_uv``
+(docs/mitsuba.md)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .transforms import as_list
+from .xml import Document, Element, Plugin
+
+FILTERS = ("bilinear", "nearest")
+WRAPS = ("repeat", "mirror", "clamp")
+
+
+def textured_color(p: Plugin, name: str, default: float) -> list[float] | dict:
+    """Colour parameter ``name`` of ``p``: an RGB list (``Plugin.color``), or the texture table of
+    the ``<texture>`` given for it."""
+    nested = next((child for key, child in p.nested if key == name and child.tag == "texture"), None)
+    if nested is None or name in p.params:
+        return p.color(name, default)
+    p.used.add(name)
+    p.used_nested.add(id(nested))
+    return texture(p.doc, nested)
+
+
+def texture(doc: Document, element: Element) -> dict:
+    """The inline texture table (docs/scene-format.md) of a ``<texture>`` element."""
+    p = Plugin(doc, element)
+    if p.type == "checkerboard":
+        table = {"texture": "checkerboard", "color0": p.color("color0", 0.4), "color1": p.color("color1", 0.2)}
+    elif p.type == "bitmap":
+        table = {"texture": "bitmap", "file": p.file("a bitmap texture", "image file")}
+        for key, parameter, choices in (("filter", "filter_type", FILTERS), ("wrap", "wrap_mode", WRAPS)):
+            value = p.string(parameter, choices[0])
+            if value not in choices:
+                raise doc.error(p.params[parameter], f"'{parameter}' = {value!r} must be one of {', '.join(choices)}")
+            table[key] = value
+        if p.boolean("raw", False):
+            table["raw"] = True
+    else:
+        raise doc.error(element, f"texture type '{p.type}' is not supported (wrt has checkerboard and bitmap)")
+    matrix, _ = p.transform("to_uv")
+    if not np.array_equal(matrix, np.eye(4)):
+        # Mitsuba's to_uv acts on (u, v, 1): the 4x4 transform without its z row and column
+        uv = matrix[np.ix_([0, 1, 3], [0, 1, 3])]
+        table["to_uv"] = as_list(uv[:2].ravel())
+    p.finish()
+    return table
