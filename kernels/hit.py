@@ -92,7 +92,8 @@ def make_surface_hit(smooth: bool, instances: bool, quadrics: bool, textures: bo
         hit.shape = hit_shape(geometry, prim, inst)
         hit.uv = wp.vec2(0.0)
         if wp.static(textures):
-            hit.uv = surface_uv(geometry, prim, inst, p, time)
+            if materials.textures.kind.shape[0] > 0:  # the uv arrays are empty in a scene without textures
+                hit.uv = surface_uv(geometry, prim, inst, p, time)
         return hit
 
     return surface_hit

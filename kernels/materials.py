@@ -89,6 +89,7 @@ from .microfacet import (
 )
 from .optics import fresnel_conductor, fresnel_dielectric, fresnel_thin_dielectric, reflect, refract
 from .sample_warps import cosine_hemisphere, frame
+from .textures import ALBEDO, REFLECTANCE, ROUGHNESS, SPECULAR, TextureData, material_rgb, texture_float
 
 DIFFUSE = wp.constant(0)
 PHONG = wp.constant(1)
@@ -110,6 +111,7 @@ BSDF_SPECULAR = wp.constant(16)
 BSDF_TOTAL_INTERNAL = wp.constant(32)  # a sampled lobe only: specular reflection because refraction is impossible
 BSDF_THIN = wp.constant(64)  # transmission goes straight on through a surface that bounds no medium (thin dielectric)
 
+MIN_ALPHA = 1e-4  # the least GGX alpha a roughness texture gives (0 would be a mirror: another lobe)
 COATING_RES = 64  # entries of a rough plastic's coating_transmittance table (Mitsuba's MI_ROUGH_TRANSMITTANCE_RES)
 
 
@@ -134,6 +136,7 @@ class MaterialData:
     k: wp.array(dtype=wp.vec3)  # conductor: imaginary part (extinction coefficient)
     emission: wp.array(dtype=wp.vec3)
     two_sided: wp.array(dtype=wp.int32)  # 1: both sides reflect; 0: the back side reflects nothing
+    textures: TextureData  # the textures of textured parameters (wrt.kernels.textures)
     nonlinear: wp.array(dtype=wp.int32)  # plastics: 1 where internal scattering tints the base (Mitsuba's nonlinear)
     internal_reflectance: wp.array(dtype=float)  # plastics: the coating's mean reflectance from inside
     specular_weight: wp.array(dtype=float)  # plastics: mean reflectance / (mean reflectance + mean albedo)
@@ -210,13 +213,13 @@ def non_specular(flags: wp.int32) -> bool:
 
 
 @wp.func
-def specular_reflectance(materials: MaterialData, m: wp.int32, cos_theta: float) -> wp.vec3:
+def specular_reflectance(materials: MaterialData, m: wp.int32, reflectance: wp.vec3, cos_theta: float) -> wp.vec3:
     """The reflectance of a mirror's, a glossy's or a conductor's facet (the surface, or a
     microfacet) seen at incidence cosine ``cos_theta``: ``reflectance``, for a conductor times its
     Fresnel term."""
     if materials.type[m] == CONDUCTOR:
-        return wp.cw_mul(materials.reflectance[m], fresnel_conductor(cos_theta, materials.eta[m], materials.k[m]))
-    return materials.reflectance[m]
+        return wp.cw_mul(reflectance, fresnel_conductor(cos_theta, materials.eta[m], materials.k[m]))
+    return reflectance
 
 
 @wp.func
@@ -259,13 +262,21 @@ def coating_probability(materials: MaterialData, m: wp.int32, transmittance: flo
 
 
 @wp.func
-def plastic_eval(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+def plastic_eval(
+    materials: MaterialData,
+    m: wp.int32,
+    albedo: wp.vec3,
+    reflectance: wp.vec3,
+    alpha: float,
+    n: wp.vec3,
+    wo: wp.vec3,
+    wi: wp.vec3,
+) -> wp.vec3:
     """f (1/sr) of a plastic's base, and of a rough plastic's coating (GGX, ``reflectance`` times
     the Fresnel term at the microfacet normal)."""
     cos_i = wp.dot(n, wi)
     if cos_i <= 0.0:
         return wp.vec3(0.0)
-    albedo = materials.albedo[m]
     inside = materials.internal_reflectance[m]
     scattered = wp.vec3(1.0 - inside)
     if materials.nonlinear[m] != 0:
@@ -276,12 +287,12 @@ def plastic_eval(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, 
     if materials.type[m] == ROUGH_PLASTIC:
         to_local = wp.transpose(frame(n))
         fresnel = fresnel_dielectric(wp.dot(wo, wp.normalize(wo + wi)), 1.0 / ior)
-        f += materials.reflectance[m] * (fresnel * ggx_eval(to_local * wo, to_local * wi, materials.roughness[m]))
+        f += reflectance * (fresnel * ggx_eval(to_local * wo, to_local * wi, alpha))
     return f
 
 
 @wp.func
-def plastic_pdf(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3) -> float:
+def plastic_pdf(materials: MaterialData, m: wp.int32, alpha: float, n: wp.vec3, wo: wp.vec3, wi: wp.vec3) -> float:
     """The density of ``plastic_sample``'s non-specular lobes: the base's cosine-weighted one and
     a rough coating's GGX visible normals, each times the probability of choosing it."""
     cos_i = wp.dot(n, wi)
@@ -291,12 +302,22 @@ def plastic_pdf(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, w
     pdf = (1.0 - coating) * cos_i / wp.pi
     if materials.type[m] == ROUGH_PLASTIC:
         to_local = wp.transpose(frame(n))
-        pdf += coating * ggx_pdf(to_local * wo, to_local * wi, materials.roughness[m])
+        pdf += coating * ggx_pdf(to_local * wo, to_local * wi, alpha)
     return pdf
 
 
 @wp.func
-def plastic_sample(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, uc: float, u: wp.vec2) -> BSDFSample:
+def plastic_sample(
+    materials: MaterialData,
+    m: wp.int32,
+    albedo: wp.vec3,
+    reflectance: wp.vec3,
+    alpha: float,
+    n: wp.vec3,
+    wo: wp.vec3,
+    uc: float,
+    u: wp.vec2,
+) -> BSDFSample:
     """The coating's reflection with probability ``coating_probability`` (a smooth coating's mirror
     direction, weight ``reflectance F`` over that probability; a rough one's GGX visible normals),
     else the base's cosine-weighted direction; non-specular samples weigh ``f cos / pdf`` of both
@@ -310,12 +331,12 @@ def plastic_sample(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3
     if uc < coating:
         if materials.type[m] == PLASTIC:
             s.wi = reflect(-wo, n)
-            s.weight = materials.reflectance[m] * ((1.0 - transmittance) / coating)
+            s.weight = reflectance * ((1.0 - transmittance) / coating)
             s.pdf = coating
             s.flags = BSDF_REFLECTION | BSDF_SPECULAR
             return s
         wo_local = wp.transpose(to_world) * wo
-        h = ggx_sample_visible_normal(wo_local, materials.roughness[m], u[0], u[1])
+        h = ggx_sample_visible_normal(wo_local, alpha, u[0], u[1])
         s.wi = to_world * (2.0 * wp.dot(wo_local, h) * h - wo_local)
         s.flags = BSDF_REFLECTION | BSDF_GLOSSY
     else:
@@ -323,16 +344,14 @@ def plastic_sample(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3
         s.flags = BSDF_REFLECTION | BSDF_DIFFUSE
     cos_theta = wp.dot(n, s.wi)
     if cos_theta > 0.0:
-        s.pdf = plastic_pdf(materials, m, n, wo, s.wi)
+        s.pdf = plastic_pdf(materials, m, alpha, n, wo, s.wi)
         if s.pdf > 0.0:
-            s.weight = plastic_eval(materials, m, n, wo, s.wi) * (cos_theta / s.pdf)
+            s.weight = plastic_eval(materials, m, albedo, reflectance, alpha, n, wo, s.wi) * (cos_theta / s.pdf)
     return s
 
 
 @wp.func
-def rough_dielectric_sample(
-    materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uc: float, u: wp.vec2
-) -> BSDFSample:
+def rough_dielectric_sample(alpha: float, n: wp.vec3, wo: wp.vec3, eta: float, uc: float, u: wp.vec2) -> BSDFSample:
     """A visible microfacet normal ``h`` of a rough dielectric, then reflection about it with
     probability F (at ``wo.h``; weight ``G1(wi)``) or refraction through it (weight ``eta^2
     G1(wi)``), as Mitsuba 3's ``roughdielectric``; index-matched (``eta == 1``) a straight pass,
@@ -348,7 +367,6 @@ def rough_dielectric_sample(
         return s
     to_world = frame(n)
     wo_local = wp.transpose(to_world) * wo
-    alpha = materials.roughness[m]
     h = ggx_sample_visible_normal(wo_local, alpha, u[0], u[1])
     cos_h = wp.dot(wo_local, h)
     wi_local = 2.0 * cos_h * h - wo_local
@@ -368,14 +386,16 @@ def rough_dielectric_sample(
 
 
 @wp.func
-def thin_dielectric_sample(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, uc: float) -> BSDFSample:
+def thin_dielectric_sample(
+    materials: MaterialData, m: wp.int32, reflectance: wp.vec3, n: wp.vec3, wo: wp.vec3, uc: float
+) -> BSDFSample:
     """A thin dielectric's reflection with probability R' (weight ``reflectance``), else its
     straight transmission (weight ``transmittance``, ``wi = -wo``)."""
     s = BSDFSample()
     r = thin_reflectance(materials, m, wp.dot(wo, n))
     if uc < r:
         s.wi = reflect(-wo, n)
-        s.weight = materials.reflectance[m]
+        s.weight = reflectance
         s.pdf = r
         s.flags = BSDF_REFLECTION | BSDF_SPECULAR
     else:
@@ -396,65 +416,104 @@ class BSDF(NamedTuple):
 
 
 @functools.cache
-def make_bsdf(rough_dielectric: bool = True, plastic: bool = True) -> BSDF:
+def make_bsdf(rough_dielectric: bool = True, plastic: bool = True, textures: bool = True) -> BSDF:
     """``bsdf_eval``, ``bsdf_pdf``, ``bsdf_sample`` and ``specular_lobes`` with the rough
     dielectric's and the plastics' cases compiled in only where the scene has them (compiled in
-    but untaken, they cost the path tracer about 15% of its time on glossy_reflection, CPU)."""
+    but untaken, they cost the path tracer about 15% of its time on glossy_reflection, CPU), and
+    texture lookups of the parameters (``wrt.kernels.textures``, at the hit's ``uv``) only where it
+    has textures: without them every parameter is the material's constant and ``uv`` is unused."""
+
+    @wp.func
+    def rgb_at(materials: MaterialData, m: wp.int32, slot: wp.int32, uv: wp.vec2, constant: wp.vec3) -> wp.vec3:
+        """Colour parameter ``slot`` of material ``m`` at ``uv``: its texture's, or ``constant``."""
+        if wp.static(textures):
+            return material_rgb(materials.textures, m, slot, uv, constant)
+        return constant
+
+    @wp.func
+    def alpha_at(materials: MaterialData, m: wp.int32, uv: wp.vec2) -> float:
+        """GGX alpha of material ``m`` at ``uv``: its roughness texture's (at least ``MIN_ALPHA``),
+        or its ``roughness``."""
+        alpha = materials.roughness[m]
+        if wp.static(textures):
+            if materials.textures.slot[m, ROUGHNESS] >= 0:
+                alpha = wp.max(MIN_ALPHA, texture_float(materials.textures, materials.textures.slot[m, ROUGHNESS], uv))
+        return alpha
 
     @wp.func
     def bsdf_eval(
-        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float = 1.0
+        materials: MaterialData,
+        m: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        wi: wp.vec3,
+        eta: float = 1.0,
+        uv: wp.vec2 = wp.vec2(0.0, 0.0),
     ) -> wp.vec3:
         """f(wo, wi) (1/sr) of the non-specular lobes for ``wi`` on the side of ``n`` (or across the
         surface, for glossy transmission); 0 for delta lobes."""
         kind = materials.type[m]
         if kind == GLOSSY or kind == CONDUCTOR:
-            alpha = materials.roughness[m]
-            if alpha == 0.0:
+            if materials.roughness[m] == 0.0:
                 return wp.vec3(0.0)
+            alpha = alpha_at(materials, m, uv)
             to_local = wp.transpose(frame(n))
             cos_h = wp.abs(wp.dot(wo, wp.normalize(wo + wi)))
-            return specular_reflectance(materials, m, cos_h) * ggx_eval(to_local * wo, to_local * wi, alpha)
+            reflectance = rgb_at(materials, m, REFLECTANCE, uv, materials.reflectance[m])
+            return specular_reflectance(materials, m, reflectance, cos_h) * ggx_eval(
+                to_local * wo, to_local * wi, alpha
+            )
         if kind == DIFFUSE:
-            return materials.albedo[m] / wp.pi
+            return rgb_at(materials, m, ALBEDO, uv, materials.albedo[m]) / wp.pi
         if kind == PHONG:
             cos_alpha = wp.max(0.0, wp.dot(reflect(-wi, n), wo))
             e = materials.exponent[m]
-            return materials.albedo[m] / wp.pi + materials.specular[m] * (
-                (e + 2.0) / (2.0 * wp.pi) * wp.pow(cos_alpha, e)
-            )
+            return rgb_at(materials, m, ALBEDO, uv, materials.albedo[m]) / wp.pi + rgb_at(
+                materials, m, SPECULAR, uv, materials.specular[m]
+            ) * ((e + 2.0) / (2.0 * wp.pi) * wp.pow(cos_alpha, e))
         if wp.static(rough_dielectric):
             if kind == ROUGH_DIELECTRIC:
                 to_local = wp.transpose(frame(n))
-                return wp.vec3(ggx_dielectric_eval(to_local * wo, to_local * wi, materials.roughness[m], eta))
+                return wp.vec3(ggx_dielectric_eval(to_local * wo, to_local * wi, alpha_at(materials, m, uv), eta))
         if wp.static(plastic):
             if kind == PLASTIC or kind == ROUGH_PLASTIC:
-                return plastic_eval(materials, m, n, wo, wi)
+                albedo = rgb_at(materials, m, ALBEDO, uv, materials.albedo[m])
+                reflectance = rgb_at(materials, m, REFLECTANCE, uv, materials.reflectance[m])
+                return plastic_eval(materials, m, albedo, reflectance, alpha_at(materials, m, uv), n, wo, wi)
         return wp.vec3(0.0)
 
     @wp.func
-    def bsdf_pdf(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float = 1.0) -> float:
+    def bsdf_pdf(
+        materials: MaterialData,
+        m: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        wi: wp.vec3,
+        eta: float = 1.0,
+        uv: wp.vec2 = wp.vec2(0.0, 0.0),
+    ) -> float:
         """Solid-angle density (1/sr) with which ``bsdf_sample`` draws ``wi``; 0 for delta lobes."""
         kind = materials.type[m]
         if kind == GLOSSY or kind == CONDUCTOR:
-            alpha = materials.roughness[m]
-            if alpha == 0.0:
+            if materials.roughness[m] == 0.0:
                 return 0.0
             to_local = wp.transpose(frame(n))
-            return ggx_pdf(to_local * wo, to_local * wi, alpha)
+            return ggx_pdf(to_local * wo, to_local * wi, alpha_at(materials, m, uv))
         if kind == DIFFUSE or kind == PHONG:
             return wp.max(0.0, wp.dot(n, wi)) / wp.pi
         if wp.static(rough_dielectric):
             if kind == ROUGH_DIELECTRIC:
                 to_local = wp.transpose(frame(n))
-                return ggx_dielectric_pdf(to_local * wo, to_local * wi, materials.roughness[m], eta)
+                return ggx_dielectric_pdf(to_local * wo, to_local * wi, alpha_at(materials, m, uv), eta)
         if wp.static(plastic):
             if kind == PLASTIC or kind == ROUGH_PLASTIC:
-                return plastic_pdf(materials, m, n, wo, wi)
+                return plastic_pdf(materials, m, alpha_at(materials, m, uv), n, wo, wi)
         return 0.0
 
     @wp.func
-    def specular_lobes(materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float) -> SpecularLobes:
+    def specular_lobes(
+        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uv: wp.vec2 = wp.vec2(0.0, 0.0)
+    ) -> SpecularLobes:
         """The delta lobes of a mirror (reflectance), a smooth conductor (reflectance times its Fresnel
         term), a plastic's coating (reflectance times its Fresnel term; its base is ``bsdf_eval``'s),
         a smooth dielectric (exact Fresnel F reflected, 1 - F refracted by Snell's law, all
@@ -476,7 +535,8 @@ def make_bsdf(rough_dielectric: bool = True, plastic: bool = True) -> BSDF:
         lobes.total_internal = False
         kind = materials.type[m]
         if kind == MIRROR or kind == CONDUCTOR:
-            lobes.reflectance = specular_reflectance(materials, m, wp.dot(wo, n))
+            reflectance = rgb_at(materials, m, REFLECTANCE, uv, materials.reflectance[m])
+            lobes.reflectance = specular_reflectance(materials, m, reflectance, wp.dot(wo, n))
         elif kind == DIELECTRIC:
             fresnel = fresnel_dielectric(wp.dot(wo, n), eta)
             ok, wt = refract(-wo, n, eta)
@@ -489,17 +549,26 @@ def make_bsdf(rough_dielectric: bool = True, plastic: bool = True) -> BSDF:
             lobes.total_internal = not ok
         elif kind == THIN_DIELECTRIC:
             cos_theta = wp.dot(wo, n)
-            lobes.reflectance = materials.reflectance[m] * thin_reflectance(materials, m, cos_theta)
+            reflectance = rgb_at(materials, m, REFLECTANCE, uv, materials.reflectance[m])
+            lobes.reflectance = reflectance * thin_reflectance(materials, m, cos_theta)
             lobes.transmittance = thin_transmittance(materials, m, cos_theta)
             lobes.refracts = True
         if wp.static(plastic):
             if kind == PLASTIC:
-                lobes.reflectance = materials.reflectance[m] * fresnel_dielectric(wp.dot(wo, n), 1.0 / materials.ior[m])
+                reflectance = rgb_at(materials, m, REFLECTANCE, uv, materials.reflectance[m])
+                lobes.reflectance = reflectance * fresnel_dielectric(wp.dot(wo, n), 1.0 / materials.ior[m])
         return lobes
 
     @wp.func
     def bsdf_sample(
-        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uc: float, u: wp.vec2
+        materials: MaterialData,
+        m: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        eta: float,
+        uc: float,
+        u: wp.vec2,
+        uv: wp.vec2 = wp.vec2(0.0, 0.0),
     ) -> BSDFSample:
         """A direction drawn from material ``m``'s BSDF: diffuse and Phong cosine-weighted, glossy and
         rough conductors by GGX visible normals, a mirror's or a smooth conductor's reflection, a
@@ -513,9 +582,10 @@ def make_bsdf(rough_dielectric: bool = True, plastic: bool = True) -> BSDF:
         s.flags = 0
         kind = materials.type[m]
         if kind == THIN_DIELECTRIC:
-            return thin_dielectric_sample(materials, m, n, wo, uc)
+            reflectance = rgb_at(materials, m, REFLECTANCE, uv, materials.reflectance[m])
+            return thin_dielectric_sample(materials, m, reflectance, n, wo, uc)
         if kind == MIRROR or kind == DIELECTRIC or (kind == CONDUCTOR and materials.roughness[m] == 0.0):
-            lobes = specular_lobes(materials, m, n, wo, eta)
+            lobes = specular_lobes(materials, m, n, wo, eta, uv)
             s.wi = lobes.wr
             s.flags = BSDF_REFLECTION | BSDF_SPECULAR
             if kind != DIELECTRIC:
@@ -536,29 +606,32 @@ def make_bsdf(rough_dielectric: bool = True, plastic: bool = True) -> BSDF:
         if kind == GLOSSY or kind == CONDUCTOR:
             to_local = wp.transpose(to_world)
             wo_local = to_local * wo
-            alpha = materials.roughness[m]
+            alpha = alpha_at(materials, m, uv)
             h = ggx_sample_visible_normal(wo_local, alpha, u[0], u[1])
             cos_h = wp.dot(wo_local, h)
             wi_local = 2.0 * cos_h * h - wo_local
             s.wi = to_world * wi_local
             s.flags = BSDF_REFLECTION | BSDF_GLOSSY
             if wi_local[2] > 0.0:
-                s.weight = specular_reflectance(materials, m, cos_h) * ggx_g1(wi_local, alpha)
+                reflectance = rgb_at(materials, m, REFLECTANCE, uv, materials.reflectance[m])
+                s.weight = specular_reflectance(materials, m, reflectance, cos_h) * ggx_g1(wi_local, alpha)
                 s.pdf = ggx_pdf(wo_local, wi_local, alpha)
             return s
         if wp.static(rough_dielectric):
             if kind == ROUGH_DIELECTRIC:
-                return rough_dielectric_sample(materials, m, n, wo, eta, uc, u)
+                return rough_dielectric_sample(alpha_at(materials, m, uv), n, wo, eta, uc, u)
         if wp.static(plastic):
             if kind == PLASTIC or kind == ROUGH_PLASTIC:
-                return plastic_sample(materials, m, n, wo, uc, u)
+                albedo = rgb_at(materials, m, ALBEDO, uv, materials.albedo[m])
+                reflectance = rgb_at(materials, m, REFLECTANCE, uv, materials.reflectance[m])
+                return plastic_sample(materials, m, albedo, reflectance, alpha_at(materials, m, uv), n, wo, uc, u)
         s.wi = to_world * cosine_hemisphere(u[0], u[1])
         if kind == DIFFUSE or kind == PHONG:
             s.flags = BSDF_REFLECTION | BSDF_DIFFUSE
             cos_theta = wp.dot(n, s.wi)
             if cos_theta > 0.0:
                 s.pdf = cos_theta / wp.pi
-                s.weight = bsdf_eval(materials, m, n, wo, s.wi) * (cos_theta / s.pdf)
+                s.weight = bsdf_eval(materials, m, n, wo, s.wi, 1.0, uv) * (cos_theta / s.pdf)
         return s
 
     return BSDF(bsdf_eval, bsdf_pdf, bsdf_sample, specular_lobes)

@@ -110,7 +110,7 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
     shadow_ray = make_shadow_ray(record, trace)
     sample_light = sample_emitter_or_map if features.environment_map else sample_emitter
     sample_triangle = make_sample_emitting_triangle(features.smooth)
-    bsdf = make_bsdf(features.rough_dielectric, features.plastic)
+    bsdf = make_bsdf(features.rough_dielectric, features.plastic, features.textures)
 
     @wp.func
     def next_event(
@@ -163,7 +163,8 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
                 if wp.static(features.rough_dielectric):
                     cos_theta = seen_through(cos_theta, flags)
                 if cos_theta > 0.0 and max_component(irradiance) > 0.0:
-                    contribution = wp.cw_mul(wp.static(bsdf.eval)(materials, m, n, wo, wi, eta), irradiance) * cos_theta
+                    f = wp.static(bsdf.eval)(materials, m, n, wo, wi, eta, hit.uv)
+                    contribution = wp.cw_mul(f, irradiance) * cos_theta
             else:
                 u = sample_2d(sampler, ray.pixel, ray.sample, light_dim(depth, i))
                 dist = float(0.0)
@@ -184,8 +185,8 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
                 if wp.static(features.rough_dielectric):
                     cos_theta = seen_through(cos_theta, flags)
                 if pdf > 0.0 and cos_theta > 0.0 and max_component(radiance) > 0.0:
-                    mis = power_heuristic(pdf, wp.static(bsdf.pdf)(materials, m, n, wo, wi, eta))
-                    f = wp.static(bsdf.eval)(materials, m, n, wo, wi, eta)
+                    mis = power_heuristic(pdf, wp.static(bsdf.pdf)(materials, m, n, wo, wi, eta, hit.uv))
+                    f = wp.static(bsdf.eval)(materials, m, n, wo, wi, eta, hit.uv)
                     contribution = wp.cw_mul(f, radiance) * (cos_theta * mis / pdf)
             if max_component(contribution) > 0.0:
                 shadow_sigma = sigma
@@ -251,7 +252,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
     trace_segment = make_trace_segment(record, trace)
     next_event = make_next_event(record, trace, features)
     environment_radiance = make_environment_radiance(features.environment_map)
-    bsdf = make_bsdf(features.rough_dielectric, features.plastic)
+    bsdf = make_bsdf(features.rough_dielectric, features.plastic, features.textures)
     surface_hit = make_surface_hit(
         features.smooth, features.instances, features.disks or features.cylinders, features.textures
     )
@@ -395,7 +396,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
                     uc = sample_1d(sampler, ray.pixel, ray.sample, bounce_dim(depth, 2))
             if non_specular(flags):
                 u = sample_2d(sampler, ray.pixel, ray.sample, bounce_dim(depth, 0))
-            bs = wp.static(bsdf.sample)(materials, hit.material, hit.n_facing, hit.wo, eta, uc, u)
+            bs = wp.static(bsdf.sample)(materials, hit.material, hit.n_facing, hit.wo, eta, uc, u, hit.uv)
             if bs.pdf == 0.0:
                 break
             beta = wp.cw_mul(beta, bs.weight)

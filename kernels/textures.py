@@ -36,10 +36,11 @@ CLAMP = wp.constant(2)
 ALBEDO = wp.constant(0)
 SPECULAR = wp.constant(1)
 REFLECTANCE = wp.constant(2)
-TRANSMITTANCE = wp.constant(3)
-ROUGHNESS = wp.constant(4)
-SLOTS = ("albedo", "specular", "reflectance", "transmittance", "roughness")
-"""The material parameters a texture can give, in slot order (``slot[m, s]``)."""
+ROUGHNESS = wp.constant(3)
+SLOTS = ("albedo", "specular", "reflectance", "roughness")
+"""The material parameters a texture can give, in slot order (``slot[m, s]``). Not
+``transmittance``: a dielectric's is an absorption per unit length, and a thin dielectric's is
+also what whitted's filtered shadow rays let through, which compute no uv."""
 
 
 @wp.struct

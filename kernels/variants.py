@@ -24,7 +24,7 @@ def _radiance(integrator: str, features: Features):
     """The rendering (not recording) radiance function of ``integrator`` for ``features``."""
     module = importlib.import_module(f"{__package__}.{integrator}")
     if integrator == "raycast":
-        return module.raycast_radiance  # primary rays only: nothing to specialise in it
+        return module.make_raycast_radiance(features.textures)  # primary rays: only uv to specialise
     return getattr(module, f"make_{integrator}_radiance")(False, features)
 
 
@@ -33,7 +33,8 @@ def relevant(integrator: str, features: Features) -> Features:
     variant costs a compilation (seconds) the first time it is used, so only flags that remove
     measurable work are specialised on (see docs/performance.md): the geometry (primitive kinds,
     instances, moving surfaces) and the pixel loop's camera (lens, orthographic) and shutter sampling for
-    every integrator; lights, the branch stack, smooth shading and textures for whitted; lights,
+    every integrator; textures (the hit's uv) for raycast; lights, the branch stack, smooth shading
+    and textures for whitted; lights,
     dielectrics, rough dielectrics, plastics, smooth shading, textures, environment maps and emissive
     triangles for path (its mirror test is a load and a compare: path ignores ``specular``;
     raycast's one shading normal per camera ray is not worth one)."""
@@ -50,7 +51,7 @@ def relevant(integrator: str, features: Features) -> Features:
         "instances": features.instances,
     }
     if integrator == "raycast":
-        return Features(**every_integrator)
+        return Features(textures=features.textures, **every_integrator)
     if integrator == "whitted":
         return Features(
             lights=features.lights,

@@ -61,10 +61,9 @@ from .materials import (
     BSDF_THIN,
     BSDF_TRANSMISSION,
     MaterialData,
-    bsdf_eval,
     bsdf_flags_from,
+    make_bsdf,
     non_specular,
-    specular_lobes,
 )
 from .media import (
     MEDIA,
@@ -79,6 +78,7 @@ from .record import REFLECTED, REFRACTED, STRAIGHT, TOTAL_INTERNAL, RayRecord
 from .sampling import Sampler
 from .shadow import make_shadow_ray
 from .spawn import ray_error, spawn_origin
+from .textures import ALBEDO, material_rgb
 from .traverse import NO_HIT, GeometryData, Traversal, traversal
 
 BRANCHES = 32  # pending branches per camera ray
@@ -109,9 +109,11 @@ def heaviest_branch(weight: BranchFloat, count: wp.int32) -> wp.int32:
     return best
 
 
-def make_direct_light(record: bool, trace: Traversal):
-    """``direct_light``, recording its shadow rays when ``record`` (compiled out otherwise)."""
+def make_direct_light(record: bool, trace: Traversal, textures: bool):
+    """``direct_light``, recording its shadow rays when ``record``, with texture lookups when
+    ``textures`` (each compiled out otherwise)."""
     shadow_ray = make_shadow_ray(record, trace)
+    bsdf = make_bsdf(True, True, textures)
 
     @wp.func
     def direct_light(
@@ -156,7 +158,7 @@ def make_direct_light(record: bool, trace: Traversal):
                     parent,
                     throughput,
                 )
-                f = bsdf_eval(materials, hit.material, n, hit.wo, wi)
+                f = wp.static(bsdf.eval)(materials, hit.material, n, hit.wo, wi, 1.0, hit.uv)
                 total += wp.cw_mul(wp.cw_mul(f, irradiance), visible) * cos_theta
         return total
 
@@ -169,7 +171,8 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
     mirrors and dielectrics there is no branch stack and the camera ray's hit is the whole tree."""
     trace = traversal(features)
     trace_segment = make_trace_segment(record, trace)
-    direct_light = make_direct_light(record, trace)
+    direct_light = make_direct_light(record, trace, features.textures)
+    bsdf = make_bsdf(True, True, features.textures)
     surface_hit = make_surface_hit(
         features.smooth, features.instances, features.disks or features.cylinders, features.textures
     )
@@ -243,7 +246,10 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
 
                 # Local shading at non-specular surfaces: ambient plus the delta lights
                 if non_specular(flags):
-                    local = wp.cw_mul(settings.ambient, materials.albedo[hit.material])
+                    albedo = materials.albedo[hit.material]
+                    if wp.static(features.textures):
+                        albedo = material_rgb(materials.textures, hit.material, ALBEDO, hit.uv, albedo)
+                    local = wp.cw_mul(settings.ambient, albedo)
                     if wp.static(features.lights):
                         if depth < settings.max_depth:
                             sigma = wp.vec3(0.0)
@@ -288,7 +294,9 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                             segment_kind = STRAIGHT
                             segment_parent = current
                         elif depth < settings.max_depth:
-                            lobes = specular_lobes(materials, hit.material, hit.n_facing, hit.wo, eta)
+                            lobes = wp.static(bsdf.specular_lobes)(
+                                materials, hit.material, hit.n_facing, hit.wo, eta, hit.uv
+                            )
                             reflected = wp.cw_mul(throughput, lobes.reflectance)
                             transmitted = wp.cw_mul(throughput, lobes.transmittance)
                             n_r = current_ior(materials, settings.exterior_ior, media, n_media) / n_camera

@@ -214,6 +214,7 @@ def upload_materials(scene: Scene, device) -> MaterialData:
     m = MaterialData()
     m.shape_material = _int(surfaces or [0], device)
     m.type = _int([MATERIAL_CODES[mat.type] for mat in mats], device)
+    m.textures = upload_textures(scene, device)
     m.flags = _int([lobe_flags(MATERIAL_CODES[mat.type], mat.roughness) for mat in mats], device)
     m.base_color = _vec3([_base_color(mat) for mat in mats], device)
     m.albedo = _vec3([mat.albedo for mat in mats], device)

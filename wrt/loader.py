@@ -376,7 +376,9 @@ def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
     }
     textures = []
     for key in _MATERIAL_KEYS[kind]:
-        if key in SLOTS and isinstance(t.data.get(key), Mapping):
+        if isinstance(t.data.get(key), Mapping):
+            if key not in SLOTS:
+                raise t.error(key, f"cannot be a texture (textures give {', '.join(SLOTS)})", t.data[key])
             texture, values[key] = _texture(t, key, scene_dir)
             textures.append((key, texture))
         else:

@@ -42,7 +42,6 @@ from .device import (
     upload_geometry,
     upload_lights,
     upload_materials,
-    upload_textures,
 )
 from .emitting import emitting_shapes
 from .errors import WrtError
@@ -146,7 +145,6 @@ class DeviceScene:
     build_time_s: float  # wall seconds of the BVH build
     sampler: str  # [render] sampler
     no_active: wp.array  # empty: every pixel of the launch's range is sampled
-    textures: object = None  # wrt.kernels.textures.TextureData
 
     def launch(
         self,
@@ -219,7 +217,6 @@ def prepare(scene: Scene, dev: wp.context.Device) -> DeviceScene:
             build_time_s=build_time,
             sampler=scene.render.sampler,
             no_active=wp.empty(0, dtype=wp.int32, device=dev),
-            textures=upload_textures(scene, dev),
         )
 
 

@@ -2,7 +2,7 @@
 textures into the flat arrays of ``wrt.kernels.textures.TextureData``.
 
 A texture gives a material parameter (``SLOTS``: ``albedo``, ``specular``, ``reflectance``,
-``transmittance``, ``roughness``) a value that varies with the surface's (u, v) coordinates
+``roughness``) a value that varies with the surface's (u, v) coordinates
 (``wrt.kernels.traverse.surface_uv``). Two kinds, as Mitsuba 3's plugins of the same names:
 ``Checkerboard`` (two colours in squares of side 1/2 in uv) and ``Bitmap`` (an image file read
 with OpenImageIO: 8- and 16-bit integer files are sRGB-encoded and decoded to linear unless

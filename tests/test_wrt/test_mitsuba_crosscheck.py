@@ -27,6 +27,7 @@ CASES = {  # scene: (width, height, spp), each renderer ~3-10 s on 2 cores
     "emissive_mesh": (64, 48, 1024),  # area emitters on OBJ meshes, sampled by NEE (BSDF sampling only: SSIM 0.88)
     "rough_dielectric": (64, 48, 1024),  # GGX glass, lights sampled across its surface (means within 0.11%, SSIM 0.984)
     "plastics": (64, 48, 1024),  # plastic and roughplastic, Mitsuba's constants (means within 0.01%, SSIM 0.996)
+    "textures": (64, 48, 1024),  # a checkerboard floor and a bitmap-wrapped sphere, Mitsuba's uv mappings
 }
 
 

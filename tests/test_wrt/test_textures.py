@@ -14,6 +14,7 @@ from wrt.kernels.textures import ALBEDO, TextureData, material_rgb, texture_floa
 from wrt.kernels.traverse import NO_HIT, GeometryData, closest_hit, hit_point, prim_shape, surface_uv
 from wrt_harness.mitsuba_peer import mitsuba_available
 
+import wrt
 from wrt.device import upload_geometry, upload_materials, upload_textures
 from wrt.errors import SceneError
 from wrt.geometry import build
@@ -450,3 +451,112 @@ def test_textures_feature():
         }
     )
     assert not scene_features(plain).textures and scene_features(textured).textures
+
+
+UNIFORM_SCENE = """
+[render]
+width = 32
+height = 24
+spp = 16
+integrator = "{integrator}"
+max_depth = 4
+
+[camera]
+origin = [0.0, 1.0, 4.0]
+look_at = [0.0, 0.4, 0.0]
+fov = 40.0
+
+[[material]]
+name = "m"
+{material}
+
+[[shape]]
+type = "sphere"
+center = [0.0, 0.6, 0.0]
+radius = 0.6
+material = "m"
+
+[[shape]]
+type = "polygon"
+vertices = [[-3.0, 0.0, 3.0], [3.0, 0.0, 3.0], [3.0, 0.0, -3.0], [-3.0, 0.0, -3.0]]
+material = "m"
+
+[[light]]
+type = "{light}"
+{light_keys}
+"""
+AREA = (
+    "area",
+    "corner = [-1.0, 3.0, -0.5]\nedge_u = [2.0, 0.0, 0.0]\nedge_v = [0.0, 0.0, 1.0]\nradiance = [8.0, 8.0, 8.0]",
+)
+POINT = ("point", "position = [1.0, 3.0, 2.0]\nintensity = [20.0, 20.0, 20.0]")
+
+
+def uniform(colour: str) -> str:
+    """A checkerboard whose two colours are the same: every lookup gives ``colour``."""
+    return f'{{ texture = "checkerboard", color0 = {colour}, color1 = {colour}, scale = 3 }}'
+
+
+@pytest.mark.parametrize(
+    "integrator, light, constant, textured",
+    [
+        ("path", AREA, "albedo = [0.6, 0.3, 0.2]", f"albedo = {uniform('[0.6, 0.3, 0.2]')}"),
+        (
+            "path",
+            AREA,
+            'type = "conductor"\nmetal = "Au"\nroughness = 0.25\nreflectance = [0.9, 0.8, 0.7]',
+            f'type = "conductor"\nmetal = "Au"\nroughness = 0.25\nreflectance = {uniform("[0.9, 0.8, 0.7]")}',
+        ),
+        (
+            "path",
+            AREA,
+            'type = "rough_plastic"\nroughness = 0.2\nalbedo = [0.2, 0.5, 0.3]\nreflectance = [0.8, 0.8, 0.8]',
+            f'type = "rough_plastic"\nroughness = 0.2\nalbedo = {uniform("[0.2, 0.5, 0.3]")}\n'
+            f"reflectance = {uniform('[0.8, 0.8, 0.8]')}",
+        ),
+        (
+            "whitted",
+            POINT,
+            'type = "phong"\nalbedo = [0.5, 0.4, 0.3]\nspecular = [0.3, 0.3, 0.3]\nexponent = 20',
+            f'type = "phong"\nalbedo = {uniform("[0.5, 0.4, 0.3]")}\n'
+            f"specular = {uniform('[0.3, 0.3, 0.3]')}\nexponent = 20",
+        ),
+        ("raycast", POINT, "albedo = [0.6, 0.3, 0.2]", f"albedo = {uniform('[0.6, 0.3, 0.2]')}"),
+    ],
+    ids=["diffuse", "conductor", "rough_plastic", "whitted_phong", "raycast"],
+)
+def test_uniform_texture_renders_as_its_constant(tmp_path, integrator, light, constant, textured):
+    """A texture that gives the same colour everywhere renders the image of that constant, bit for
+    bit, through every textured parameter the BSDFs read (a lookup of the wrong slot, a missed
+    hook or a wrong uv would change it), in the all-features kernel and the scene's own variant."""
+    images = {}
+    for name, material in (("constant", constant), ("textured", textured)):
+        path = tmp_path / f"{name}.toml"
+        path.write_text(
+            UNIFORM_SCENE.format(integrator=integrator, material=material, light=light[0], light_keys=light[1])
+        )
+        scene = load_scene(str(path))
+        for specialize in (False, True) if name == "textured" else (False,):
+            images[name, specialize] = wrt.render(scene, specialize=specialize).rgb
+    assert images["constant", False].max() > 0.05
+    for specialize in (False, True):
+        np.testing.assert_array_equal(images["textured", specialize], images["constant", False])
+
+
+def test_uniform_roughness_texture_renders_as_its_constant(tmp_path):
+    """A roughness texture of one value renders as that roughness (to float32 rounding of the
+    channel mean that ``texture_float`` takes), on a rough dielectric and a glossy conductor."""
+    images = []
+    for roughness in ("0.3", uniform("[0.3, 0.3, 0.3]")):
+        for material in (
+            f'type = "rough_dielectric"\nroughness = {roughness}',
+            f'type = "glossy"\nroughness = {roughness}',
+        ):
+            path = tmp_path / "scene.toml"
+            path.write_text(
+                UNIFORM_SCENE.format(integrator="path", material=material, light=AREA[0], light_keys=AREA[1])
+            )
+            images.append(wrt.render(load_scene(str(path))).rgb)
+    np.testing.assert_allclose(images[2], images[0], rtol=1e-4, atol=1e-5)
+    np.testing.assert_allclose(images[3], images[1], rtol=1e-4, atol=1e-5)
+    assert np.abs(images[0] - images[1]).max() > 0.01  # the two materials differ: the comparison has teeth

@@ -102,7 +102,7 @@ def conductor(p: Plugin, roughness: float) -> dict:
     alpha), exact: a named ``material`` or ``eta`` and ``k`` become a wrt conductor; material
     "none" without them (Mitsuba's default: eta 0, k 1, F = 1) a mirror or a glossy material.
     ``specular_reflectance`` scales the Fresnel term (wrt's ``reflectance``)."""
-    reflectance = p.color("specular_reflectance", 1.0)
+    reflectance = textured_color(p, "specular_reflectance", 1.0)
     name = p.string("material", "none")
     if name != "none":
         if p.has("eta") or p.has("k"):
@@ -131,8 +131,8 @@ def plastic(p: Plugin) -> dict:
     interior = ior(p, "int_ior", "polypropylene")
     table = {
         "type": "plastic",
-        "albedo": p.color("diffuse_reflectance", 0.5),
-        "reflectance": p.color("specular_reflectance", 1.0),
+        "albedo": textured_color(p, "diffuse_reflectance", 0.5),
+        "reflectance": textured_color(p, "specular_reflectance", 1.0),
         "ior": interior,
         "nonlinear": p.boolean("nonlinear", False),
     }
