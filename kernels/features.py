@@ -4,12 +4,12 @@ Each integrator's kernel is built per distinct ``Features`` value by a factory w
 bodies test the flags with ``wp.static``, so a feature the scene does not use is not in the
 generated code at all: no shadow rays or light sampling without lights, no sampling of emissive
 triangles without emitting meshes or triangles (``wrt.emitting``), no branch stack,
-Fresnel or media bookkeeping without mirrors and dielectrics, no rough dielectric's or plastic's
+Fresnel or media bookkeeping without mirrors and dielectrics, no rough dielectric's, plastic's or mask's
 BSDF cases (``wrt.kernels.materials.make_bsdf``) nor their light sampling across a surface or lobe
 choice without them, no lens or shutter-time sampling
 with a pinhole camera or nothing moving, no orthographic projection with a perspective camera,
 no shading-normal interpolation without smooth-shaded meshes, no texture coordinates or lookups
-without textures;
+without textures, no tangent frames or normal-map lookups without normal maps;
 and in the traversal (``wrt.kernels.traverse``) no test of a primitive kind the scene lacks, and no
 per-primitive ray motion when no surface moves. ``ALL`` (every flag set) is the all-features
 kernel that renders any scene (its flags say what a scene MAY have: it tests the camera's type,
@@ -45,6 +45,8 @@ class Features:
     rough_dielectric: bool = True  # glossy transmission: light sampled and media changed across a rough surface (path);
     # a scene's rough dielectric sets ``dielectric`` too (its media)
     plastic: bool = True  # plastics: a lobe choice (coating or base) at each bounce (path)
+    mask: bool = True  # masks: a choice between the inner material and the null lobe at each hit (path)
+    normal_map: bool = True  # normal-mapped materials: the hit's tangent, a perturbed shading normal (wrt.kernels.hit)
 
     def __post_init__(self):
         if self.dielectric and not self.specular:

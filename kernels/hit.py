@@ -8,7 +8,8 @@ ray comes from, the shape and material, and the bound on the point's rounding er
 rays leaving it (``wrt.kernels.spawn``).
 
 Two normals, as in Mitsuba 3 and pbrt: the shading normal (``shading_normal``: interpolated from
-the vertex normals on smooth-shaded meshes, the geometric normal everywhere else) is the BSDF's:
+the vertex normals on smooth-shaded meshes, the geometric normal everywhere else; then tilted by
+the material's normal map, if it has one: ``perturbed_normal``) is the BSDF's:
 its local frame, its cosines and which side of a one-sided material the ray is on (``front``),
 and the side emission leaves from. The geometric normal decides where rays leaving the surface
 start (``spawn_origin``) and whether the ray enters or leaves a dielectric's medium
@@ -23,10 +24,13 @@ import functools
 import warp as wp
 
 from .materials import MaterialData
+from .sample_warps import frame
+from .textures import NORMAL_MAP, texture_rgb
 from .traverse import (
     GeometryData,
     hit_point,
     hit_shape,
+    make_surface_dpdu,
     make_surface_point,
     make_surface_uv,
     prim_shape,
@@ -46,18 +50,63 @@ class Hit:
     entering: bool  # the ray hits the geometric front side (dot(d, n) < 0): media, dielectric interfaces
     front: bool  # the ray hits the shading front side (dot(d, shading normal) < 0): the BSDF's side, emission
     uv: wp.vec2  # texture coordinates (surface_uv); (0, 0) where the scene has no textures
+    n_unmapped: wp.vec3  # the shading normal before its normal map, flipped as n_facing (n_facing without one)
+
+
+@wp.func
+def perturbed_normal(n: wp.vec3, dpdu: wp.vec3, rgb: wp.vec3) -> wp.vec3:
+    """The unit shading normal ``n`` (world space) tilted by a normal map's texel ``rgb`` (raw, in
+    [0, 1]), as Mitsuba 3's ``normalmap``: the tangent-space normal ``m = normalize(2 rgb - 1)``
+    taken to the world by the shading frame ``(s, t, n)``, ``s`` the tangent ``dpdu``
+    (``surface_dpdu``) made orthogonal to ``n`` (Gram-Schmidt) and normalised, ``t = n x s``
+    (Mitsuba's ``sh_frame``; where ``dpdu`` is zero or along ``n``, ``frame(n)``'s, as Mitsuba's
+    ``coordinate_system``). ``n`` itself (bit for bit) for ``m = (0, 0, 1)``, and where
+    ``2 rgb - 1`` vanishes."""
+    s = dpdu - wp.dot(n, dpdu) * n
+    if wp.length_sq(s) > 0.0:
+        s = wp.normalize(s)
+    else:
+        basis = frame(n)
+        s = wp.vec3(basis[0, 0], basis[1, 0], basis[2, 0])
+    m = 2.0 * rgb - wp.vec3(1.0)
+    if not (wp.length_sq(m) > 0.0):
+        return n
+    m = wp.normalize(m)
+    return m[2] * n + (m[0] * s + m[1] * wp.cross(n, s))
+
+
+@wp.func
+def normal_map_shadowing(hit: Hit, wi: wp.vec3) -> float:
+    """The factor a normal-mapped BSDF's value and sample weight take for direction ``wi`` (Mitsuba
+    3's ``normalmap``, its shadowing function after Estevez et al., "A Microfacet-Based Shadowing
+    Function to Solve the Bump Terminator Problem", Ray Tracing Gems, 2019): 0 where ``wi`` lies on
+    different sides of the mapped and the unmapped shading normal, else the Smith G1 of ``wi``
+    against the unmapped normal for a GGX alpha^2 of ``min(tan^2(tilt) / 8, 1)``, ``tilt`` the
+    angle between the two normals; exactly 1 where the material has no normal map."""
+    if hit.n_unmapped == hit.n_facing:
+        return 1.0
+    cos_i = wp.dot(hit.n_unmapped, wi)
+    if cos_i * wp.dot(hit.n_facing, wi) <= 0.0:
+        return 0.0
+    cos_d2 = wp.min(wp.dot(hit.n_unmapped, hit.n_facing) ** 2.0, 1.0)
+    alpha2 = wp.min(0.125 * (1.0 - cos_d2) / cos_d2, 1.0)
+    cos_i2 = cos_i * cos_i
+    return 2.0 / (1.0 + wp.sqrt(1.0 + alpha2 * (1.0 - cos_i2) / cos_i2))
 
 
 @functools.cache
-def make_surface_hit(smooth: bool, instances: bool, quadrics: bool, textures: bool):
+def make_surface_hit(smooth: bool, instances: bool, quadrics: bool, textures: bool, normal_map: bool = False):
     """``surface_hit``; without ``smooth`` (no smooth-shaded mesh in the scene) the shading normal
     is the geometric one, and its interpolation is compiled out; without ``textures`` so is the
-    texture coordinates' computation (``uv`` stays (0, 0)); without ``instances`` no hit goes
+    texture coordinates' computation (``uv`` stays (0, 0)); without ``normal_map`` (no material with
+    a normal map; a scene with one has ``textures``) so are the tangent and the normal map's lookup
+    (raycast shades with the unperturbed normal); without ``instances`` no hit goes
     through an instance, and ``hit_point``'s transforms are compiled out; without ``quadrics`` (no
     disk or cylinder) neither is their surface point nor uv (compiled in, each costs a path tracer a fifth
     to a quarter of its time on the CPU, even when not taken)."""
     surface_point = make_surface_point(quadrics)
     surface_uv = make_surface_uv(quadrics)
+    surface_dpdu = make_surface_dpdu(quadrics)
 
     @wp.func
     def surface_hit(
@@ -83,20 +132,29 @@ def make_surface_hit(smooth: bool, instances: bool, quadrics: bool, textures: bo
         hit.err = err
         hit.wo = -d
         hit.entering = wp.dot(d, n) < 0.0
-        ns = n
-        if wp.static(smooth):
-            ns = shading_normal(geometry, prim, inst, p, n, time)
-        hit.front = wp.dot(d, ns) < 0.0
-        hit.n_facing = wp.where(hit.front, ns, -ns)
         hit.material = materials.shape_material[prim_shape(geometry, prim)]
         hit.shape = hit_shape(geometry, prim, inst)
         hit.uv = wp.vec2(0.0)
         if wp.static(textures):
             if materials.textures.kind.shape[0] > 0:  # the uv arrays are empty in a scene without textures
                 hit.uv = surface_uv(geometry, prim, inst, p, time)
+        ns = n
+        if wp.static(smooth):
+            ns = shading_normal(geometry, prim, inst, p, n, time)
+        ns0 = ns
+        if wp.static(normal_map):
+            t_map = materials.textures.slot[hit.material, NORMAL_MAP]
+            if t_map >= 0:
+                rgb = texture_rgb(materials.textures, t_map, hit.uv)
+                ns = perturbed_normal(ns, surface_dpdu(geometry, prim, inst, p, time), rgb)
+        hit.front = wp.dot(d, ns) < 0.0  # a normal-mapped BSDF's side is the perturbed normal's, as Mitsuba 3's
+        hit.n_facing = wp.where(hit.front, ns, -ns)
+        hit.n_unmapped = hit.n_facing
+        if wp.static(normal_map):
+            hit.n_unmapped = wp.where(hit.front, ns0, -ns0)
         return hit
 
     return surface_hit
 
 
-surface_hit = make_surface_hit(True, True, True, True)
+surface_hit = make_surface_hit(True, True, True, True, True)

@@ -25,6 +25,10 @@ smooth coating and ``coating_transmittance``'s table of ``cos theta`` for the ro
 coating is chosen with probability ``specular_weight (1 - T) / (specular_weight (1 - T) + (1 -
 specular_weight) T)``, ``T`` its transmittance at ``wo``: ``wrt.plastics`` computes these on the
 host as Mitsuba does) and
+``MASK`` (Mitsuba 3's ``mask``: with probability ``opacity``, a constant or a texture's
+``texture_float``, the material ``inner`` (not itself a mask, nor a dielectric that bounds a
+medium), else a null lobe: the ray goes straight on, ``wi = -wo`` with weight 1, as through a
+thin dielectric's transmission, and the surface bounds no medium) and
 ``EMITTER`` (the surface of an area or sphere light: reflects nothing). Any type may emit
 ``emission`` (W/(m^2 sr)) from its front side. ``base_color`` is what the raycast integrator shows.
 A material that is not ``two_sided`` (one-sided, as Mitsuba 3's diffuse and conductors) reflects
@@ -59,13 +63,16 @@ Conventions: world space; ``n`` is the unit shading normal on ``wo``'s side (``d
 ``wo`` (toward the viewer) and ``wi`` (toward the light, or the sampled direction) are unit vectors
 pointing away from the surface; ``eta = n1 / n2`` is the ratio of the indices of refraction on
 ``wo``'s side and across the surface (``wrt.kernels.media``; 1 for opaque materials). ``uc`` chooses
-a lobe, ``u`` (2D) samples a direction within it; both uniform in [0, 1).
+a lobe, ``u`` (2D) samples a direction within it; both uniform in [0, 1). ``bsdf_eval``,
+``bsdf_pdf`` and ``bsdf_sample`` also take the hit's ``uv`` (textured parameters) and ``front``
+(``Hit.front``, default true): only a mask reads it, as its nested material scatters nothing on
+the back of a one-sided one while its null lobe lets the ray through on both sides.
 
 A new material type is one new constant here, its entry in ``LOBES`` and one new case in each of
 ``bsdf_eval``, ``bsdf_pdf``, ``bsdf_sample`` (and ``specular_lobes`` if it has delta lobes).
-``make_bsdf(rough_dielectric, plastic)`` builds these four with the cases of the rough
-dielectric and the plastics only where a scene has them (``wrt.kernels.features``); the
-module-level functions have every case.
+``make_bsdf(rough_dielectric, plastic, textures, mask)`` builds these four with the cases of
+the rough dielectric, the plastics, texture lookups and masks only where a scene has them
+(``wrt.kernels.features``); the module-level functions have every case.
 
 References
 ----------
@@ -89,7 +96,17 @@ from .microfacet import (
 )
 from .optics import fresnel_conductor, fresnel_dielectric, fresnel_thin_dielectric, reflect, refract
 from .sample_warps import cosine_hemisphere, frame
-from .textures import ALBEDO, REFLECTANCE, ROUGHNESS, SPECULAR, TextureData, material_rgb, texture_float
+from .textures import (
+    ALBEDO,
+    OPACITY,
+    REFLECTANCE,
+    ROUGHNESS,
+    SPECULAR,
+    TextureData,
+    material_float,
+    material_rgb,
+    texture_float,
+)
 
 DIFFUSE = wp.constant(0)
 PHONG = wp.constant(1)
@@ -102,6 +119,7 @@ THIN_DIELECTRIC = wp.constant(7)
 ROUGH_DIELECTRIC = wp.constant(8)
 PLASTIC = wp.constant(9)
 ROUGH_PLASTIC = wp.constant(10)
+MASK = wp.constant(11)
 
 BSDF_REFLECTION = wp.constant(1)
 BSDF_TRANSMISSION = wp.constant(2)
@@ -110,6 +128,7 @@ BSDF_GLOSSY = wp.constant(8)
 BSDF_SPECULAR = wp.constant(16)
 BSDF_TOTAL_INTERNAL = wp.constant(32)  # a sampled lobe only: specular reflection because refraction is impossible
 BSDF_THIN = wp.constant(64)  # transmission goes straight on through a surface that bounds no medium (thin dielectric)
+NULL_LOBE = wp.constant(BSDF_TRANSMISSION | BSDF_SPECULAR | BSDF_THIN)  # a mask's: straight on, weight 1
 
 MIN_ALPHA = 1e-4  # the least GGX alpha a roughness texture gives (0 would be a mirror: another lobe)
 COATING_RES = 64  # entries of a rough plastic's coating_transmittance table (Mitsuba's MI_ROUGH_TRANSMITTANCE_RES)
@@ -143,6 +162,8 @@ class MaterialData:
     coating_transmittance: wp.array2d(
         dtype=float
     )  # rough plastic m: row m, T(cos theta) at cos = k / (COATING_RES - 1)
+    inner: wp.array(dtype=wp.int32)  # mask: the index of the material it masks (-1 for other types)
+    opacity: wp.array(dtype=float)  # mask: the probability of its inner material (textured: slot OPACITY)
 
 
 @wp.struct
@@ -185,6 +206,12 @@ def lobe_flags(kind: int, roughness: float) -> int:
     if kind == CONDUCTOR:
         return BSDF_REFLECTION | (BSDF_GLOSSY if roughness > 0.0 else BSDF_SPECULAR)
     return LOBES[kind]
+
+
+def mask_flags(inner_flags: int, opaque: bool) -> int:
+    """The lobes of a mask over a material of lobes ``inner_flags``: those, and its null lobe
+    unless it is ``opaque`` (a constant opacity of 1)."""
+    return inner_flags if opaque else inner_flags | NULL_LOBE
 
 
 @wp.func
@@ -416,12 +443,13 @@ class BSDF(NamedTuple):
 
 
 @functools.cache
-def make_bsdf(rough_dielectric: bool = True, plastic: bool = True, textures: bool = True) -> BSDF:
+def make_bsdf(rough_dielectric: bool = True, plastic: bool = True, textures: bool = True, mask: bool = True) -> BSDF:
     """``bsdf_eval``, ``bsdf_pdf``, ``bsdf_sample`` and ``specular_lobes`` with the rough
     dielectric's and the plastics' cases compiled in only where the scene has them (compiled in
-    but untaken, they cost the path tracer about 15% of its time on glossy_reflection, CPU), and
+    but untaken, they cost the path tracer about 15% of its time on glossy_reflection, CPU),
     texture lookups of the parameters (``wrt.kernels.textures``, at the hit's ``uv``) only where it
-    has textures: without them every parameter is the material's constant and ``uv`` is unused."""
+    has textures (without them every parameter is the material's constant and ``uv`` is unused),
+    and masks (``MASK``: the first three wrap the others' cases) only where it has masks."""
 
     @wp.func
     def rgb_at(materials: MaterialData, m: wp.int32, slot: wp.int32, uv: wp.vec2, constant: wp.vec3) -> wp.vec3:
@@ -449,6 +477,7 @@ def make_bsdf(rough_dielectric: bool = True, plastic: bool = True, textures: boo
         wi: wp.vec3,
         eta: float = 1.0,
         uv: wp.vec2 = wp.vec2(0.0, 0.0),
+        front: bool = True,
     ) -> wp.vec3:
         """f(wo, wi) (1/sr) of the non-specular lobes for ``wi`` on the side of ``n`` (or across the
         surface, for glossy transmission); 0 for delta lobes."""
@@ -491,6 +520,7 @@ def make_bsdf(rough_dielectric: bool = True, plastic: bool = True, textures: boo
         wi: wp.vec3,
         eta: float = 1.0,
         uv: wp.vec2 = wp.vec2(0.0, 0.0),
+        front: bool = True,
     ) -> float:
         """Solid-angle density (1/sr) with which ``bsdf_sample`` draws ``wi``; 0 for delta lobes."""
         kind = materials.type[m]
@@ -569,6 +599,7 @@ def make_bsdf(rough_dielectric: bool = True, plastic: bool = True, textures: boo
         uc: float,
         u: wp.vec2,
         uv: wp.vec2 = wp.vec2(0.0, 0.0),
+        front: bool = True,
     ) -> BSDFSample:
         """A direction drawn from material ``m``'s BSDF: diffuse and Phong cosine-weighted, glossy and
         rough conductors by GGX visible normals, a mirror's or a smooth conductor's reflection, a
@@ -634,7 +665,97 @@ def make_bsdf(rough_dielectric: bool = True, plastic: bool = True, textures: boo
                 s.weight = bsdf_eval(materials, m, n, wo, s.wi, 1.0, uv) * (cos_theta / s.pdf)
         return s
 
-    return BSDF(bsdf_eval, bsdf_pdf, bsdf_sample, specular_lobes)
+    if not mask:
+        return BSDF(bsdf_eval, bsdf_pdf, bsdf_sample, specular_lobes)
+
+    @wp.func
+    def opacity_at(materials: MaterialData, m: wp.int32, uv: wp.vec2) -> float:
+        """The opacity of mask ``m`` at ``uv``: its texture's ``texture_float``, or its ``opacity``."""
+        if wp.static(textures):
+            return material_float(materials.textures, m, OPACITY, uv, materials.opacity[m])
+        return materials.opacity[m]
+
+    @wp.func
+    def inner_scatters(materials: MaterialData, inner: wp.int32, n: wp.vec3, wi: wp.vec3, front: bool) -> bool:
+        """A mask's inner material may scatter toward ``wi``: not on the back of a one-sided one,
+        nor across the surface unless it transmits (a light below the mask is not seen through it)."""
+        if not front and materials.two_sided[inner] == 0:
+            return False
+        return wp.dot(n, wi) > 0.0 or (materials.flags[inner] & BSDF_TRANSMISSION) != 0
+
+    @wp.func
+    def masked_eval(
+        materials: MaterialData,
+        m: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        wi: wp.vec3,
+        eta: float = 1.0,
+        uv: wp.vec2 = wp.vec2(0.0, 0.0),
+        front: bool = True,
+    ) -> wp.vec3:
+        """``bsdf_eval``, and a mask's: ``opacity`` times its inner material's f (the null lobe is a delta)."""
+        if materials.type[m] != MASK:
+            return bsdf_eval(materials, m, n, wo, wi, eta, uv)
+        inner = materials.inner[m]
+        if not inner_scatters(materials, inner, n, wi, front):
+            return wp.vec3(0.0)
+        return opacity_at(materials, m, uv) * bsdf_eval(materials, inner, n, wo, wi, eta, uv)
+
+    @wp.func
+    def masked_pdf(
+        materials: MaterialData,
+        m: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        wi: wp.vec3,
+        eta: float = 1.0,
+        uv: wp.vec2 = wp.vec2(0.0, 0.0),
+        front: bool = True,
+    ) -> float:
+        """``bsdf_pdf``, and a mask's: ``opacity`` times its inner material's density."""
+        if materials.type[m] != MASK:
+            return bsdf_pdf(materials, m, n, wo, wi, eta, uv)
+        inner = materials.inner[m]
+        if not inner_scatters(materials, inner, n, wi, front):
+            return 0.0
+        return opacity_at(materials, m, uv) * bsdf_pdf(materials, inner, n, wo, wi, eta, uv)
+
+    @wp.func
+    def masked_sample(
+        materials: MaterialData,
+        m: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        eta: float,
+        uc: float,
+        u: wp.vec2,
+        uv: wp.vec2 = wp.vec2(0.0, 0.0),
+        front: bool = True,
+    ) -> BSDFSample:
+        """``bsdf_sample``, and a mask's (Mitsuba 3's): where ``uc < opacity`` its inner material's
+        sample drawn with ``uc / opacity``, its pdf times ``opacity`` and its weight unchanged (lost
+        on the back of a one-sided inner material), else the null lobe: ``wi = -wo``, weight 1,
+        probability ``1 - opacity``."""
+        if materials.type[m] != MASK:
+            return bsdf_sample(materials, m, n, wo, eta, uc, u, uv)
+        opacity = opacity_at(materials, m, uv)
+        inner = materials.inner[m]
+        if uc < opacity and (front or materials.two_sided[inner] != 0):
+            nested = bsdf_sample(materials, inner, n, wo, eta, uc / opacity, u, uv)
+            nested.pdf = nested.pdf * opacity
+            return nested
+        s = BSDFSample()
+        s.wi = -wo
+        s.flags = NULL_LOBE
+        s.weight = wp.vec3(1.0)
+        s.pdf = 1.0 - opacity
+        if uc < opacity:  # the inner material's, on the back of a one-sided one: lost
+            s.weight = wp.vec3(0.0)
+            s.pdf = 0.0
+        return s
+
+    return BSDF(masked_eval, masked_pdf, masked_sample, specular_lobes)
 
 
 bsdf_eval, bsdf_pdf, bsdf_sample, specular_lobes = make_bsdf()  # every material type

@@ -17,7 +17,10 @@ Per camera sample one path is traced:
   dielectrics are dielectrics whose reflection and refraction are glossy: lights are sampled on
   both sides of them (a shadow ray across the surface crosses the medium beyond it), and a path
   refracted through one changes medium as through a smooth one; plastics choose their coating or
-  their base by a 1D sample, as dielectrics choose reflection or refraction;
+  their base by a 1D sample, as dielectrics choose reflection or refraction; masks choose their
+  inner material (with probability ``opacity``) or their null lobe, which lets the path straight
+  on, in the medium it was in, as a segment of its own (Mitsuba 3 counts it in ``max_depth``);
+  shadow rays stop at masks, as at every surface, so light beyond one is found by BSDF sampling;
 - the back side of a one-sided material (``two_sided = false``) reflects nothing: the path ends
   there, without next-event estimation;
 - emission is added where the path hits an emitter's front: fully after the camera or a specular
@@ -51,7 +54,7 @@ from .emitters import (
     sample_emitter_or_map,
 )
 from .features import ALL, Features
-from .hit import Hit, make_surface_hit
+from .hit import Hit, make_surface_hit, normal_map_shadowing
 from .integrator import CameraRay, IntegratorSettings, make_render_kernel, make_trace_segment
 from .lights import EMITTING_TRIANGLES, ENVIRONMENT, ENVIRONMENT_MAP, SPOT, LightData, light_incident
 from .materials import (
@@ -110,7 +113,7 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
     shadow_ray = make_shadow_ray(record, trace)
     sample_light = sample_emitter_or_map if features.environment_map else sample_emitter
     sample_triangle = make_sample_emitting_triangle(features.smooth)
-    bsdf = make_bsdf(features.rough_dielectric, features.plastic, features.textures)
+    bsdf = make_bsdf(features.rough_dielectric, features.plastic, features.textures, features.mask)
 
     @wp.func
     def next_event(
@@ -163,7 +166,9 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
                 if wp.static(features.rough_dielectric):
                     cos_theta = seen_through(cos_theta, flags)
                 if cos_theta > 0.0 and max_component(irradiance) > 0.0:
-                    f = wp.static(bsdf.eval)(materials, m, n, wo, wi, eta, hit.uv)
+                    f = wp.static(bsdf.eval)(materials, m, n, wo, wi, eta, hit.uv, hit.front)
+                    if wp.static(features.normal_map):
+                        f = f * normal_map_shadowing(hit, wi)
                     contribution = wp.cw_mul(f, irradiance) * cos_theta
             else:
                 u = sample_2d(sampler, ray.pixel, ray.sample, light_dim(depth, i))
@@ -185,8 +190,10 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
                 if wp.static(features.rough_dielectric):
                     cos_theta = seen_through(cos_theta, flags)
                 if pdf > 0.0 and cos_theta > 0.0 and max_component(radiance) > 0.0:
-                    mis = power_heuristic(pdf, wp.static(bsdf.pdf)(materials, m, n, wo, wi, eta, hit.uv))
-                    f = wp.static(bsdf.eval)(materials, m, n, wo, wi, eta, hit.uv)
+                    mis = power_heuristic(pdf, wp.static(bsdf.pdf)(materials, m, n, wo, wi, eta, hit.uv, hit.front))
+                    f = wp.static(bsdf.eval)(materials, m, n, wo, wi, eta, hit.uv, hit.front)
+                    if wp.static(features.normal_map):
+                        f = f * normal_map_shadowing(hit, wi)
                     contribution = wp.cw_mul(f, radiance) * (cos_theta * mis / pdf)
             if max_component(contribution) > 0.0:
                 shadow_sigma = sigma
@@ -252,9 +259,13 @@ def make_path_radiance(record: bool, features: Features = ALL):
     trace_segment = make_trace_segment(record, trace)
     next_event = make_next_event(record, trace, features)
     environment_radiance = make_environment_radiance(features.environment_map)
-    bsdf = make_bsdf(features.rough_dielectric, features.plastic, features.textures)
+    bsdf = make_bsdf(features.rough_dielectric, features.plastic, features.textures, features.mask)
     surface_hit = make_surface_hit(
-        features.smooth, features.instances, features.disks or features.cylinders, features.textures
+        features.smooth,
+        features.instances,
+        features.disks or features.cylinders,
+        features.textures,
+        features.normal_map,
     )
 
     @wp.func
@@ -396,9 +407,11 @@ def make_path_radiance(record: bool, features: Features = ALL):
                     uc = sample_1d(sampler, ray.pixel, ray.sample, bounce_dim(depth, 2))
             if non_specular(flags):
                 u = sample_2d(sampler, ray.pixel, ray.sample, bounce_dim(depth, 0))
-            bs = wp.static(bsdf.sample)(materials, hit.material, hit.n_facing, hit.wo, eta, uc, u, hit.uv)
+            bs = wp.static(bsdf.sample)(materials, hit.material, hit.n_facing, hit.wo, eta, uc, u, hit.uv, hit.front)
             if bs.pdf == 0.0:
                 break
+            if wp.static(features.normal_map):
+                bs.weight = bs.weight * normal_map_shadowing(hit, bs.wi)
             beta = wp.cw_mul(beta, bs.weight)
             d = bs.wi
             depth += 1

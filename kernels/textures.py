@@ -5,7 +5,8 @@ transform (the 2D affine map applied to the surface's uv first, Mitsuba 3's ``to
 matrix acting on ``(u, v, 1)``) and its parameters; the texels of every bitmap lie end to end in
 ``texels`` (linear RGB, row-major, row 0 the top row of the file: uv (0, 0) is the image's top
 left corner, as in Mitsuba 3). ``slot[m, s]`` is the texture of parameter ``s`` (``ALBEDO``,
-``SPECULAR``, ...) of material ``m``, -1 where the parameter is the material's constant.
+``SPECULAR``, ..., ``NORMAL_MAP``) of material ``m``, -1 where the parameter is the material's
+constant (for ``NORMAL_MAP``: where the material has no normal map).
 
 Kinds, as Mitsuba 3's plugins of the same names:
 
@@ -37,8 +38,11 @@ ALBEDO = wp.constant(0)
 SPECULAR = wp.constant(1)
 REFLECTANCE = wp.constant(2)
 ROUGHNESS = wp.constant(3)
-SLOTS = ("albedo", "specular", "reflectance", "roughness")
-"""The material parameters a texture can give, in slot order (``slot[m, s]``). Not
+OPACITY = wp.constant(4)
+NORMAL_MAP = wp.constant(5)
+SLOTS = ("albedo", "specular", "reflectance", "roughness", "opacity", "normal_map")
+"""The material parameters a texture can give, in slot order (``slot[m, s]``); ``normal_map`` is
+a raw bitmap of tangent-space normals (``wrt.kernels.hit.perturbed_normal``), not a BSDF parameter. Not
 ``transmittance``: a dielectric's is an absorption per unit length, and a thin dielectric's is
 also what whitted's filtered shadow rays let through, which compute no uv."""
 

@@ -747,6 +747,69 @@ def make_surface_uv(quadrics: bool):
 surface_uv = make_surface_uv(True)
 
 
+@functools.cache
+def make_surface_dpdu(quadrics: bool):
+    """``surface_dpdu``, with the disk and cylinder case compiled in only with ``quadrics``."""
+
+    @wp.func
+    def surface_dpdu(geometry: GeometryData, prim: wp.int32, inst: wp.int32, p: wp.vec3, time: float) -> wp.vec3:
+        """The derivative dp/du (world space, scene units per unit u) of the surface point along the
+        first texture coordinate of ``surface_uv``, at the hit point ``p`` of ``(prim, inst)`` from
+        ``closest_hit``: Mitsuba 3's ``si.dp_du`` on the same shapes (the tangent of a normal map's
+        frame). Triangles: solved per triangle from its corners and their ``tri_uvs``; spheres
+        ``2 pi (-y, x, 0)`` of the point relative to the centre; disks the unit radial direction;
+        cylinders ``2 pi (-y, x, 0)`` of the unit tube's point; polygons and planes the in-plane
+        vector their affine uv map takes to (1, 0). Zero where it is undefined (a triangle whose uvs
+        are collinear, a sphere's poles, a disk's centre)."""
+        q = object_point(geometry, prim, inst, p, time)
+        kind = prim & KIND_MASK
+        i = prim >> KIND_BITS
+        dpdu = wp.vec3(0.0)
+        if kind == TRIANGLE:
+            a = geometry.tri_verts[3 * i]
+            e1 = geometry.tri_verts[3 * i + 1] - a
+            e2 = geometry.tri_verts[3 * i + 2] - a
+            uv0 = geometry.tri_uvs[3 * i]
+            d1 = geometry.tri_uvs[3 * i + 1] - uv0
+            d2 = geometry.tri_uvs[3 * i + 2] - uv0
+            det = d1[0] * d2[1] - d1[1] * d2[0]
+            if det != 0.0:
+                dpdu = (d2[1] * e1 - d1[1] * e2) / det
+        elif kind == SPHERE:
+            r = q - geometry.sphere_center[i]
+            dpdu = 2.0 * wp.pi * wp.vec3(-r[1], r[0], 0.0)
+        elif wp.static(quadrics) and (kind == DISK or kind == CYLINDER):
+            local = wp.transform_point(geometry.quadric_to_object[i], q)
+            tangent = 2.0 * wp.pi * wp.vec3(-local[1], local[0], 0.0)
+            if kind == DISK:
+                radial = wp.sqrt(local[0] * local[0] + local[1] * local[1])
+                tangent = wp.vec3(0.0)
+                if radial > 0.0:
+                    tangent = wp.vec3(local[0] / radial, local[1] / radial, 0.0)
+            dpdu = wp.transform_vector(geometry.quadric_to_world[i], tangent)
+        else:
+            m = mat24()
+            n = wp.vec3(0.0)
+            if kind == POLYGON:
+                m = geometry.poly_uv[i]
+                n = geometry.poly_normal[i]
+            else:
+                m = geometry.plane_uv[i]
+                n = geometry.plane_normal[i]
+            across_v = wp.cross(wp.vec3(m[1, 0], m[1, 1], m[1, 2]), n)  # in the plane, v constant along it
+            du = wp.dot(wp.vec3(m[0, 0], m[0, 1], m[0, 2]), across_v)
+            if du != 0.0:
+                dpdu = across_v / du
+        if inst >= 0:
+            dpdu = wp.transform_vector(geometry.inst_to_world[inst], dpdu)
+        return dpdu
+
+    return surface_dpdu
+
+
+surface_dpdu = make_surface_dpdu(True)
+
+
 def _trace_kernels(trace: Traversal, module: str | None):
     @wp.kernel(module=module)
     def trace_closest(

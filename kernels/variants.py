@@ -33,10 +33,10 @@ def relevant(integrator: str, features: Features) -> Features:
     variant costs a compilation (seconds) the first time it is used, so only flags that remove
     measurable work are specialised on (see docs/performance.md): the geometry (primitive kinds,
     instances, moving surfaces) and the pixel loop's camera (lens, orthographic) and shutter sampling for
-    every integrator; textures (the hit's uv) for raycast; lights, the branch stack, smooth shading
-    and textures for whitted; lights,
-    dielectrics, rough dielectrics, plastics, smooth shading, textures, environment maps and emissive
-    triangles for path (its mirror test is a load and a compare: path ignores ``specular``;
+    every integrator; textures (the hit's uv) for raycast; lights, the branch stack, smooth shading,
+    textures and normal maps for whitted; lights,
+    dielectrics, rough dielectrics, plastics, masks, smooth shading, textures, normal maps, environment maps and
+    emissive triangles for path (its mirror test is a load and a compare: path ignores ``specular``;
     raycast's one shading normal per camera ray is not worth one)."""
     every_integrator = {
         "lens": features.lens,
@@ -59,6 +59,7 @@ def relevant(integrator: str, features: Features) -> Features:
             dielectric=features.dielectric,
             smooth=features.smooth,
             textures=features.textures,
+            normal_map=features.normal_map,
             **every_integrator,
         )
     return Features(
@@ -68,8 +69,10 @@ def relevant(integrator: str, features: Features) -> Features:
         dielectric=features.dielectric,
         rough_dielectric=features.rough_dielectric,
         plastic=features.plastic,
+        mask=features.mask,
         smooth=features.smooth,
         textures=features.textures,
+        normal_map=features.normal_map,
         **every_integrator,
     )
 

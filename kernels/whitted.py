@@ -53,7 +53,7 @@ C. Schmidt, B. Budge, "Simple Nested Dielectrics in Ray Traced Images", JGT 7(2)
 import warp as wp
 
 from .features import ALL, Features
-from .hit import Hit, make_surface_hit
+from .hit import Hit, make_surface_hit, normal_map_shadowing
 from .integrator import CameraRay, IntegratorSettings, make_render_kernel, make_trace_segment
 from .lights import LightData, light_incident
 from .materials import (
@@ -109,11 +109,11 @@ def heaviest_branch(weight: BranchFloat, count: wp.int32) -> wp.int32:
     return best
 
 
-def make_direct_light(record: bool, trace: Traversal, textures: bool):
+def make_direct_light(record: bool, trace: Traversal, textures: bool, normal_map: bool):
     """``direct_light``, recording its shadow rays when ``record``, with texture lookups when
-    ``textures`` (each compiled out otherwise)."""
+    ``textures`` and normal maps' shadowing when ``normal_map`` (each compiled out otherwise)."""
     shadow_ray = make_shadow_ray(record, trace)
-    bsdf = make_bsdf(True, True, textures)
+    bsdf = make_bsdf(True, True, textures, False)  # masks need the path integrator (wrt.loader)
 
     @wp.func
     def direct_light(
@@ -159,6 +159,8 @@ def make_direct_light(record: bool, trace: Traversal, textures: bool):
                     throughput,
                 )
                 f = wp.static(bsdf.eval)(materials, hit.material, n, hit.wo, wi, 1.0, hit.uv)
+                if wp.static(normal_map):
+                    f = f * normal_map_shadowing(hit, wi)
                 total += wp.cw_mul(wp.cw_mul(f, irradiance), visible) * cos_theta
         return total
 
@@ -171,10 +173,14 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
     mirrors and dielectrics there is no branch stack and the camera ray's hit is the whole tree."""
     trace = traversal(features)
     trace_segment = make_trace_segment(record, trace)
-    direct_light = make_direct_light(record, trace, features.textures)
-    bsdf = make_bsdf(True, True, features.textures)
+    direct_light = make_direct_light(record, trace, features.textures, features.normal_map)
+    bsdf = make_bsdf(True, True, features.textures, False)
     surface_hit = make_surface_hit(
-        features.smooth, features.instances, features.disks or features.cylinders, features.textures
+        features.smooth,
+        features.instances,
+        features.disks or features.cylinders,
+        features.textures,
+        features.normal_map,
     )
 
     @wp.func
@@ -297,6 +303,9 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                             lobes = wp.static(bsdf.specular_lobes)(
                                 materials, hit.material, hit.n_facing, hit.wo, eta, hit.uv
                             )
+                            if wp.static(features.normal_map):
+                                lobes.reflectance = lobes.reflectance * normal_map_shadowing(hit, lobes.wr)
+                                lobes.transmittance = lobes.transmittance * normal_map_shadowing(hit, lobes.wt)
                             reflected = wp.cw_mul(throughput, lobes.reflectance)
                             transmitted = wp.cw_mul(throughput, lobes.transmittance)
                             n_r = current_ior(materials, settings.exterior_ior, media, n_media) / n_camera

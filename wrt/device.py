@@ -32,6 +32,7 @@ from wrt.kernels.materials import (
     DIFFUSE,
     EMITTER,
     GLOSSY,
+    MASK,
     MIRROR,
     PHONG,
     PLASTIC,
@@ -40,6 +41,7 @@ from wrt.kernels.materials import (
     THIN_DIELECTRIC,
     MaterialData,
     lobe_flags,
+    mask_flags,
 )
 from wrt.kernels.media import MEDIA, Media
 from wrt.kernels.sampling import INDEPENDENT, SOBOL, STRATIFIED, Sampler
@@ -83,6 +85,7 @@ MATERIAL_CODES = {
     "rough_dielectric": ROUGH_DIELECTRIC,
     "plastic": PLASTIC,
     "rough_plastic": ROUGH_PLASTIC,
+    "mask": MASK,
 }
 RELATIVE_IOR = ("thin_dielectric", "plastic", "rough_plastic")  # their ior is over the scene's exterior_ior
 
@@ -176,9 +179,19 @@ def upload_geometry(p: Primitives, device) -> GeometryData:
     return s
 
 
+def _lobes(mat: Material) -> int:
+    """The lobes (``BSDF_*`` flags) of a material other than a mask."""
+    return lobe_flags(MATERIAL_CODES[mat.type], mat.roughness)
+
+
+def _opaque(mask: Material) -> bool:
+    """A mask of constant opacity 1: it has no null lobe."""
+    return mask.opacity == 1.0 and not any(name == "opacity" for name, _ in mask.textures)
+
+
 def _base_color(mat) -> tuple:
     """The colour the raycast integrator shows for a material (a conductor: its reflectance at
-    normal incidence)."""
+    normal incidence; a mask: its inner material's)."""
     if mat.type == "conductor":
         return tuple(np.multiply(normal_reflectance(mat.eta, mat.k), mat.reflectance))
     return {
@@ -215,8 +228,14 @@ def upload_materials(scene: Scene, device) -> MaterialData:
     m.shape_material = _int(surfaces or [0], device)
     m.type = _int([MATERIAL_CODES[mat.type] for mat in mats], device)
     m.textures = upload_textures(scene, device)
-    m.flags = _int([lobe_flags(MATERIAL_CODES[mat.type], mat.roughness) for mat in mats], device)
-    m.base_color = _vec3([_base_color(mat) for mat in mats], device)
+    index = {mat.name: i for i, mat in enumerate(scene.materials)}
+    inner = [index[mat.material] if mat.type == "mask" else -1 for mat in mats]  # a mask's is no mask
+    m.flags = _int(
+        [_lobes(mat) if j < 0 else mask_flags(_lobes(mats[j]), _opaque(mat)) for mat, j in zip(mats, inner)], device
+    )
+    m.inner = _int(inner, device)
+    m.opacity = _float([mat.opacity for mat in mats], device)
+    m.base_color = _vec3([_base_color(mats[j] if j >= 0 else mat) for mat, j in zip(mats, inner)], device)
     m.albedo = _vec3([mat.albedo for mat in mats], device)
     m.specular = _vec3([mat.specular for mat in mats], device)
     m.exponent = _float([mat.exponent for mat in mats], device)

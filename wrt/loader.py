@@ -317,6 +317,7 @@ _MATERIAL_KEYS = {
     "rough_dielectric": ("ior", "roughness", "transmittance", "priority"),
     "plastic": ("albedo", "reflectance", "ior", "nonlinear", "two_sided"),
     "rough_plastic": ("albedo", "reflectance", "ior", "roughness", "nonlinear", "two_sided"),
+    "mask": ("opacity", "material"),
 }
 
 
@@ -345,7 +346,8 @@ def _texture(t: _Table, key: str, scene_dir: str) -> tuple:
     t.used.add(key)
     tt = _Table(t.file, f"{t.name}.{key}", t.data[key])
     texture = read_texture(tt, scene_dir)
-    values = texture.numbers() if key == "roughness" else texture.values()
+    number = key in ("roughness", "opacity")  # read as one number (texture_float)
+    values = texture.numbers() if number else texture.values()
     lo, hi = (1e-3, 1.0) if key == "roughness" else (0.0, 1.0)
     if values.min() < lo or values.max() > hi:
         what = "the file's texels" if isinstance(texture, Bitmap) else "its colours"
@@ -355,7 +357,29 @@ def _texture(t: _Table, key: str, scene_dir: str) -> tuple:
             tt.data.get("file", tt.data.get("texture")),
         )
     mean = values.mean(axis=0)
-    return texture, float(mean) if key == "roughness" else tuple(float(c) for c in mean)
+    return texture, float(mean) if number else tuple(float(c) for c in mean)
+
+
+def _normal_map(t: _Table, scene_dir: str) -> Bitmap:
+    """A material's ``normal_map``: a bitmap texture table whose file is read raw whatever its format
+    (no sRGB decoding: texel (r, g, b) is the tangent-space normal 2 (r, g, b) - 1, normalised;
+    ``wrt.kernels.hit.perturbed_normal``), its texels in [0, 1]."""
+    t.used.add("normal_map")
+    data = t.data["normal_map"]
+    if not isinstance(data, Mapping) or data.get("texture") != "bitmap":
+        raise t.error("normal_map", 'must be a texture table with texture = "bitmap"', data)
+    tt = _Table(t.file, f"{t.name}.normal_map", {**data, "raw": True})
+    if data.get("raw", True) is not True:
+        raise tt.error("raw", "must be true: a normal map is always read raw", data["raw"])
+    texture = read_texture(tt, scene_dir)
+    texels = texture.values()
+    if texels.min() < 0.0 or texels.max() > 1.0:
+        raise tt.error(
+            "file",
+            f"the file's texels range over [{texels.min():.4g}, {texels.max():.4g}]: must stay in [0, 1]",
+            data["file"],
+        )
+    return texture
 
 
 def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
@@ -373,6 +397,8 @@ def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
         "roughness": lambda: t.number("roughness", Material.roughness, lo=1e-3, hi=1.0),
         "two_sided": lambda: t.boolean("two_sided", Material.two_sided),
         "nonlinear": lambda: t.boolean("nonlinear", Material.nonlinear),
+        "opacity": lambda: t.number("opacity", Material.opacity, lo=0.0, hi=1.0),
+        "material": lambda: t.string("material"),
     }
     textures = []
     for key in _MATERIAL_KEYS[kind]:
@@ -385,6 +411,8 @@ def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
             values[key] = readers[key]()
     if kind == "conductor":
         values.update(_conductor(t))
+    if "normal_map" in t.data:
+        textures.append(("normal_map", _normal_map(t, scene_dir)))
     if "two_sided" in t.data and "two_sided" not in values:
         raise t.error(
             "two_sided", f"does not apply to a {kind}: it reflects and refracts on both sides", t.data["two_sided"]
@@ -714,6 +742,19 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
         if m.name in material_index or m.name == DEFAULT_MATERIAL.name:
             raise SceneError(file, f"material[{i}]", "name", "is already used (or reserved)", m.name)
         material_index[m.name] = i
+    for i, m in enumerate(materials):
+        if m.type == "mask":
+            inner = materials[material_index[m.material]] if m.material in material_index else None
+            if inner is None or inner.type in ("mask", "dielectric", "rough_dielectric"):
+                why = "names no material" if inner is None else f"names a {inner.type}"
+                raise SceneError(
+                    file,
+                    f"material[{i}]",
+                    "material",
+                    f"{why}: a mask's material must name a [[material]] of the file that is not a mask, a "
+                    "dielectric or a rough dielectric (they bound a medium)",
+                    m.material,
+                )
     material_index[DEFAULT_MATERIAL.name] = len(materials)
     materials.append(DEFAULT_MATERIAL)
     textured = frozenset(i for i, m in enumerate(materials) if m.textures)
@@ -757,12 +798,13 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
                     light.type,
                 )
         for i, material in enumerate(materials):
-            if material.type == "rough_dielectric":
+            if material.type in ("rough_dielectric", "mask"):
                 raise SceneError(
                     file,
                     f"material[{i}]",
                     "type",
-                    'the whitted integrator traces delta lobes only (a rough dielectric needs integrator = "path")',
+                    f"the whitted integrator traces delta lobes only (a {material.type.replace('_', ' ')} needs "
+                    'integrator = "path")',
                     material.type,
                 )
     return Scene(

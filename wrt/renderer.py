@@ -75,6 +75,7 @@ def scene_features(scene: Scene) -> Features:
     """The ``wrt.kernels.features.Features`` ``scene`` needs: its kernels are specialised on them."""
     members = [shape for group in scene.groups for shape in group.shapes]
     used = {scene.materials[shape.material] for shape in (*scene.shapes, *members)}
+    used |= {m for m in scene.materials for mask in used if mask.type == "mask" and m.name == mask.material}
     kinds = {m.type for m in used}
     moving = any(any(shape.velocity) for shape in scene.shapes)
     shapes = {type(shape) for shape in (*scene.shapes, *members)} | {type(light) for light in scene.lights}
@@ -87,6 +88,7 @@ def scene_features(scene: Scene) -> Features:
         dielectric=bool(kinds & {"dielectric", "rough_dielectric"}),
         rough_dielectric="rough_dielectric" in kinds,
         plastic=bool(kinds & {"plastic", "rough_plastic"}),
+        mask="mask" in kinds,
         lens=scene.camera.aperture_radius > 0.0,
         orthographic=scene.camera.type == "orthographic",
         motion=moving and scene.camera.shutter[1] > scene.camera.shutter[0],
@@ -99,6 +101,7 @@ def scene_features(scene: Scene) -> Features:
         instances=Instance in shapes,
         smooth=any(isinstance(shape, Mesh) and shape.normals is not None for shape in (*scene.shapes, *members)),
         textures=any(m.textures for m in used),
+        normal_map=any(name == "normal_map" for m in used for name, _ in m.textures),
     )
 
 

@@ -100,6 +100,7 @@ MATERIAL_TYPES = (
     "rough_dielectric",
     "plastic",
     "rough_plastic",
+    "mask",
 )
 
 
@@ -120,6 +121,8 @@ class Material:
     alpha ``roughness``; a plastic (rough plastic: of GGX alpha ``roughness``) is a dielectric coating of
     ``ior`` (over the scene's ``exterior_ior``) reflecting ``reflectance`` times its Fresnel term over a
     Lambertian base of ``albedo``, its internal scattering tinting the base where ``nonlinear``;
+    a mask (Mitsuba 3's ``mask``) is the material named ``material`` (not a mask, nor a dielectric or rough
+    dielectric) with probability ``opacity`` (in [0, 1]) and else lets the ray straight through, on both sides;
     ``emission``: radiance in W/(m^2 sr) leaving the front side;
     ``two_sided``: both sides reflect (diffuse, phong, mirror, glossy, conductor; a dielectric always does), else
     the back side (facing away from the surface's normal) reflects nothing, as Mitsuba 3's one-sided BSDFs;
@@ -141,6 +144,8 @@ class Material:
     emission: tuple[float, float, float] = (0.0, 0.0, 0.0)
     two_sided: bool = True
     nonlinear: bool = False
+    opacity: float = 0.5
+    material: str = ""  # mask: the name of the material it masks
     textures: tuple = ()  # (parameter, wrt.textures texture) pairs; the parameter's own value is its mean
 
 

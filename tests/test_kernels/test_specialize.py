@@ -46,6 +46,8 @@ def test_features_follow_the_scene():
         textures=False,
         rough_dielectric=False,
         plastic=False,
+        mask=False,
+        normal_map=False,
     )
     mesh = make_scene([{"type": "mesh", "file": "examples/meshes/tetra.obj"}], scene_dir=".")
     assert (scene_features(mesh).triangles, scene_features(mesh).spheres, scene_features(mesh).polygons) == (
@@ -79,6 +81,8 @@ def test_features_follow_the_scene():
         textures=False,
         rough_dielectric=False,
         plastic=False,
+        mask=False,
+        normal_map=False,
     )
     for material, flags in [
         (ROUGH_GLASS, (True, True, True, False)),  # a rough dielectric bounds a medium: dielectric too
