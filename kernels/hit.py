@@ -147,7 +147,9 @@ def make_surface_hit(smooth: bool, instances: bool, quadrics: bool, textures: bo
             if t_map >= 0:
                 rgb = texture_rgb(materials.textures, t_map, hit.uv)
                 ns = perturbed_normal(ns, surface_dpdu(geometry, prim, inst, p, time), rgb)
-        hit.front = wp.dot(d, ns) < 0.0  # a normal-mapped BSDF's side is the perturbed normal's, as Mitsuba 3's
+                if wp.dot(d, ns) * wp.dot(d, ns0) < 0.0:  # seen from below the mapped surface only
+                    ns = 2.0 * wp.dot(ns, ns0) * ns0 - ns  # mirrored about the unmapped normal, as Mitsuba 3's
+        hit.front = wp.dot(d, ns) < 0.0
         hit.n_facing = wp.where(hit.front, ns, -ns)
         hit.n_unmapped = hit.n_facing
         if wp.static(normal_map):

@@ -6,6 +6,7 @@ importer's ``normalmap``."""
 import numpy as np
 import pytest
 import warp as wp
+from conftest import EXAMPLES
 from test_textures import SHAPES, needs_mitsuba, rays_toward, scene_xml, write_exr, write_meshes, write_png
 from wrt.kernels.hit import perturbed_normal, surface_hit
 from wrt.kernels.materials import MaterialData
@@ -146,9 +147,10 @@ def hit_normals(
 
 def test_hit_normal_of_a_normal_mapped_sphere(tmp_path):
     """``surface_hit``'s shading normal on a sphere under a uniform, strongly tilted normal map is
-    the float64 perturbation of the sphere's normal in its frame (s along 2 pi (-y, x, 0)), turned
-    to the ray's side, and ``front`` is the side of the perturbed normal (rays grazing the sphere
-    can be behind it)."""
+    the float64 perturbation of the sphere's normal in its frame (s along 2 pi (-y, x, 0)), mirrored
+    about the sphere's normal where the ray sees the perturbed surface from below but the sphere
+    from outside (as Mitsuba 3's ``normalmap``), turned to the ray's side; ``front`` is the side of
+    the sphere."""
     write_png(tmp_path / "tilt.png", np.full((2, 2, 3), (230, 60, 170), np.uint8))
     scene = parse_scene(
         {
@@ -175,10 +177,12 @@ def test_hit_normal_of_a_normal_mapped_sphere(tmp_path):
     normal = (o + t[:, None] * d - c) / 0.9
     dpdu = np.stack([-normal[:, 1], normal[:, 0], np.zeros(len(normal))], axis=1)
     expected = perturbed_reference(normal, dpdu, np.tile(np.array([230, 60, 170]) / 255.0, (len(normal), 1)))
-    facing = np.sum(expected * d, axis=1) < 0.0
+    below = np.sum(expected * d, axis=1) * np.sum(normal * d, axis=1) < 0.0  # one surface's side only
+    expected = np.where(below[:, None], 2.0 * np.sum(expected * normal, axis=1)[:, None] * normal - expected, expected)
+    facing = np.sum(normal * d, axis=1) < 0.0
     np.testing.assert_array_equal(front[hit].astype(bool), facing)
     np.testing.assert_allclose(n_out[hit], np.where(facing[:, None], expected, -expected), atol=1e-4)
-    assert not facing.all()  # some rays come from behind the perturbed normal
+    assert below.any() and not facing.all()  # some rays see the perturbed surface from below, some leave the sphere
 
 
 FLAT_SCENE = {
@@ -281,22 +285,23 @@ NORMALMAP_XML = """<scene version="3.0.0">
 @pytest.mark.parametrize(
     "raw, shadowing, refused",
     [
-        ('<boolean name="raw" value="true"/>', "", 1),
-        ("", "", 2),
-        ('<boolean name="raw" value="true"/>', '<boolean name="use_shadowing_function" value="false"/>', 2),
+        ('<boolean name="raw" value="true"/>', "", 0),
+        ("", "", 1),
+        ('<boolean name="raw" value="true"/>', '<boolean name="use_shadowing_function" value="false"/>', 1),
     ],
-    ids=["raw", "srgb", "no_shadowing"],
+    ids=["exact", "srgb", "no_shadowing"],
 )
-def test_mitsuba_normalmap_is_refused_or_approximated(tmp_path, raw, shadowing, refused):
-    """Mitsuba 3's ``normalmap`` is refused by default (wrt's images of it differ by 1.5-2.4%);
-    with ``approximate`` it becomes the nested BSDF with the map as its ``normal_map``, one
-    approximation more for a map Mitsuba would sRGB-decode or its shadowing function turned off."""
+def test_mitsuba_normalmap_is_converted_or_refused(tmp_path, raw, shadowing, refused):
+    """Mitsuba 3's ``normalmap`` with a raw map becomes the nested BSDF with the map as its
+    ``normal_map``, exactly (its shadowing function included); a map Mitsuba would sRGB-decode,
+    or the shadowing function turned off, is refused by default and converted with ``approximate``."""
     write_png(tmp_path / "normal.png", np.full((2, 2, 3), (150, 120, 240), np.uint8))
     path = tmp_path / "scene.xml"
     path.write_text(NORMALMAP_XML.format(raw=raw, shadowing=shadowing))
-    with pytest.raises(WrtError, match="not converted exactly"):
-        load_scene(path)
-    scene = load_scene(path, approximate=True)
+    if refused:
+        with pytest.raises(WrtError, match="not converted exactly"):
+            load_scene(path)
+    scene = load_scene(path, approximate=bool(refused))
     material = scene.materials[scene.shapes[0].material]
     assert material.two_sided and material.albedo == (0.2, 0.4, 0.6)
     ((name, texture),) = material.textures
@@ -370,3 +375,51 @@ def test_perturbed_normal_is_mitsubas_normalmap(tmp_path):
             assert abs(value - expected) < 2e-3, (k, wo, value, expected)
             compared += cos_o > 0.05 and np.dot(wo, n) > 0.05
     assert compared > 300
+
+
+@needs_mitsuba
+def test_normal_map_at_grazing_views_is_mitsubas():
+    """At the hits of grazing camera rays on examples/mitsuba/normal_map.xml's floor, wrt's shading
+    normal and shadowing reproduce Mitsuba 3's ``normalmap`` ``eval`` for 12 light directions,
+    including the hits that see the mapped surface from below (the view above the unmapped
+    surface): Mitsuba mirrors the mapped normal about the unmapped one there. Shading those hits
+    with the mapped normal turned around instead made the whole image 1.5-2.4% darker."""
+    import mitsuba as mi
+
+    mi.set_variant("scalar_rgb")
+    path = EXAMPLES / "mitsuba" / "normal_map.xml"
+    scene = load_scene(path)
+    rng = np.random.default_rng(5)
+    n = 600
+    camera = np.array([0.0, 1.6, 3.6])
+    targets = np.c_[rng.uniform(-3, 3, n), np.zeros(n), rng.uniform(-3, 0, n)]
+    directions = targets - camera
+    directions = (directions / np.linalg.norm(directions, axis=1, keepdims=True)).astype(np.float32)
+    origins = np.repeat(camera[None], n, 0).astype(np.float32)
+    geometry, materials = upload_geometry(build(scene, "cpu"), "cpu"), upload_materials(scene, "cpu")
+    n_out, front = wp.zeros(n, wp.vec3), wp.full(n, -1, dtype=wp.int32)
+    inputs = [geometry, materials, wp.array(origins, dtype=wp.vec3), wp.array(directions, dtype=wp.vec3)]
+    wp.launch(hit_normals, dim=n, inputs=[*inputs, n_out, front], device="cpu")
+    n_out, front = n_out.numpy().astype(np.float64), front.numpy()
+    mi_scene = mi.load_file(str(path))
+    lights = rng.normal(size=(12, 3))
+    lights /= np.linalg.norm(lights, axis=1, keepdims=True)
+    mirrored = 0
+    for k in np.flatnonzero(front >= 0):
+        si = mi_scene.ray_intersect(
+            mi.Ray3f(mi.Point3f(*map(float, origins[k])), mi.Vector3f(*map(float, directions[k])))
+        )
+        if si.shape.is_emitter():  # the lamp: no normal map
+            continue
+        unmapped = np.array(si.sh_frame.n, dtype=np.float64) * (1.0 if front[k] else -1.0)
+        mapped = 2.0 * np.dot(n_out[k], unmapped) * unmapped - n_out[k]  # the normal before any mirroring
+        mirrored += np.dot(-directions[k], mapped) < 0.0
+        bsdf = si.bsdf()
+        albedo = np.array(bsdf.eval_diffuse_reflectance(si))[0]
+        for wo in lights:
+            value = np.array(bsdf.eval(mi.BSDFContext(), si, si.to_local(mi.Vector3f(*wo))))[0] * np.pi / albedo
+            cos_o = np.dot(wo, n_out[k])
+            cos_i = np.dot(wo, unmapped)
+            expected = max(cos_o, 0.0) * float(bump_shadowing(cos_i, np.dot(unmapped, n_out[k])))
+            assert abs(value - expected) < 1e-3, (k, wo, value, expected)
+    assert mirrored > 50

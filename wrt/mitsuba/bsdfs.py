@@ -291,11 +291,10 @@ class Materials:
 
     def _normal_map(self, p: Plugin) -> Material:
         """``normalmap``: the nested BSDF's material with the ``normalmap`` bitmap as its
-        ``normal_map``: the shading frame perturbed (wrt's ``perturbed_normal``) and the BSDF
-        scaled by Mitsuba's shadowing function (``normal_map_shadowing``), which match Mitsuba
-        3.9.1's ``eval`` at a hit to 1e-5. Still refused as an approximation: whole images of
-        normal-mapped surfaces come out 1.5-2.4% darker than Mitsuba's, in direct light alone
-        too, for a cause not found (docs/mitsuba.md)."""
+        ``normal_map``, exact: the shading frame perturbed (wrt's ``perturbed_normal``, mirrored
+        about the unperturbed normal where the ray sees the mapped surface from below) and the
+        BSDF scaled by Mitsuba's shadowing function (``normal_map_shadowing``). A map Mitsuba
+        would sRGB-decode, or the shadowing function turned off, is an approximation."""
         nested = p.children("bsdf")
         if len(nested) != 1:
             raise self.doc.error(p.element, "a normalmap BSDF needs exactly one nested <bsdf> (Mitsuba rejects it)")
@@ -313,11 +312,6 @@ class Materials:
                 p.params["use_shadowing_function"],
                 "a normal map without its shadowing function is not supported: converted with it",
             )
-        self.doc.warn(
-            p.element,
-            "wrt's images of normal-mapped surfaces are 1.5-2.4% darker than Mitsuba 3.9.1's (cause not found): "
-            "converted with wrt's normal_map",
-        )
         p.finish()
         inner = self._convert(nested[0])
         return Material({**inner.params, "normal_map": table}, inner.two_sided, inner.nested)
