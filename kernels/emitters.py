@@ -8,10 +8,11 @@ uniformly from every direction, or as its map says (Mitsuba 3's ``envmap``: ``wr
 describes the mapping, the bilinear lookup and the distribution the map is sampled with).
 Densities are per unit solid angle at the receiving point.
 
-Emissive triangles (``wrt.emitting``: the triangles of emitting, unmoving ``[[shape]]`` meshes
-and triangles) are sampled together as one more emitter: a triangle chosen by emitted power, a
-uniform point on it; they emit their material's ``emission`` from their shading front, as a path
-hitting them sees it.
+Emissive primitives (``wrt.emitting``: the triangles, polygons and spheres of emitting, unmoving
+``[[shape]]``s) are sampled together as one more emitter: a primitive chosen by emitted power,
+then a uniform point on a triangle or polygon, a direction uniform in a sphere's cone; they emit
+their material's ``emission`` from their shading front (a sphere's outside), as a path hitting
+them sees it. Scenes whose emissive primitives are all triangles compile the triangles' code only.
 """
 
 import functools
@@ -22,7 +23,7 @@ from .intersect import intersect_sphere
 from .lights import AREA, ENVIRONMENT, ENVIRONMENT_MAP, SPHERE_LIGHT, LightData
 from .materials import MaterialData
 from .sample_warps import cone_one_minus_cos, frame, uniform_cone, uniform_sphere
-from .traverse import KIND_BITS, TRIANGLE, GeometryData, shading_normal
+from .traverse import KIND_BITS, KIND_MASK, POLYGON, SPHERE, TRIANGLE, GeometryData, shading_normal
 
 
 @wp.func
@@ -175,29 +176,90 @@ def sample_emitter_or_map(lights: LightData, i: wp.int32, p: wp.vec3, u1: float,
     return sample_emitter(lights, i, p, u1, u2)
 
 
-@wp.func
-def emitting_triangle_pdf(geometry: GeometryData, lights: LightData, e: wp.int32, wi: wp.vec3, dist: float) -> float:
-    """Solid-angle density with which ``sample_emitting_triangle`` picks direction ``wi`` from a
-    point at ``dist`` from where it meets emitting triangle ``e``: its selection probability over
-    its area, times ``dist^2 / |cos|`` at the triangle (either side; emission is judged apart)."""
-    t = lights.emit_tri[e]
-    a = geometry.tri_verts[3 * t]
-    m = wp.cross(geometry.tri_verts[3 * t + 1] - a, geometry.tri_verts[3 * t + 2] - a)
-    twice_area = wp.length(m)
-    cos_light = wp.abs(wp.dot(wi, m)) / twice_area
-    if cos_light <= 0.0:
-        return 0.0
-    selection = lights.emit_cdf[e + 1] - lights.emit_cdf[e]
-    return selection * dist * dist / (0.5 * twice_area * cos_light)
+@functools.cache
+def make_emitting_index(shapes: bool):
+    """``emitting_index``; with ``shapes``, of polygons and spheres too (else triangles only)."""
+
+    @wp.func
+    def emitting_index(lights: LightData, prim: wp.int32) -> wp.int32:
+        """Index in the pool of emitting primitives of packed primitive id ``prim``, -1 if none."""
+        kind = prim & KIND_MASK
+        i = prim >> KIND_BITS
+        if kind == TRIANGLE and i < lights.tri_emitter.shape[0]:
+            return lights.tri_emitter[i]
+        if wp.static(shapes):
+            if kind == POLYGON and i < lights.poly_emitter.shape[0]:
+                return lights.poly_emitter[i]
+            if kind == SPHERE and i < lights.sphere_emitter.shape[0]:
+                return lights.sphere_emitter[i]
+        return -1
+
+    return emitting_index
 
 
 @functools.cache
-def make_sample_emitting_triangle(smooth: bool):
-    """``sample_emitting_triangle``; with ``smooth``, the emitting side of a smooth-shaded triangle
-    is its interpolated shading normal's, as for a path that hits it."""
+def make_emitting_pdf(shapes: bool):
+    """``emitting_pdf``; with ``shapes``, of polygons and spheres too (else triangles only)."""
 
     @wp.func
-    def sample_emitting_triangle(
+    def emitting_pdf(
+        geometry: GeometryData, lights: LightData, e: wp.int32, p: wp.vec3, wi: wp.vec3, dist: float
+    ) -> float:
+        """Solid-angle density with which ``sample_emitting`` picks direction ``wi`` from ``p``,
+        given that the ray along ``wi`` meets emitting primitive ``e`` at ``dist``: its selection
+        probability times, for a triangle or polygon, ``dist^2 / (area |cos|)`` at it (either side;
+        emission is judged apart), for a sphere ``1 / (2 pi (1 - cos_max))`` (0 from inside)."""
+        selection = lights.emit_cdf[e + 1] - lights.emit_cdf[e]
+        i = lights.emit_prim[e]
+        if wp.static(shapes):
+            kind = lights.emit_kind[e]
+            if kind == SPHERE:
+                to_c = geometry.sphere_center[i] - p
+                dist2 = wp.dot(to_c, to_c)
+                r = geometry.sphere_radius[i]
+                if dist2 <= r * r:
+                    return 0.0
+                return selection / (2.0 * wp.pi * cone_one_minus_cos(r * r / dist2))
+            if kind == POLYGON:
+                cos_light = wp.abs(wp.dot(wi, geometry.poly_normal[i]))
+                if cos_light <= 0.0:
+                    return 0.0
+                return selection * dist * dist / (lights.emit_area[e] * cos_light)
+        a = geometry.tri_verts[3 * i]
+        m = wp.cross(geometry.tri_verts[3 * i + 1] - a, geometry.tri_verts[3 * i + 2] - a)
+        twice_area = wp.length(m)
+        cos_light = wp.abs(wp.dot(wi, m)) / twice_area
+        if cos_light <= 0.0:
+            return 0.0
+        return selection * dist * dist / (0.5 * twice_area * cos_light)
+
+    return emitting_pdf
+
+
+@wp.func
+def polygon_triangle(lights: LightData, e: wp.int32, x: float) -> wp.int32:
+    """The triangle of emitting polygon ``e`` (an index into ``emit_corner`` / 3) that ``x`` in
+    [0, 1) picks by area: the first whose running area fraction exceeds ``x``."""
+    lo = lights.emit_first[e]
+    hi = lights.emit_first[e + 1] - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if lights.emit_area_cdf[mid] <= x:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@functools.cache
+def make_sample_emitting(smooth: bool, shapes: bool):
+    """``sample_emitting``; with ``smooth``, the emitting side of a smooth-shaded triangle is its
+    interpolated shading normal's, as for a path that hits it; with ``shapes``, polygons and
+    spheres are in the pool too (else triangles only)."""
+    emitting_pdf = make_emitting_pdf(shapes)
+
+    @wp.func
+    def sample_emitting(
         geometry: GeometryData,
         materials: MaterialData,
         lights: LightData,
@@ -207,14 +269,50 @@ def make_sample_emitting_triangle(smooth: bool):
         u1: float,
         u2: float,
     ):
-        """Direction toward an emitting triangle from ``p``: ``(wi, distance, radiance, pdf)``,
-        the triangle chosen by ``uc`` with its power probability, a uniform point on it by
-        ``(u1, u2)``; radiance zero where its back faces ``p``."""
+        """Direction toward an emitting primitive from ``p``: ``(wi, distance, radiance, pdf)``,
+        the primitive chosen by ``uc`` with its power probability; on a triangle a uniform point
+        by ``(u1, u2)``, on a polygon likewise in one of its triangles chosen by area with what is
+        left of ``uc``, toward a sphere a direction uniform in its cone (none from inside);
+        radiance zero where a back faces ``p``."""
         e = find_interval(lights.emit_cdf, 0, lights.emit_cdf.shape[0], uc)
-        t = lights.emit_tri[e]
-        a = geometry.tri_verts[3 * t]
-        b = geometry.tri_verts[3 * t + 1]
-        c = geometry.tri_verts[3 * t + 2]
+        i = lights.emit_prim[e]
+        kind = int(TRIANGLE)
+        if wp.static(shapes):
+            kind = lights.emit_kind[e]
+            if kind == SPHERE:
+                c = geometry.sphere_center[i]
+                r = geometry.sphere_radius[i]
+                to_c = c - p
+                dist2 = wp.dot(to_c, to_c)
+                if dist2 <= r * r:
+                    return wp.vec3(0.0, 0.0, 1.0), 0.0, wp.vec3(0.0), 0.0
+                one_minus_cos = cone_one_minus_cos(r * r / dist2)
+                wi = frame(to_c / wp.sqrt(dist2)) * uniform_cone(u1, u2, one_minus_cos)
+                tangent = wp.sqrt(wp.max(0.0, dist2 - r * r))
+                dist = intersect_sphere(p, wi, c, r, 0.0, tangent * 2.0)
+                if dist >= tangent * 2.0:  # grazing the silhouette: rounding missed it
+                    dist = tangent
+                radiance = materials.emission[materials.shape_material[geometry.sphere_shape[i]]]
+                selection = lights.emit_cdf[e + 1] - lights.emit_cdf[e]
+                return wi, dist, radiance, selection / (2.0 * wp.pi * one_minus_cos)
+        a = wp.vec3(0.0)
+        b = wp.vec3(0.0)
+        c = wp.vec3(0.0)
+        shape = int(0)
+        if kind == TRIANGLE:
+            a = geometry.tri_verts[3 * i]
+            b = geometry.tri_verts[3 * i + 1]
+            c = geometry.tri_verts[3 * i + 2]
+            shape = geometry.tri_shape[i]
+        if wp.static(shapes):
+            if kind == POLYGON:
+                below = lights.emit_cdf[e]
+                x = wp.clamp((uc - below) / (lights.emit_cdf[e + 1] - below), 0.0, 1.0)
+                k = polygon_triangle(lights, e, x)
+                a = lights.emit_corner[3 * k]
+                b = lights.emit_corner[3 * k + 1]
+                c = lights.emit_corner[3 * k + 2]
+                shape = geometry.poly_shape[i]
         su = wp.sqrt(u1)
         q = a + su * (1.0 - u2) * (b - a) + su * u2 * (c - a)
         to_q = q - p
@@ -223,12 +321,17 @@ def make_sample_emitting_triangle(smooth: bool):
             return wp.vec3(0.0, 0.0, 1.0), 0.0, wp.vec3(0.0), 0.0
         dist = wp.sqrt(dist2)
         wi = to_q / dist
-        ns = wp.normalize(wp.cross(b - a, c - a))
-        if wp.static(smooth):
-            ns = shading_normal(geometry, (t << KIND_BITS) | TRIANGLE, -1, q, ns, time)
+        ns = wp.vec3(0.0)
+        if kind == TRIANGLE:
+            ns = wp.normalize(wp.cross(b - a, c - a))
+            if wp.static(smooth):
+                ns = shading_normal(geometry, (i << KIND_BITS) | TRIANGLE, -1, q, ns, time)
+        if wp.static(shapes):
+            if kind == POLYGON:
+                ns = geometry.poly_normal[i]
         if wp.dot(wi, ns) >= 0.0:
             return wi, dist, wp.vec3(0.0), 0.0
-        radiance = materials.emission[materials.shape_material[geometry.tri_shape[t]]]
-        return wi, dist, radiance, emitting_triangle_pdf(geometry, lights, e, wi, dist)
+        radiance = materials.emission[materials.shape_material[shape]]
+        return wi, dist, radiance, emitting_pdf(geometry, lights, e, p, wi, dist)
 
-    return sample_emitting_triangle
+    return sample_emitting

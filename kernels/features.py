@@ -3,7 +3,8 @@
 Each integrator's kernel is built per distinct ``Features`` value by a factory whose ``@wp.func``
 bodies test the flags with ``wp.static``, so a feature the scene does not use is not in the
 generated code at all: no shadow rays or light sampling without lights, no sampling of emissive
-triangles without emitting meshes or triangles (``wrt.emitting``), no branch stack,
+primitives without emitting meshes, triangles, polygons or spheres (``wrt.emitting``), and of
+triangles only without emitting polygons or spheres, no branch stack,
 Fresnel or media bookkeeping without mirrors and dielectrics, no rough dielectric's, plastic's or mask's
 BSDF cases (``wrt.kernels.materials.make_bsdf``) nor their light sampling across a surface or lobe
 choice without them, no lens or shutter-time sampling
@@ -27,7 +28,8 @@ from dataclasses import astuple, dataclass
 class Features:
     lights: bool = True  # any light: shadow rays (whitted), next-event estimation and environment (path)
     environment_map: bool = True  # an environment light with a map: its lookup and sampling (path)
-    emissive: bool = True  # emissive triangles sampled by next-event estimation (path; wrt.emitting)
+    emissive: bool = True  # emissive primitives sampled by next-event estimation (path; wrt.emitting)
+    emissive_shapes: bool = True  # emissive polygons and spheres among them (sets ``emissive`` too)
     specular: bool = True  # mirrors or dielectrics: reflected and refracted rays
     dielectric: bool = True  # refraction, Fresnel, nested media, Beer-Lambert absorption
     lens: bool = True  # a thin lens (aperture_radius > 0): lens sampling

@@ -4,7 +4,7 @@ Every light of the scene is one row of ``LightData``; area, sphere and environme
 sampled by ``wrt.kernels.emitters``. An environment light with a map (``ENVIRONMENT_MAP``, at
 most one per scene) keeps its image, frame and sampling distribution in the ``env_*`` fields
 (``wrt.envmap`` describes their layout; 1-element placeholders in scenes without a map); the
-emissive triangles sampled with them (``wrt.emitting``) in the ``emit_*`` and ``tri_emitter``
+emissive primitives sampled with them (``wrt.emitting``) in the ``emit_*`` and ``*_emitter``
 fields (placeholders likewise).
 Units: point and spot ``intensity`` in W/sr, directional ``irradiance`` in W/m^2,
 area/sphere/environment ``radiance`` in W/(m^2 sr) (RGB). A point light at distance d delivers
@@ -21,7 +21,7 @@ AREA = wp.constant(3)
 SPHERE_LIGHT = wp.constant(4)
 ENVIRONMENT = wp.constant(5)
 ENVIRONMENT_MAP = wp.constant(6)
-EMITTING_TRIANGLES = wp.constant(7)  # not a row's type: the emissive triangles, sampled after the lights
+EMITTING = wp.constant(7)  # not a row's type: the emissive primitives, sampled after the lights
 
 
 @wp.struct
@@ -40,9 +40,16 @@ class LightData:
     env_to_world: wp.mat33  # the map's frame (a rotation) to world space
     env_cdf: wp.array(dtype=float)  # marginal CDF over cell rows, then each row's conditional CDF
     env_pdf: wp.array2d(dtype=float)  # (H - 1, W) solid-angle density of each cell, 1/sr
-    emit_tri: wp.array(dtype=wp.int32)  # the emitting triangles (wrt.emitting): triangle indices in GeometryData
+    emit_kind: wp.array(dtype=wp.int32)  # the emitting primitives (wrt.emitting): TRIANGLE, POLYGON or SPHERE
+    emit_prim: wp.array(dtype=wp.int32)  # their indices in GeometryData's arrays of that kind
     emit_cdf: wp.array(dtype=float)  # (E + 1) their selection CDF by emitted power, 0 to 1
-    tri_emitter: wp.array(dtype=wp.int32)  # per triangle of GeometryData its index in emit_tri, -1 if none
+    emit_area: wp.array(dtype=float)  # their areas, m^2
+    emit_first: wp.array(dtype=wp.int32)  # (E + 1) a polygon's triangles: emit_first[e] to emit_first[e + 1]
+    emit_corner: wp.array(dtype=wp.vec3)  # those triangles' corners, three each
+    emit_area_cdf: wp.array(dtype=float)  # per polygon its triangles' running area fractions, the last 1
+    tri_emitter: wp.array(dtype=wp.int32)  # per triangle of GeometryData its index in the pool, -1 if none
+    poly_emitter: wp.array(dtype=wp.int32)  # per polygon likewise
+    sphere_emitter: wp.array(dtype=wp.int32)  # per sphere likewise
 
 
 @wp.func

@@ -6,9 +6,9 @@ Per camera sample one path is traced:
 - at diffuse, Phong and glossy surfaces, every light is sampled once (next-event estimation):
   delta lights (point, directional, spot) with a shadow ray; area, sphere and environment lights
   (a constant one uniformly, a map by its luminance) by ``wrt.kernels.emitters`` with a shadow
-  ray, weighted against BSDF sampling by the power heuristic; and one emissive triangle of the
-  scene's own meshes and triangles (``wrt.emitting``: chosen by power, a uniform point on it),
-  weighted likewise;
+  ray, weighted against BSDF sampling by the power heuristic; and one emissive primitive of the
+  scene's own meshes, triangles, polygons and spheres (``wrt.emitting``: chosen by power, a
+  uniform point on a triangle or polygon, a direction in a sphere's cone), weighted likewise;
   then the path continues in a direction drawn from the BSDF (cosine-weighted for diffuse and
   Phong, GGX visible normals for glossy);
 - mirrors reflect; dielectrics reflect with probability F (exact Fresnel) or refract, with
@@ -24,7 +24,7 @@ Per camera sample one path is traced:
 - the back side of a one-sided material (``two_sided = false``) reflects nothing: the path ends
   there, without next-event estimation;
 - emission is added where the path hits an emitter's front: fully after the camera or a specular
-  bounce, MIS-weighted after a BSDF sample when the emitter is a light or an emissive triangle
+  bounce, MIS-weighted after a BSDF sample when the emitter is a light or an emissive primitive
   that NEE also samples (other emissive shapes, and shapes seen through instances, are found by
   BSDF sampling only); paths leaving the scene see the
   environment lights, MIS-weighted likewise;
@@ -38,7 +38,8 @@ k + 1), as Mitsuba 3's. Random numbers come from the render's sampler (``wrt.ker
 dimensions 0-4 are the camera's (pixel position, lens, time), ``bounce_dim(depth, j)`` are the
 BSDF sample (j = 0, 1: a 2D pair), the Fresnel choice (2) and roulette (3) at each bounce, and
 ``light_dim(depth, i)`` the 2D sample of light i; with n lights, ``light_dim(depth, n)`` is the
-point on an emissive triangle and ``light_dim(depth, n + 1)`` (1D) the choice of the triangle.
+point on (or direction toward) an emissive primitive and ``light_dim(depth, n + 1)`` (1D) the
+choice of the primitive.
 A path's shapes stay at its camera ray's time.
 """
 
@@ -46,17 +47,18 @@ import warp as wp
 
 from .emitters import (
     emitter_pdf,
-    emitting_triangle_pdf,
     environment_map_pdf,
     environment_map_radiance,
-    make_sample_emitting_triangle,
+    make_emitting_index,
+    make_emitting_pdf,
+    make_sample_emitting,
     sample_emitter,
     sample_emitter_or_map,
 )
 from .features import ALL, Features
 from .hit import Hit, make_surface_hit, normal_map_shadowing
 from .integrator import CameraRay, IntegratorSettings, make_render_kernel, make_trace_segment
-from .lights import EMITTING_TRIANGLES, ENVIRONMENT, ENVIRONMENT_MAP, SPOT, LightData, light_incident
+from .lights import EMITTING, ENVIRONMENT, ENVIRONMENT_MAP, SPOT, LightData, light_incident
 from .materials import (
     BSDF_SPECULAR,
     BSDF_THIN,
@@ -80,7 +82,7 @@ from .sample_warps import power_heuristic
 from .sampling import Sampler, sample_1d, sample_2d
 from .shadow import make_shadow_ray
 from .spawn import ray_error, spawn_origin
-from .traverse import KIND_BITS, KIND_MASK, NO_HIT, TRIANGLE, GeometryData, Traversal, traversal
+from .traverse import NO_HIT, GeometryData, Traversal, traversal
 
 RR_DEPTH = wp.constant(5)
 SHADOW_MARGIN = wp.constant(1.0e-4)  # shadow rays toward a light's surface stop this fraction short of it
@@ -108,11 +110,11 @@ def seen_through(cos_theta: float, flags: wp.int32) -> float:
 
 def make_next_event(record: bool, trace: Traversal, features: Features):
     """``next_event``, recording its shadow rays when ``record``, sampling environment maps and
-    emissive triangles when the scene has them, and lights across the surface when it has rough
+    emissive primitives when the scene has them, and lights across the surface when it has rough
     dielectrics (each compiled out otherwise)."""
     shadow_ray = make_shadow_ray(record, trace)
     sample_light = sample_emitter_or_map if features.environment_map else sample_emitter
-    sample_triangle = make_sample_emitting_triangle(features.smooth)
+    sample_emitting = make_sample_emitting(features.smooth, features.emissive_shapes)
     bsdf = make_bsdf(features.rough_dielectric, features.plastic, features.textures, features.mask)
 
     @wp.func
@@ -133,7 +135,7 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
         sigma_t: wp.vec3,
     ) -> wp.vec3:
         """Light reflected toward ``hit.wo`` from one sample of every light and one of the emissive
-        triangles (the last emitter, ``i == lights.type.shape[0]``), MIS-weighted for emitters
+        primitives (the last emitter, ``i == lights.type.shape[0]``), MIS-weighted for emitters
         with area (W/(m^2 sr), before the path's throughput ``beta``); ``sigma`` is the absorption
         of the medium ``hit`` lies in, applied along the shadow rays as along BSDF-sampled paths.
         ``flags`` are the BSDF's; a light below a surface with glossy transmission is seen through
@@ -156,7 +158,7 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
             wi = wp.vec3(0.0)
             t_max = float(0.0)
             contribution = wp.vec3(0.0)
-            kind = EMITTING_TRIANGLES
+            kind = EMITTING
             if i < n_lights:
                 kind = lights.type[i]
             if kind <= SPOT:
@@ -175,10 +177,10 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
                 dist = float(0.0)
                 radiance = wp.vec3(0.0)
                 pdf = float(0.0)
-                if kind == EMITTING_TRIANGLES:
+                if kind == EMITTING:
                     if wp.static(features.emissive):
                         uc = sample_1d(sampler, ray.pixel, ray.sample, light_dim(depth, i + 1))
-                        wi, dist, radiance, pdf = wp.static(sample_triangle)(
+                        wi, dist, radiance, pdf = wp.static(sample_emitting)(
                             geometry, materials, lights, hit.p, ray.time, uc, u[0], u[1]
                         )
                 else:
@@ -259,6 +261,8 @@ def make_path_radiance(record: bool, features: Features = ALL):
     trace_segment = make_trace_segment(record, trace)
     next_event = make_next_event(record, trace, features)
     environment_radiance = make_environment_radiance(features.environment_map)
+    emitting_index = make_emitting_index(features.emissive_shapes)
+    emitting_pdf = make_emitting_pdf(features.emissive_shapes)
     bsdf = make_bsdf(features.rough_dielectric, features.plastic, features.textures, features.mask)
     surface_hit = make_surface_hit(
         features.smooth,
@@ -327,16 +331,12 @@ def make_path_radiance(record: bool, features: Features = ALL):
                     light = hit.shape - geometry.num_shapes
                     mis = power_heuristic(prev_pdf, emitter_pdf(lights, light, prev_p, d, wp.length(hit.p - prev_p)))
                 if wp.static(features.emissive):
-                    tri = prim >> KIND_BITS
-                    if (
-                        not specular
-                        and inst < 0
-                        and (prim & KIND_MASK) == TRIANGLE
-                        and tri < lights.tri_emitter.shape[0]
-                    ):
-                        e = lights.tri_emitter[tri]
+                    if not specular and inst < 0:
+                        e = wp.static(emitting_index)(lights, prim)
                         if e >= 0:
-                            light_pdf = emitting_triangle_pdf(geometry, lights, e, d, wp.length(hit.p - prev_p))
+                            light_pdf = wp.static(emitting_pdf)(
+                                geometry, lights, e, prev_p, d, wp.length(hit.p - prev_p)
+                            )
                             mis = power_heuristic(prev_pdf, light_pdf)
                 radiance += wp.cw_mul(beta, emission) * mis
             flags = bsdf_flags_from(materials, hit.material, hit.front)

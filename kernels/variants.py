@@ -36,7 +36,7 @@ def relevant(integrator: str, features: Features) -> Features:
     every integrator; textures (the hit's uv) for raycast; lights, the branch stack, smooth shading,
     textures and normal maps for whitted; lights,
     dielectrics, rough dielectrics, plastics, masks, smooth shading, textures, normal maps, environment maps and
-    emissive triangles for path (its mirror test is a load and a compare: path ignores ``specular``;
+    emissive primitives for path (its mirror test is a load and a compare: path ignores ``specular``;
     raycast's one shading normal per camera ray is not worth one)."""
     every_integrator = {
         "lens": features.lens,
@@ -66,6 +66,7 @@ def relevant(integrator: str, features: Features) -> Features:
         lights=features.lights,
         environment_map=features.environment_map,
         emissive=features.emissive,
+        emissive_shapes=features.emissive_shapes,
         dielectric=features.dielectric,
         rough_dielectric=features.rough_dielectric,
         plastic=features.plastic,

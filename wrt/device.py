@@ -49,7 +49,7 @@ from wrt.kernels.textures import TextureData
 from wrt.kernels.traverse import GeometryData, mat24
 
 from .conductors import normal_reflectance
-from .emitting import emitting_triangles
+from .emitting import emitting_primitives
 from .envmap import environment_distribution
 from .errors import WrtError
 from .geometry import Primitives
@@ -295,7 +295,7 @@ def _upload_plastics(m: MaterialData, mats: list[Material], exterior_ior: float,
 def upload_lights(scene: Scene, device, prims: Primitives | None = None) -> LightData:
     """Every light of the scene, one row each in file order (see ``wrt.kernels.lights.LightData``):
     the surface of light k is surface ``num_shapes + k`` of the geometry; and the emitting
-    triangles of ``prims`` (the scene flattened; none without it)."""
+    primitives of ``prims`` (the scene flattened; none without it)."""
     rows = []
     for light in scene.lights:
         row = {
@@ -340,21 +340,35 @@ def upload_lights(scene: Scene, device, prims: Primitives | None = None) -> Ligh
     lights.cutoff = _float(cutoff, device)
     lights.beam = _float(np.radians([r["beam"] for r in rows]), device)
     upload_environment_map(lights, scene, device)
-    upload_emitting_triangles(lights, scene, prims, device)
+    upload_emitting_primitives(lights, scene, prims, device)
     return lights
 
 
-def upload_emitting_triangles(lights: LightData, scene: Scene, prims: Primitives | None, device) -> None:
-    """The ``emit_*`` and ``tri_emitter`` fields of ``lights`` (``wrt.emitting``), 1-element
-    placeholders when ``prims`` is None."""
+def upload_emitting_primitives(lights: LightData, scene: Scene, prims: Primitives | None, device) -> None:
+    """The ``emit_*`` and ``*_emitter`` fields of ``lights`` (``wrt.emitting``), 1-element
+    placeholders when ``prims`` is None or an array would be empty."""
+
+    def ints(a, fill):
+        return _int(a if len(a) else np.full(1, fill), device)
+
+    def floats(a):
+        return _float(a if len(a) else np.zeros(1), device)
+
     if prims is None:
-        tri, cdf, of_triangle = np.zeros(1), np.zeros(1), np.full(1, -1)
-    else:
-        emitting = emitting_triangles(scene, prims)
-        tri, cdf, of_triangle = emitting.tri, emitting.cdf, emitting.of_triangle
-    lights.emit_tri = _int(tri if len(tri) else np.zeros(1), device)
-    lights.emit_cdf = _float(cdf, device)
-    lights.tri_emitter = _int(of_triangle if len(of_triangle) else np.full(1, -1), device)
+        lights.emit_kind = lights.emit_prim = lights.emit_first = ints([], 0)
+        lights.emit_cdf = lights.emit_area = lights.emit_area_cdf = floats([])
+        lights.tri_emitter = lights.poly_emitter = lights.sphere_emitter = ints([], -1)
+        lights.emit_corner = wp.zeros(1, dtype=wp.vec3, device=device)
+        return
+    emitting = emitting_primitives(scene, prims)
+    lights.emit_kind, lights.emit_prim = ints(emitting.kind, 0), ints(emitting.prim, 0)
+    lights.emit_cdf, lights.emit_area = floats(emitting.cdf), floats(emitting.area)
+    lights.emit_first, lights.emit_area_cdf = ints(emitting.first, 0), floats(emitting.area_cdf)
+    corners = emitting.corners.reshape(-1, 3) if len(emitting.corners) else np.zeros((1, 3), np.float32)
+    lights.emit_corner = wp.array(corners, dtype=wp.vec3, device=device)
+    lights.tri_emitter = ints(emitting.of_triangle, -1)
+    lights.poly_emitter = ints(emitting.of_polygon, -1)
+    lights.sphere_emitter = ints(emitting.of_sphere, -1)
 
 
 def upload_environment_map(lights: LightData, scene: Scene, device) -> None:

@@ -83,6 +83,7 @@ def scene_features(scene: Scene) -> Features:
         lights=bool(scene.lights),
         environment_map=any(isinstance(light, EnvironmentLight) and light.image is not None for light in scene.lights),
         emissive=bool(emitting_shapes(scene)),
+        emissive_shapes=bool(emitting_shapes(scene, (Polygon, Sphere))),
         specular=bool(kinds & {"mirror", "dielectric", "thin_dielectric", "rough_dielectric", "plastic"})
         or any(m.type == "conductor" and not m.roughness for m in used),
         dielectric=bool(kinds & {"dielectric", "rough_dielectric"}),

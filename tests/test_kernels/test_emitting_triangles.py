@@ -7,7 +7,7 @@ from conftest import make_scene
 from test_path import corner_form_factor
 
 import wrt
-from wrt.emitting import emitting_triangles
+from wrt.emitting import emitting_primitives
 from wrt.geometry import flatten
 from wrt.renderer import scene_features
 
@@ -33,8 +33,8 @@ def test_distribution_is_by_power_and_skips_other_shapes():
         [FLOOR, *QUAD, {"type": "triangle", "vertices": [[0, 0, 0], [1, 0, 0], [0, 0, 1]], "material": "floor"}],
         materials=MATERIALS,
     )
-    emitting = emitting_triangles(scene, flatten(scene))
-    assert list(emitting.tri) == [0, 1]
+    emitting = emitting_primitives(scene, flatten(scene))
+    assert list(emitting.prim) == [0, 1]
     assert list(emitting.of_triangle) == [0, 1, -1]
     np.testing.assert_allclose(emitting.cdf, [0.0, 0.5, 1.0])
     assert scene_features(scene).emissive

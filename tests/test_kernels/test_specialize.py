@@ -30,6 +30,7 @@ def test_features_follow_the_scene():
         lights=False,
         environment_map=False,
         emissive=False,
+        emissive_shapes=False,
         specular=False,
         dielectric=False,
         lens=False,
@@ -75,6 +76,7 @@ def test_features_follow_the_scene():
         ALL,
         environment_map=False,
         emissive=False,
+        emissive_shapes=False,
         orthographic=False,
         instances=False,
         smooth=False,
@@ -172,6 +174,21 @@ SCENES = {
     ),
     "path emissive triangles": (
         [FLOOR, {"type": "triangle", "vertices": [[-1, 2, -1], [1, 2, -1], [1, 2, 1]], "material": "lamp"}],
+        DIFFUSE + [{"name": "lamp", "albedo": [0, 0, 0], "emission": [3, 3, 3]}],
+        [AREA],
+        {},
+        "path",
+    ),
+    "path emissive polygon and sphere": (
+        [
+            FLOOR,
+            {
+                "type": "polygon",
+                "vertices": [[-1, 2, -1], [1, 2, -1], [1, 2, 0], [0, 2, 0], [0, 2, 1]],
+                "material": "lamp",
+            },
+            {"type": "sphere", "center": [1, 0, 0], "radius": 0.4, "material": "lamp"},
+        ],
         DIFFUSE + [{"name": "lamp", "albedo": [0, 0, 0], "emission": [3, 3, 3]}],
         [AREA],
         {},
