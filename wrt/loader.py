@@ -321,10 +321,15 @@ _MATERIAL_KEYS = {
 }
 
 
-def _conductor(t: _Table) -> dict:
-    """A conductor's ``roughness`` (0, the default: smooth; else GGX alpha) and its complex index
-    of refraction: ``metal``, a name of ``wrt.conductors.METALS``, or ``eta`` and ``k``."""
-    roughness = t.number("roughness", 0.0, lo=0.0, hi=1.0)
+def _conductor(t: _Table, scene_dir: str, textures: list) -> dict:
+    """A conductor's ``roughness`` (0, the default: smooth; else GGX alpha, or a texture of it,
+    appended to ``textures``) and its complex index of refraction: ``metal``, a name of
+    ``wrt.conductors.METALS``, or ``eta`` and ``k``."""
+    if isinstance(t.data.get("roughness"), Mapping):
+        texture, roughness = _texture(t, "roughness", scene_dir)
+        textures.append(("roughness", texture))
+    else:
+        roughness = t.number("roughness", 0.0, lo=0.0, hi=1.0)
     if 0.0 < roughness < 1e-3:
         raise t.error("roughness", "must be 0 (a smooth conductor) or at least 0.001", roughness)
     if "metal" in t.data:
@@ -410,7 +415,7 @@ def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
         else:
             values[key] = readers[key]()
     if kind == "conductor":
-        values.update(_conductor(t))
+        values.update(_conductor(t, scene_dir, textures))
     if "normal_map" in t.data:
         textures.append(("normal_map", _normal_map(t, scene_dir)))
     if "two_sided" in t.data and "two_sided" not in values:

@@ -28,6 +28,7 @@ CASES = {  # scene: (width, height, spp), each renderer ~3-10 s on 2 cores
     "rough_dielectric": (64, 48, 1024),  # GGX glass, lights sampled across its surface (means within 0.11%, SSIM 0.984)
     "plastics": (64, 48, 1024),  # plastic and roughplastic, Mitsuba's constants (means within 0.01%, SSIM 0.996)
     "textures": (64, 48, 1024),  # a checkerboard floor and a bitmap-wrapped sphere, Mitsuba's uv mappings
+    "textured_roughness": (64, 48, 1024),  # a checkerboard alpha (its colours not swapped for eval_1: means -5%)
     "normal_map": (64, 48, 1024),  # Mitsuba's frame, shadowing and mirroring (shaded unmirrored: means -1.5 to -2.4%)
     "mask": (64, 48, 1024),  # opacity masks (means within 0.05%, SSIM 0.985; checkerboard unswapped: SSIM 0.64)
 }

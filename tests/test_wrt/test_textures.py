@@ -545,18 +545,17 @@ def test_uniform_texture_renders_as_its_constant(tmp_path, integrator, light, co
 
 def test_uniform_roughness_texture_renders_as_its_constant(tmp_path):
     """A roughness texture of one value renders as that roughness (to float32 rounding of the
-    channel mean that ``texture_float`` takes), on a rough dielectric and a glossy conductor."""
-    images = []
+    channel mean that ``texture_float`` takes), on a rough dielectric, a glossy material and a
+    conductor."""
+    materials = ('type = "rough_dielectric"', 'type = "glossy"', 'type = "conductor"\nmetal = "Au"')
+    images = {}
     for roughness in ("0.3", uniform("[0.3, 0.3, 0.3]")):
-        for material in (
-            f'type = "rough_dielectric"\nroughness = {roughness}',
-            f'type = "glossy"\nroughness = {roughness}',
-        ):
+        for material in materials:
             path = tmp_path / "scene.toml"
-            path.write_text(
-                UNIFORM_SCENE.format(integrator="path", material=material, light=AREA[0], light_keys=AREA[1])
-            )
-            images.append(wrt.render(load_scene(str(path))).rgb)
-    np.testing.assert_allclose(images[2], images[0], rtol=1e-4, atol=1e-5)
-    np.testing.assert_allclose(images[3], images[1], rtol=1e-4, atol=1e-5)
+            keys = f"{material}\nroughness = {roughness}"
+            path.write_text(UNIFORM_SCENE.format(integrator="path", material=keys, light=AREA[0], light_keys=AREA[1]))
+            images[material, roughness == "0.3"] = wrt.render(load_scene(str(path))).rgb
+    for material in materials:
+        np.testing.assert_allclose(images[material, False], images[material, True], rtol=1e-4, atol=1e-5)
+    images = [images[material, True] for material in materials]
     assert np.abs(images[0] - images[1]).max() > 0.01  # the two materials differ: the comparison has teeth

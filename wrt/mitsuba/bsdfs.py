@@ -80,8 +80,9 @@ def ior(p: Plugin, name: str, default: str) -> float:
     return IOR_TABLE[text.strip().lower()]
 
 
-def alpha(p: Plugin) -> float:
-    """The GGX alpha of a rough BSDF (isotropic: the geometric mean of an anisotropic pair)."""
+def alpha(p: Plugin) -> float | dict:
+    """The GGX alpha of a rough BSDF (isotropic: the geometric mean of an anisotropic pair), or the
+    texture of an isotropic ``alpha`` (``textured_number``)."""
     distribution = p.string("distribution", "beckmann")
     if distribution != "ggx":
         p.doc.warn(
@@ -96,7 +97,7 @@ def alpha(p: Plugin) -> float:
                 f"anisotropic roughness is not supported: alpha = {math.sqrt(alpha_u * alpha_v):.4g} (geometric mean)",
             )
         return math.sqrt(alpha_u * alpha_v)
-    return p.number("alpha", 0.1)
+    return textured_number(p, "alpha", 0.1)
 
 
 def conductor(p: Plugin, roughness: float) -> dict:
@@ -146,19 +147,26 @@ def plastic(p: Plugin) -> dict:
     return table
 
 
-def mask_opacity(p: Plugin) -> float | dict:
-    """A mask's ``opacity``: a number clamped to [0, 1] as Mitsuba does, or the texture table of its
-    ``<texture>``, whose ``texture_float`` is Mitsuba's ``eval_1`` (a checkerboard's colours swapped:
-    Mitsuba's checkerboard ``eval_1`` swaps them against its ``eval``)."""
-    nested = next((child for key, child in p.nested if key == "opacity" and child.tag == "texture"), None)
-    if nested is None or "opacity" in p.params:
-        return min(max(p.number("opacity", 0.5), 0.0), 1.0)
-    p.used.add("opacity")
+def textured_number(p: Plugin, name: str, default: float) -> float | dict:
+    """Number parameter ``name`` of ``p``: a number, or the texture table of its ``<texture>``,
+    whose ``texture_float`` is Mitsuba's ``eval_1`` (a checkerboard's colours swapped: Mitsuba's
+    checkerboard ``eval_1`` swaps them against its ``eval``)."""
+    nested = next((child for key, child in p.nested if key == name and child.tag == "texture"), None)
+    if nested is None or name in p.params:
+        return p.number(name, default)
+    p.used.add(name)
     p.used_nested.add(id(nested))
     table = texture(p.doc, nested)
     if table["texture"] == "checkerboard":
         table.update(color0=table["color1"], color1=table["color0"])
     return table
+
+
+def mask_opacity(p: Plugin) -> float | dict:
+    """A mask's ``opacity``: a number clamped to [0, 1] as Mitsuba does, or a texture
+    (``textured_number``)."""
+    opacity = textured_number(p, "opacity", 0.5)
+    return opacity if isinstance(opacity, dict) else min(max(opacity, 0.0), 1.0)
 
 
 class Materials:
