@@ -159,4 +159,10 @@ def make_surface_hit(smooth: bool, instances: bool, quadrics: bool, textures: bo
     return surface_hit
 
 
+def make_surface_hit_for(features) -> wp.Function:
+    """``make_surface_hit`` for a scene's ``wrt.kernels.features.Features``."""
+    quadrics = features.disks or features.cylinders
+    return make_surface_hit(features.smooth, features.instances, quadrics, features.textures, features.normal_map)
+
+
 surface_hit = make_surface_hit(True, True, True, True, True)

@@ -56,7 +56,7 @@ from .emitters import (
     sample_emitter_or_map,
 )
 from .features import ALL, Features
-from .hit import Hit, make_surface_hit, normal_map_shadowing
+from .hit import Hit, make_surface_hit_for, normal_map_shadowing
 from .integrator import CameraRay, IntegratorSettings, make_render_kernel, make_trace_segment
 from .lights import EMITTING, ENVIRONMENT, ENVIRONMENT_MAP, SPOT, LightData, light_incident
 from .materials import (
@@ -264,13 +264,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
     emitting_index = make_emitting_index(features.emissive_shapes)
     emitting_pdf = make_emitting_pdf(features.emissive_shapes)
     bsdf = make_bsdf(features.rough_dielectric, features.plastic, features.textures, features.mask)
-    surface_hit = make_surface_hit(
-        features.smooth,
-        features.instances,
-        features.disks or features.cylinders,
-        features.textures,
-        features.normal_map,
-    )
+    surface_hit = make_surface_hit_for(features)
 
     @wp.func
     def path_radiance(

@@ -53,7 +53,7 @@ C. Schmidt, B. Budge, "Simple Nested Dielectrics in Ray Traced Images", JGT 7(2)
 import warp as wp
 
 from .features import ALL, Features
-from .hit import Hit, make_surface_hit, normal_map_shadowing
+from .hit import Hit, make_surface_hit_for, normal_map_shadowing
 from .integrator import CameraRay, IntegratorSettings, make_render_kernel, make_trace_segment
 from .lights import LightData, light_incident
 from .materials import (
@@ -175,13 +175,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
     trace_segment = make_trace_segment(record, trace)
     direct_light = make_direct_light(record, trace, features.textures, features.normal_map)
     bsdf = make_bsdf(True, True, features.textures, False)
-    surface_hit = make_surface_hit(
-        features.smooth,
-        features.instances,
-        features.disks or features.cylinders,
-        features.textures,
-        features.normal_map,
-    )
+    surface_hit = make_surface_hit_for(features)
 
     @wp.func
     def whitted_radiance(
