@@ -30,6 +30,8 @@ kernel never compiles them; build every variant at import, before the first laun
 recompiles the module.
 """
 
+import functools
+
 import warp as wp
 
 from .camera import CameraData, clip_ray, film_position, make_generate_ray, shutter_time, thin_lens_ray
@@ -244,3 +246,25 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
         film.rgb[pixel] = total / float(first + launch.pass_spp)
 
     return render_pixels
+
+
+def all_features_kernels(name: str, make_radiance):
+    """The ``__getattr__`` of integrator module ``wrt.kernels.NAME``: its all-features kernel ``NAME``
+    and its recording kernel ``NAME_record`` (``make_radiance(record)`` gives their radiance
+    functions), each built on first use into a Warp module of its own. A render that uses its
+    scene's own variant (``wrt.kernels.variants``) never builds them: built at import, they cost
+    every process start-up time (docs/performance.md)."""
+
+    @functools.cache
+    def build(record: bool):
+        module = f"wrt_{name}_{'record' if record else 'all'}"
+        return make_render_kernel(make_radiance(record), record=record, module=module)
+
+    def module_getattr(attr: str):
+        if attr == name:
+            return build(False)
+        if attr == f"{name}_record":
+            return build(True)
+        raise AttributeError(f"module 'wrt.kernels.{name}' has no attribute {attr!r}")
+
+    return module_getattr

@@ -758,4 +758,10 @@ def make_bsdf(rough_dielectric: bool = True, plastic: bool = True, textures: boo
     return BSDF(masked_eval, masked_pdf, masked_sample, specular_lobes)
 
 
-bsdf_eval, bsdf_pdf, bsdf_sample, specular_lobes = make_bsdf()  # every material type
+def __getattr__(name: str):
+    """``bsdf_eval``, ``bsdf_pdf``, ``bsdf_sample`` and ``specular_lobes`` with every material type's
+    case (``make_bsdf()``), built on first use: at import they cost every process start-up time."""
+    functions = {"bsdf_eval": "eval", "bsdf_pdf": "pdf", "bsdf_sample": "sample", "specular_lobes": "specular_lobes"}
+    if name in functions:
+        return getattr(make_bsdf(), functions[name])
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -57,7 +57,7 @@ from .emitters import (
 )
 from .features import ALL, Features
 from .hit import Hit, make_surface_hit_for, normal_map_shadowing
-from .integrator import CameraRay, IntegratorSettings, make_render_kernel, make_trace_segment
+from .integrator import CameraRay, IntegratorSettings, all_features_kernels, make_trace_segment
 from .lights import EMITTING, ENVIRONMENT, ENVIRONMENT_MAP, SPOT, LightData, light_incident
 from .materials import (
     BSDF_SPECULAR,
@@ -449,5 +449,4 @@ def make_path_radiance(record: bool, features: Features = ALL):
     return path_radiance
 
 
-path = make_render_kernel(make_path_radiance(False))
-path_record = make_render_kernel(make_path_radiance(True), record=True)
+__getattr__ = all_features_kernels("path", make_path_radiance)  # path, path_record

@@ -13,7 +13,7 @@ import functools
 import warp as wp
 
 from .hit import make_surface_hit
-from .integrator import CameraRay, IntegratorSettings, make_render_kernel
+from .integrator import CameraRay, IntegratorSettings, all_features_kernels
 from .lights import LightData
 from .materials import MaterialData
 from .record import RayRecord
@@ -49,6 +49,4 @@ def make_raycast_radiance(textures: bool):
     return raycast_radiance
 
 
-raycast_radiance = make_raycast_radiance(True)
-raycast = make_render_kernel(raycast_radiance)
-raycast_record = make_render_kernel(raycast_radiance, record=True)
+__getattr__ = all_features_kernels("raycast", lambda record: make_raycast_radiance(True))  # raycast, raycast_record

@@ -1,9 +1,10 @@
 """The render kernel of an integrator specialised on a scene's ``Features``, built on first use.
 
 ``render_kernel(integrator, features)`` returns the same kernel object for the same arguments:
-the all-features kernels (``features == ALL``) are the ones each integrator module builds at
-import; any other variant is built here into a Warp module of its own, named after the
-integrator and ``features.key``, so that adding a variant never recompiles a module that has
+the all-features kernels (``features == ALL``) are the ones each integrator module builds on
+first use (``wrt.kernels.integrator.all_features_kernels``, in Warp modules ``wrt_NAME_all``); any
+other variant is built here into a Warp module of its own, named after the integrator and
+``features.key``, so that adding a variant never recompiles a module that has
 already been loaded, and Warp's kernel cache keeps each compiled variant across processes. An
 integrator's module is imported when its kernel is first asked for: a process pays the start-up
 cost (Warp parses every function's source at import) of the integrator it renders with only.

@@ -54,7 +54,7 @@ import warp as wp
 
 from .features import ALL, Features
 from .hit import Hit, make_surface_hit_for, normal_map_shadowing
-from .integrator import CameraRay, IntegratorSettings, make_render_kernel, make_trace_segment
+from .integrator import CameraRay, IntegratorSettings, all_features_kernels, make_trace_segment
 from .lights import LightData, light_incident
 from .materials import (
     BSDF_SPECULAR,
@@ -393,5 +393,4 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
     return whitted_radiance
 
 
-whitted = make_render_kernel(make_whitted_radiance(False))
-whitted_record = make_render_kernel(make_whitted_radiance(True), record=True)
+__getattr__ = all_features_kernels("whitted", make_whitted_radiance)  # whitted, whitted_record
