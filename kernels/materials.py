@@ -102,6 +102,7 @@ from .textures import (
     REFLECTANCE,
     ROUGHNESS,
     SPECULAR,
+    TRANSMITTANCE,
     TextureData,
     material_float,
     material_rgb,
@@ -414,7 +415,13 @@ def rough_dielectric_sample(alpha: float, n: wp.vec3, wo: wp.vec3, eta: float, u
 
 @wp.func
 def thin_dielectric_sample(
-    materials: MaterialData, m: wp.int32, reflectance: wp.vec3, n: wp.vec3, wo: wp.vec3, uc: float
+    materials: MaterialData,
+    m: wp.int32,
+    reflectance: wp.vec3,
+    transmittance: wp.vec3,
+    n: wp.vec3,
+    wo: wp.vec3,
+    uc: float,
 ) -> BSDFSample:
     """A thin dielectric's reflection with probability R' (weight ``reflectance``), else its
     straight transmission (weight ``transmittance``, ``wi = -wo``)."""
@@ -427,7 +434,7 @@ def thin_dielectric_sample(
         s.flags = BSDF_REFLECTION | BSDF_SPECULAR
     else:
         s.wi = -wo
-        s.weight = materials.transmittance[m]
+        s.weight = transmittance
         s.pdf = 1.0 - r
         s.flags = BSDF_TRANSMISSION | BSDF_SPECULAR | BSDF_THIN
     return s
@@ -581,7 +588,8 @@ def make_bsdf(rough_dielectric: bool = True, plastic: bool = True, textures: boo
             cos_theta = wp.dot(wo, n)
             reflectance = rgb_at(materials, m, REFLECTANCE, uv, materials.reflectance[m])
             lobes.reflectance = reflectance * thin_reflectance(materials, m, cos_theta)
-            lobes.transmittance = thin_transmittance(materials, m, cos_theta)
+            transmittance = rgb_at(materials, m, TRANSMITTANCE, uv, materials.transmittance[m])
+            lobes.transmittance = transmittance * (1.0 - thin_reflectance(materials, m, cos_theta))
             lobes.refracts = True
         if wp.static(plastic):
             if kind == PLASTIC:
@@ -614,7 +622,8 @@ def make_bsdf(rough_dielectric: bool = True, plastic: bool = True, textures: boo
         kind = materials.type[m]
         if kind == THIN_DIELECTRIC:
             reflectance = rgb_at(materials, m, REFLECTANCE, uv, materials.reflectance[m])
-            return thin_dielectric_sample(materials, m, reflectance, n, wo, uc)
+            transmittance = rgb_at(materials, m, TRANSMITTANCE, uv, materials.transmittance[m])
+            return thin_dielectric_sample(materials, m, reflectance, transmittance, n, wo, uc)
         if kind == MIRROR or kind == DIELECTRIC or (kind == CONDUCTOR and materials.roughness[m] == 0.0):
             lobes = specular_lobes(materials, m, n, wo, eta, uv)
             s.wi = lobes.wr

@@ -40,11 +40,12 @@ REFLECTANCE = wp.constant(2)
 ROUGHNESS = wp.constant(3)
 OPACITY = wp.constant(4)
 NORMAL_MAP = wp.constant(5)
-SLOTS = ("albedo", "specular", "reflectance", "roughness", "opacity", "normal_map")
+TRANSMITTANCE = wp.constant(6)
+SLOTS = ("albedo", "specular", "reflectance", "roughness", "opacity", "normal_map", "transmittance")
 """The material parameters a texture can give, in slot order (``slot[m, s]``); ``normal_map`` is
-a raw bitmap of tangent-space normals (``wrt.kernels.hit.perturbed_normal``), not a BSDF parameter. Not
-``transmittance``: a dielectric's is an absorption per unit length, and a thin dielectric's is
-also what whitted's filtered shadow rays let through, which compute no uv."""
+a raw bitmap of tangent-space normals (``wrt.kernels.hit.perturbed_normal``), not a BSDF parameter;
+``transmittance`` a thin dielectric's only (a dielectric's is an absorption per unit length, a
+property of its volume; whitted's filtered shadow rays, which compute no uv, take its mean)."""
 
 
 @wp.struct

@@ -344,6 +344,10 @@ def _conductor(t: _Table, scene_dir: str, textures: list) -> dict:
     return {"roughness": roughness, "eta": eta, "k": k}
 
 
+TEXTURED = "albedo, specular, reflectance, roughness, opacity, normal_map and a thin dielectric's transmittance"
+"""What a texture can give (a dielectric's ``transmittance`` is an absorption per unit length: its volume's)."""
+
+
 def _texture(t: _Table, key: str, scene_dir: str) -> tuple:
     """Material parameter ``key`` given by a texture (an inline table, ``wrt.textures.read_texture``):
     ``(texture, value)``, its values checked against the parameter's range (roughness: as the
@@ -408,8 +412,8 @@ def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
     textures = []
     for key in _MATERIAL_KEYS[kind]:
         if isinstance(t.data.get(key), Mapping):
-            if key not in SLOTS:
-                raise t.error(key, f"cannot be a texture (textures give {', '.join(SLOTS)})", t.data[key])
+            if key not in SLOTS or (key == "transmittance" and kind != "thin_dielectric"):
+                raise t.error(key, f"cannot be a texture here (textures give {TEXTURED})", t.data[key])
             texture, values[key] = _texture(t, key, scene_dir)
             textures.append((key, texture))
         else:

@@ -522,8 +522,15 @@ def uniform(colour: str) -> str:
             f"specular = {uniform('[0.3, 0.3, 0.3]')}\nexponent = 20",
         ),
         ("raycast", POINT, "albedo = [0.6, 0.3, 0.2]", f"albedo = {uniform('[0.6, 0.3, 0.2]')}"),
+        (
+            "path",
+            AREA,
+            'type = "thin_dielectric"\nreflectance = [0.9, 0.8, 0.7]\ntransmittance = [0.6, 0.8, 0.9]',
+            f'type = "thin_dielectric"\nreflectance = {uniform("[0.9, 0.8, 0.7]")}\n'
+            f"transmittance = {uniform('[0.6, 0.8, 0.9]')}",
+        ),
     ],
-    ids=["diffuse", "conductor", "rough_plastic", "whitted_phong", "raycast"],
+    ids=["diffuse", "conductor", "rough_plastic", "whitted_phong", "raycast", "thin_dielectric"],
 )
 def test_uniform_texture_renders_as_its_constant(tmp_path, integrator, light, constant, textured):
     """A texture that gives the same colour everywhere renders the image of that constant, bit for
@@ -559,3 +566,14 @@ def test_uniform_roughness_texture_renders_as_its_constant(tmp_path):
         np.testing.assert_allclose(images[material, False], images[material, True], rtol=1e-4, atol=1e-5)
     images = [images[material, True] for material in materials]
     assert np.abs(images[0] - images[1]).max() > 0.01  # the two materials differ: the comparison has teeth
+
+
+def test_a_dielectrics_transmittance_cannot_be_a_texture(tmp_path):
+    """A dielectric's ``transmittance`` is an absorption per unit length, a property of its volume:
+    a texture there is refused, naming the key; a thin dielectric's is a surface's and may be one."""
+    checks = {"texture": "checkerboard", "color0": [0.9, 0.9, 0.9], "color1": [0.5, 0.5, 0.5]}
+    doc = {"camera": {"origin": [0, 0, 5], "look_at": [0, 0, 0]}}
+    with pytest.raises(SceneError, match=r"material\[0\]\.transmittance = .*cannot be a texture here"):
+        parse_scene({**doc, "material": [{"name": "g", "type": "dielectric", "transmittance": checks}]})
+    scene = parse_scene({**doc, "material": [{"name": "g", "type": "thin_dielectric", "transmittance": checks}]})
+    assert [name for name, _ in scene.materials[0].textures] == ["transmittance"]

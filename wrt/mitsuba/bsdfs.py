@@ -269,8 +269,8 @@ class Materials:
                 {
                     "type": "thin_dielectric",
                     "ior": ior(p, "int_ior", "bk7"),
-                    "reflectance": p.color("specular_reflectance", 1.0),
-                    "transmittance": p.color("specular_transmittance", 1.0),
+                    "reflectance": textured_color(p, "specular_reflectance", 1.0),
+                    "transmittance": textured_color(p, "specular_transmittance", 1.0),
                 },
                 True,
             )
