@@ -63,15 +63,15 @@ class Features:
 ALL = Features()
 
 
+GEOMETRY = ("moving", "spheres", "triangles", "polygons", "disks", "cylinders", "instances")
+"""The flags the traversal is compiled on (primitive kinds, moving surfaces)."""
+
+
+def only(features: Features, names) -> Features:
+    """``features`` with every flag but ``names`` set (a flag not kept costs no variant)."""
+    return Features(**{name: getattr(features, name) for name in names})
+
+
 def geometry_features(features: Features) -> Features:
-    """Only the flags the traversal is compiled on (primitive kinds, moving surfaces); the others
-    set: the key of a traversal variant."""
-    return Features(
-        moving=features.moving,
-        spheres=features.spheres,
-        triangles=features.triangles,
-        polygons=features.polygons,
-        disks=features.disks,
-        cylinders=features.cylinders,
-        instances=features.instances,
-    )
+    """Only the flags the traversal is compiled on; the others set: the key of a traversal variant."""
+    return only(features, GEOMETRY)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import functools
 import importlib
 
-from .features import ALL, Features
+from .features import ALL, GEOMETRY, Features, only
 from .integrator import make_render_kernel
 
 INTEGRATORS = ("raycast", "whitted", "path")
@@ -29,6 +29,29 @@ def _radiance(integrator: str, features: Features):
     return getattr(module, f"make_{integrator}_radiance")(False, features)
 
 
+EVERY_INTEGRATOR = ("lens", "orthographic", "motion", *GEOMETRY)
+"""The flags every integrator's variants are specialised on: the pixel loop's camera and shutter,
+and the traversal's."""
+RELEVANT = {
+    "raycast": ("textures",),
+    "whitted": ("lights", "specular", "dielectric", "smooth", "textures", "normal_map"),
+    "path": (
+        "lights",
+        "environment_map",
+        "emissive",
+        "emissive_shapes",
+        "dielectric",
+        "rough_dielectric",
+        "plastic",
+        "mask",
+        "smooth",
+        "textures",
+        "normal_map",
+    ),
+}
+"""The flags each integrator's variants are specialised on besides those (``relevant``)."""
+
+
 def relevant(integrator: str, features: Features) -> Features:
     """``features`` with the flags that do not pay for a variant of ``integrator`` set: each
     variant costs a compilation (seconds) the first time it is used, so only flags that remove
@@ -39,44 +62,7 @@ def relevant(integrator: str, features: Features) -> Features:
     dielectrics, rough dielectrics, plastics, masks, smooth shading, textures, normal maps, environment maps and
     emissive primitives for path (its mirror test is a load and a compare: path ignores ``specular``;
     raycast's one shading normal per camera ray is not worth one)."""
-    every_integrator = {
-        "lens": features.lens,
-        "orthographic": features.orthographic,
-        "motion": features.motion,
-        "moving": features.moving,
-        "spheres": features.spheres,
-        "triangles": features.triangles,
-        "polygons": features.polygons,
-        "disks": features.disks,
-        "cylinders": features.cylinders,
-        "instances": features.instances,
-    }
-    if integrator == "raycast":
-        return Features(textures=features.textures, **every_integrator)
-    if integrator == "whitted":
-        return Features(
-            lights=features.lights,
-            specular=features.specular,
-            dielectric=features.dielectric,
-            smooth=features.smooth,
-            textures=features.textures,
-            normal_map=features.normal_map,
-            **every_integrator,
-        )
-    return Features(
-        lights=features.lights,
-        environment_map=features.environment_map,
-        emissive=features.emissive,
-        emissive_shapes=features.emissive_shapes,
-        dielectric=features.dielectric,
-        rough_dielectric=features.rough_dielectric,
-        plastic=features.plastic,
-        mask=features.mask,
-        smooth=features.smooth,
-        textures=features.textures,
-        normal_map=features.normal_map,
-        **every_integrator,
-    )
+    return only(features, EVERY_INTEGRATOR + RELEVANT[integrator])
 
 
 def render_kernel(integrator: str, features: Features):

@@ -344,7 +344,7 @@ def _conductor(t: _Table, scene_dir: str, textures: list) -> dict:
     return {"roughness": roughness, "eta": eta, "k": k}
 
 
-TEXTURED = "albedo, specular, reflectance, roughness, opacity, normal_map and a thin dielectric's transmittance"
+TEXTURED = ", ".join(slot for slot in SLOTS if slot != "transmittance") + " and a thin dielectric's transmittance"
 """What a texture can give (a dielectric's ``transmittance`` is an absorption per unit length: its volume's)."""
 
 
