@@ -2,10 +2,12 @@
 path-traced Cornell box. Part of ``wrt bench``.
 
 Each comparison runs both renderers' command lines as child processes, in turn (wrt, Mitsuba,
-wrt, ...), after one untimed warm-up run of each (Warp's kernel cache and the file cache warm, as
-on a machine that has rendered before; Mitsuba compiles its LLVM kernels in every process), and
-reports the median wall time of ``repeats`` runs: process start, imports, scene parsing, mesh
-reading, BVH build, rendering and writing the EXR, everything.
+wrt, ...), after one untimed warm-up run of each (Warp's kernel cache, Python's bytecode cache and
+the file cache warm, as on a machine that has rendered before: the children run without
+``PYTHONDONTWRITEBYTECODE``, which would make every process compile wrt's sources again; Mitsuba
+compiles its LLVM kernels in every process), and reports the median wall time of ``repeats``
+runs: process start, imports, scene parsing, mesh reading, BVH build, rendering and writing the
+EXR, everything.
 
 - ``mesh``: a binary PLY of ``triangles`` triangles (``wrt_benchmarks.throughput.torus_mesh``, float32
   vertices) seen by a 1024 x 1024 pinhole camera, one primary ray per pixel: ``wrt render`` with
@@ -120,9 +122,12 @@ def wrt_command() -> list[str]:
     return [exe] if os.path.exists(exe) else [sys.executable, "-m", "wrt.cli"]
 
 
+_ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}  # see the module docstring
+
+
 def _timed(command: list[str], cwd: str) -> float:
     t0 = time.perf_counter()
-    done = subprocess.run(command, cwd=cwd, capture_output=True, text=True)
+    done = subprocess.run(command, cwd=cwd, capture_output=True, text=True, env=_ENV)
     seconds = time.perf_counter() - t0
     if done.returncode != 0:
         raise RuntimeError(

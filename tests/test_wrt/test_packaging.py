@@ -1,6 +1,9 @@
 """Packaging: every package of the source tree is installed (a folder missing from pyproject's
 list would work in a checkout and fail after ``pip install .``)."""
 
+import subprocess
+import sys
+
 import tomllib
 from conftest import ROOT
 
@@ -20,3 +23,11 @@ def test_every_package_folder_is_listed_in_pyproject():
             found.add(".".join((name, *relative.parts)))
     assert found - listed == set(), "packages missing from [tool.setuptools] packages"
     assert listed - found == set(), "listed packages without a folder"
+
+
+def test_import_leaves_the_garbage_collector_as_it_found_it():
+    # wrt pauses the cyclic collector while it imports (see wrt/__init__.py), and must restore it
+    for before, expected in (("", "True"), ("gc.disable(); ", "False")):
+        code = f"import gc; {before}import wrt; print(gc.isenabled())"
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+        assert out.strip() == expected
