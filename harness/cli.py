@@ -1,4 +1,4 @@
-"""The harness's command-line verbs: ``wrt matrix``, ``wrt refs`` and ``wrt compare``.
+"""The harness's command-line verbs: ``wrt matrix``, ``wrt refs``, ``wrt compare`` and ``wrt mutants``.
 
 ``wrt`` finds them through the ``wrt.commands`` entry points of this package (pyproject.toml):
 each entry point (``matrix_verb`` ...) adds its subparser to ``wrt``'s and returns the function
@@ -64,6 +64,11 @@ def matrix_verb(verbs) -> Run:
     m.add_argument(
         "--wrong", action="store_true", help="render the wrong variants instead; exit 1 when one of them passes"
     )
+    m.add_argument(
+        "--json",
+        metavar="FILE",
+        help="also write the results to FILE (atomically): per feature, passed, failed_checks and scores",
+    )
     add_matrix_options(m)
     add_scheduler_option(m, "feature")
 
@@ -84,13 +89,14 @@ def matrix_verb(verbs) -> Run:
                 args.refs,
                 args.wrong,
                 cluster=cluster,
+                json_path=args.json,
             )
 
     return run
 
 
 def refs_verb(verbs) -> Run:
-    """``wrt refs regenerate|calibrate [FEATURE...] [--features FILE --refs DIR]``."""
+    """``wrt refs regenerate|calibrate|false-alarms [FEATURE...] [--features FILE --refs DIR]``."""
     refs = verbs.add_parser(
         "refs", help="regenerate or calibrate reference images", description="Manage the matrix's reference images."
     )
@@ -116,9 +122,31 @@ def refs_verb(verbs) -> Run:
     cal.add_argument("features", nargs="*", metavar="FEATURE")
     cal.add_argument("--device", default="cpu")
     add_matrix_options(cal)
+    fa = actions.add_parser(
+        "false-alarms",
+        help="measure how often stochastic features fail on sound code",
+        description="Score each stochastic feature (all, or those named) with every check of the matrix at SEEDS "
+        "other seeds against its reference, and count the seeds at which it fails, per check and in all: the "
+        "false-alarm rate a developer sees. Exit 1 when a rate exceeds --max-rate.",
+    )
+    fa.add_argument("features", nargs="*", metavar="FEATURE")
+    fa.add_argument("--seeds", type=int, default=50, help="seeds per feature (default 50)")
+    fa.add_argument("--max-rate", type=float, default=0.01, help="largest acceptable rate (default 0.01)")
+    fa.add_argument("--json", metavar="FILE", help="also write the counts and failures to FILE (atomically)")
+    fa.add_argument("--device", default="cpu")
+    add_matrix_options(fa)
 
     def run(args: argparse.Namespace) -> int:
-        from .commands import refs_calibrate, refs_regenerate
+        from .commands import refs_calibrate, refs_false_alarms, refs_regenerate
+
+        if args.refs_verb == "false-alarms":
+            if args.seeds < 1:
+                raise WrtError(f"--seeds {args.seeds}: must be >= 1")
+            if not 0.0 <= args.max_rate <= 1.0:  # NaN fails too
+                raise WrtError(f"--max-rate {args.max_rate}: must be in [0, 1]")
+            return refs_false_alarms(
+                args.features, args.seeds, args.max_rate, args.json, args.device, args.features_file, args.refs
+            )
 
         if args.refs_verb == "regenerate":
             if args.spp is not None and args.spp < 1:
@@ -133,20 +161,90 @@ def refs_verb(verbs) -> Run:
 
 
 def compare_verb(verbs) -> Run:
-    """``wrt compare A B [--threshold T]``."""
+    """``wrt compare A B [--metric ssim|flip] [--threshold T]``."""
     c = verbs.add_parser(
         "compare",
         help="score two images",
-        description="SSIM (tone-mapped), RMSE and max error (linear) of A against B.",
+        description="SSIM (tone-mapped) or FLIP (HDR and LDR), RMSE and max error (linear) of A against B.",
     )
     c.add_argument("a", metavar="A", help="image to score (.exr or .png)")
     c.add_argument("b", metavar="B", help="reference image")
-    c.add_argument("--threshold", type=float, help="exit 1 when SSIM is below this")
+    c.add_argument(
+        "--metric",
+        choices=("ssim", "flip"),
+        default="ssim",
+        help="ssim (default), or flip: NVIDIA's FLIP, HDR on the linear values and LDR on the tone-mapped ones",
+    )
+    c.add_argument(
+        "--threshold", type=float, help="exit 1 when SSIM is below this (--metric flip: when HDR-FLIP is above it)"
+    )
 
     def run(args: argparse.Namespace) -> int:
         from .commands import compare
 
-        return compare(args.a, args.b, args.threshold)
+        return compare(args.a, args.b, args.threshold, args.metric)
+
+    return run
+
+
+def mutants_verb(verbs) -> Run:
+    """``wrt mutants [FAULT...] [--report DIR] [--jobs N] [--expected | --first-catch] [--faults FILE]
+    [--kernel-cache DIR] [--features FILE --refs DIR]``."""
+    m = verbs.add_parser(
+        "mutants",
+        help="plant renderer faults one at a time and count those the matrix catches",
+        description="For each planted fault of the faults file (all, or those named): copy the installed wrt and "
+        "wrt_harness to a scratch folder, apply the fault's code change there (never in the working tree), run "
+        "the matrix on the copy, and report which features failed and by which check; last, the line "
+        "'K of N planted faults caught'. Results go to DIR/mutants.json; a fault already measured there for the "
+        "same fault and source tree is not run again. Exit 0 when all are caught, 1 when one survives, 2 on bad "
+        "input. See docs/harness.md.",
+    )
+    m.add_argument("faults", nargs="*", metavar="FAULT", help="fault ids (default: all)")
+    m.add_argument("--report", metavar="DIR", default="mutants", help="results folder (default: ./mutants)")
+    m.add_argument("--faults", dest="faults_file", metavar="FILE", help="the faults file (default: wrt's own)")
+    m.add_argument("--jobs", type=int, default=1, help="passed to wrt matrix (features rendered at once)")
+    quick = m.add_mutually_exclusive_group()
+    quick.add_argument(
+        "--expected",
+        dest="mode",
+        action="store_const",
+        const="expected",
+        default="full",
+        help="run only each fault's expected features (not the whole matrix)",
+    )
+    quick.add_argument(
+        "--first-catch",
+        dest="mode",
+        action="store_const",
+        const="first-catch",
+        help="quick mode: run each fault's expected features one at a time, then the rest of the matrix, and stop "
+        "at the first run that catches it; no per-check counts",
+    )
+    m.add_argument(
+        "--kernel-cache",
+        metavar="DIR",
+        help="Warp kernel cache of the mutant runs (default: Warp's own, where the unmutated kernels are cached)",
+    )
+    m.add_argument("--device", default="cpu", help="Warp device (default cpu)")
+    add_matrix_options(m)
+
+    def run(args: argparse.Namespace) -> int:
+        if args.jobs < 1:
+            raise WrtError(f"--jobs {args.jobs}: must be >= 1")
+        from .mutants import mutants
+
+        return mutants(
+            args.faults,
+            args.report,
+            faults_file=args.faults_file,
+            jobs=args.jobs,
+            mode=args.mode,
+            kernel_cache=args.kernel_cache,
+            device=args.device,
+            features_file=args.features_file,
+            refs=args.refs,
+        )
 
     return run
 
@@ -159,6 +257,11 @@ def main(argv: list[str] | None = None) -> int:
         prog="wrt-harness", description="wrt's visual regression harness (the same verbs as wrt matrix, refs, compare)"
     )
     verbs = parser.add_subparsers(dest="verb", required=True, metavar="VERB")
-    runs = {"matrix": matrix_verb(verbs), "refs": refs_verb(verbs), "compare": compare_verb(verbs)}
+    runs = {
+        "matrix": matrix_verb(verbs),
+        "refs": refs_verb(verbs),
+        "compare": compare_verb(verbs),
+        "mutants": mutants_verb(verbs),
+    }
     args = parser.parse_args(argv)
     return run_verb(runs[args.verb], args, prog="wrt-harness")

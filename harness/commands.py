@@ -9,14 +9,20 @@ and the folder of its references; None for wrt's own (``harness/features.toml`` 
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import os
 import sys
 
 from tqdm import tqdm
 
 from wrt.errors import WrtError
+from wrt.files import write_json
+from wrt.host import machine_info
 from wrt.imageio import read_image
 
+from .false_alarms import false_alarms
+from .flip import FLIP_CRITERION, check_flip_threshold, flip
 from .matrix import FEATURES_FILE, Feature, load_features, select
 from .references import (
     ReferenceError,
@@ -41,6 +47,45 @@ def _table(results) -> str:
     return "\n".join(lines)
 
 
+def _score(value) -> float | int | None:
+    """A JSON-safe score: the number, or None for NaN or Inf."""
+    return value if isinstance(value, int) or math.isfinite(value) else None
+
+
+def _numbers(result, prefix: str = "") -> dict:
+    """The numeric fields of the dataclass ``result`` by name, and those of the dataclasses in it
+    but its feature (``z`` ``min_p`` as ``z_min_p``); None where not finite."""
+    scores = {}
+    for f in dataclasses.fields(result):
+        value = getattr(result, f.name)
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            scores[prefix + f.name] = _score(value)
+        elif dataclasses.is_dataclass(value) and not prefix and f.name != "feature":
+            scores.update(_numbers(value, f"{f.name}_"))
+    return scores
+
+
+def matrix_json(results, wrong: bool = False) -> dict:
+    """The matrix's results as data (``wrt matrix --json``): per feature name, ``passed``,
+    ``failed_checks`` (names from ``run.CHECKS``, one per failure, in order), ``failures`` (their
+    messages) and ``scores`` (the numeric fields of its ``FeatureResult`` and of its scores' own
+    records: ``ssim``, ``z_min_p``, ``flip_hdr``, ``bias_max_z``...; the convergence slope; None
+    where not finite)."""
+    features = {}
+    for r in results:
+        scores = _numbers(r)
+        if r.convergence is not None:
+            scores["convergence_slope"] = _score(r.convergence["slope"])
+            scores["convergence_z_min_p"] = _score(r.convergence["z"].min_p)
+        features[r.feature.name] = {
+            "passed": bool(r.passed),
+            "failed_checks": list(r.failed_checks),
+            "failures": list(r.failures),
+            "scores": scores,
+        }
+    return {"wrong": wrong, "features": features}
+
+
 def _features(names: list[str], features_file: str | None, refs: str | None, made: bool = True) -> list[Feature]:
     """The features called ``names`` (all when empty) of ``features_file``; ``WrtError`` when a
     features file comes without ``refs``, or (``made``) when the folder ``refs`` does not exist."""
@@ -62,9 +107,11 @@ def matrix(
     refs: str | None = None,
     wrong: bool = False,
     cluster=None,
+    json_path: str | None = None,
 ) -> int:
     """Run the matrix (with ``wrong``: render the wrong variants, each of which must fail); on
-    ``cluster`` (a ``wrt.distributed.Cluster``), one task per feature."""
+    ``cluster`` (a ``wrt.distributed.Cluster``), one task per feature; with ``json_path``, write
+    the results there too (``matrix_json``)."""
     features = _features(names, features_file, refs)
     if wrong:
         missing = [f for f in features if not f.wrong]
@@ -83,6 +130,9 @@ def matrix(
         print("wrong variants: each must FAIL")
     print(_table(results))
     failed = [r.feature.name for r in results if not r.passed]
+    if json_path:
+        write_json(json_path, matrix_json(results, wrong))
+        print(f"results: {json_path}")
     if report:
         from .report import write_report
 
@@ -145,29 +195,64 @@ def refs_regenerate(
     return 0
 
 
+def refs_false_alarms(
+    names: list[str],
+    count: int,
+    max_rate: float,
+    json_path: str | None,
+    device: str,
+    features_file: str | None = None,
+    refs: str | None = None,
+) -> int:
+    """Measure the false-alarm rate of each stochastic feature over ``count`` seeds
+    (``false_alarms.false_alarms``); exit 1 when one exceeds ``max_rate``."""
+    features = [f for f in _features(names, features_file, refs) if f.stochastic]
+    results = []
+    for feature in features:
+        with tqdm(total=count, desc=feature.name, unit="seed", file=sys.stderr, disable=None) as bar:
+            r = false_alarms(feature, count, refs, device, log=lambda seed, result: bar.update(1))
+        checks = ", ".join(f"{check} {n}" for check, n in sorted(r["by_check"].items())) or "none"
+        print(f"{feature.name}: {r['failing_seeds']} of {count} seeds fail ({r['rate']:.1%}); by check: {checks}")
+        results.append(r)
+    if not features:
+        print("no stochastic feature to measure")
+    if json_path:
+        write_json(json_path, {"machine": machine_info(), "device": device, "max_rate": max_rate, "features": results})
+    over = [r["feature"] for r in results if r["rate"] > max_rate]
+    if over:
+        print(f"{len(over)} features above a false-alarm rate of {max_rate:.1%}: {', '.join(over)}")
+    return 1 if over else 0
+
+
 def refs_calibrate(names: list[str], device: str, features_file: str | None = None, refs: str | None = None) -> int:
     for feature in _features(names, features_file, refs):
         cal = calibrate(feature, load_reference(feature, refs, calibration=False), device=device)
         store_calibration(feature, cal, refs)
+        flips = cal[f"{cal['flip_criterion']}_flip"]
         print(
             f"{feature.name}: SSIM {min(cal['ssim']):.4f}..{max(cal['ssim']):.4f} over seeds {cal['seeds']}, "
-            f"threshold {cal['ssim_threshold']:.4f}"
+            f"threshold {cal['ssim_threshold']:.4f}; {cal['flip_criterion'].upper()}-FLIP "
+            f"{min(flips):.4f}..{max(flips):.4f}, threshold {cal['flip_threshold']:.4f}"
         )
     return 0
 
 
-def compare(a: str, b: str, threshold: float | None) -> int:
-    """Score image ``a`` against ``b``. Refused (``WrtError``): a threshold outside [-1, 1] or NaN,
-    an image with NaN or Inf values or a negative variance, smaller than the SSIM window, of
-    another size than the other, or with a ``wrt:spp`` that is not a whole number >= 1."""
+def compare(a: str, b: str, threshold: float | None, metric: str = "ssim") -> int:
+    """Score image ``a`` against ``b`` by ``metric``: "ssim" (exit 1 when SSIM < ``threshold``) or
+    "flip" (HDR- and LDR-FLIP; exit 1 when the pass criterion's FLIP, ``flip.FLIP_CRITERION``, >
+    ``threshold``). Refused (``WrtError``): a threshold that is not a finite number in [-1, 1]
+    (SSIM) or >= 0 (FLIP), an image with NaN or Inf values or a negative variance, smaller than the
+    SSIM window (SSIM), of another size than the other, or with a ``wrt:spp`` that is not a whole
+    number >= 1."""
     if threshold is not None:
-        threshold = check_threshold(threshold, "--threshold")
+        check = check_flip_threshold if metric == "flip" else check_threshold
+        threshold = check(threshold, "--threshold")
     image, reference = read_image(a), read_image(b)
     for path, data in ((a, image), (b, reference)):
         problem = image_problem(data.rgb, data.aovs.get("variance"))
         if problem:
             raise WrtError(f"{path}: cannot be scored: {problem}")
-        problem = size_problem(data.rgb.shape)
+        problem = size_problem(data.rgb.shape) if metric == "ssim" else None
         if problem:
             raise WrtError(f"{path} {problem}")
     if image.rgb.shape != reference.rgb.shape:
@@ -175,8 +260,13 @@ def compare(a: str, b: str, threshold: float | None) -> int:
             f"{a} is {image.rgb.shape[1]}x{image.rgb.shape[0]} but {b} is "
             f"{reference.rgb.shape[1]}x{reference.rgb.shape[0]}"
         )
-    score = ssim(image.rgb, reference.rgb)
-    print(f"SSIM {score:.6f} (tone-mapped sRGB, data_range 1)")
+    if metric == "flip":
+        scores = flip(image.rgb, reference.rgb)
+        print(f"HDR-FLIP {scores.hdr:.6f} (linear RGB)")
+        print(f"LDR-FLIP {scores.ldr:.6f} (tone-mapped sRGB)")
+    else:
+        score = ssim(image.rgb, reference.rgb)
+        print(f"SSIM {score:.6f} (tone-mapped sRGB, data_range 1)")
     print(f"RMSE {rmse(image.rgb, reference.rgb):.6e}  max error {max_error(image.rgb, reference.rgb):.6e} (linear)")
     if "variance" in reference.aovs and "spp" in image.metadata and "spp" in reference.metadata:
         z = z_test(
@@ -190,7 +280,13 @@ def compare(a: str, b: str, threshold: float | None) -> int:
             f"Z-test {'pass' if z.passed else 'FAIL'}: min p {z.min_p:.3e}, level {z.threshold:.3e}, {z.rejected} "
             "rejected"
         )
-    if threshold is not None and not score >= threshold:
+    if threshold is None:
+        return 0
+    if metric == "flip":
+        if not scores.criterion <= threshold:
+            print(f"FAIL: {FLIP_CRITERION.upper()}-FLIP {scores.criterion:.6f} > {threshold}")
+            return 1
+    elif not score >= threshold:
         print(f"FAIL: SSIM {score:.6f} < {threshold}")
         return 1
     return 0

@@ -3,9 +3,10 @@
 
 Each entry names its scene (a TOML file, relative to the features file), the integrator, image
 size, spp and seed it is tested at, the spp of its reference, the SSIM threshold of its geometry
-oracle, and a deliberately wrong variant that must fail (the harness's own sensitivity check).
-A new feature is one new entry and one scene file. Scenes are patched in memory with ``set``
-tables whose keys are paths into the scene document:
+oracle, optionally the exact mean of its image where a closed form gives it (``closed_form_mean``,
+checked by ``harness.closed_form``), and a deliberately wrong variant that must fail (the
+harness's own sensitivity check). A new feature is one new entry and one scene file. Scenes are
+patched in memory with ``set`` tables whose keys are paths into the scene document:
 
 - ``render.max_depth``, ``camera.fov``: a key of a table;
 - ``shape[2].center``, ``light[0].position``: a key of the i-th entry of an array of tables;
@@ -18,6 +19,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+import math
 import os
 import re
 from dataclasses import dataclass, field
@@ -40,7 +42,7 @@ MATRIX_SAMPLER = "independent"  # unless a feature's scene names one (see load_f
 _PATH_PART = re.compile(r"^(?P<key>[A-Za-z_]\w*)(\[(?P<sel>[^\]]+)\])?$")
 # a feature's name names its reference files (NAME.exr ...) and the report's row
 _NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
-_KEYS = "name scene integrator width height spp seed reference_spp geometry_threshold wrong".split()  # of an entry
+_KEYS = "name scene integrator width height spp seed reference_spp geometry_threshold closed_form_mean wrong".split()
 
 
 @dataclass(frozen=True)
@@ -58,6 +60,7 @@ class Feature:
     geometry_threshold: float
     wrong: dict = field(default_factory=dict)  # {"description": str, "set": {path: value}}
     features_file: str = FEATURES_FILE  # the features file that lists it, as given to load_features
+    closed_form_mean: tuple[float, float, float] | None = None  # the exact image mean (linear RGB), if known
 
     @property
     def stochastic(self) -> bool:
@@ -179,6 +182,7 @@ def load_features(path: str = FEATURES_FILE) -> list[Feature]:
                 ),
                 wrong=_wrong_variant(entry.get("wrong", {}), f"{where}.wrong"),
                 features_file=path,
+                closed_form_mean=_closed_form_mean(entry.get("closed_form_mean"), f"{where}.closed_form_mean"),
             )
         except KeyError as e:
             raise WrtError(f"{where}: missing key {e.args[0]!r}") from None
@@ -188,6 +192,19 @@ def load_features(path: str = FEATURES_FILE) -> list[Feature]:
     if duplicates:
         raise WrtError(f"{path}: duplicate feature names: {', '.join(sorted(duplicates))}")
     return features
+
+
+def _closed_form_mean(value, where: str) -> tuple[float, float, float] | None:
+    """A feature's ``closed_form_mean``: None (not given), or [r, g, b], three finite numbers >= 0."""
+    if value is None:
+        return None
+    if not (
+        isinstance(value, list)
+        and len(value) == 3
+        and all(isinstance(v, (int, float)) and not isinstance(v, bool) and 0.0 <= v < math.inf for v in value)
+    ):
+        raise WrtError(f"{where} = {value!r}: must be [r, g, b], three finite numbers >= 0 (linear radiance)")
+    return tuple(float(v) for v in value)
 
 
 def _wrong_variant(wrong, where: str) -> dict:

@@ -6,8 +6,8 @@ a project's own: ``wrt matrix --refs DIR``; the functions below take it as ``ref
 - ``NAME.exr``: the converged mean (RGB, half float) and the per-sample variance of every pixel
   (``var.R/G/B``), with metadata ``wrt:scene_hash``, ``wrt:spp``, ``wrt:seed``, ``wrt:version``,
   ``wrt:date``;
-- ``NAME.json``: the calibration: SSIM of test-spp renders with several seeds against the
-  reference, their spread, and the threshold set under it;
+- ``NAME.json``: the calibration: SSIM and FLIP (``flip.py``) of test-spp renders with several
+  seeds against the reference, their spread, and the thresholds set beyond it;
 - ``NAME.png``: a preview.
 
 A reference is rendered in ``BATCHES`` independent batches (seeds ``REFERENCE_SEED + i``); the
@@ -18,8 +18,10 @@ not belong to its reference (hash mismatch) is reported, never used.
 
 Corrupt numbers are refused, never scored: a reference with NaN or Inf values or a negative
 variance, a ``wrt:spp`` that is not a whole number >= 1, a calibration that is not a JSON object,
-lacks ``reference_sha256`` or ``ssim_threshold``, or whose threshold is not a finite number in
-[-1, 1] (``score.check_threshold``) is a ``ReferenceError`` naming the file, the key and the value.
+lacks ``reference_sha256``, ``ssim_threshold`` or ``flip_threshold``, whose SSIM threshold is not
+a finite number in [-1, 1] (``score.check_threshold``) or whose FLIP threshold is not a finite
+number >= 0 (``flip.check_flip_threshold``) is a ``ReferenceError`` naming the file, the key and
+the value.
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ from wrt.errors import WrtError
 from wrt.files import write_json
 from wrt.imageio import read_image, write_image
 
+from .flip import FLIP_CRITERION, check_flip_threshold, flip
 from .matrix import FEATURES_FILE, Feature, load_feature_scene, scene_hash
 from .score import check_spp, check_threshold, image_problem, ssim, z_test
 
@@ -51,6 +54,7 @@ REFERENCE_SEED = 1_000_000  # reference batches use seeds from here; test render
 CALIBRATION_SEEDS = (11, 12, 13, 14, 15, 16)
 HALF_MAX = float(np.finfo(np.float16).max)  # the largest RGB value a reference EXR (half float) holds
 CALIBRATION_MARGIN = 0.002  # threshold = min(SSIM) - max(CALIBRATION_MARGIN, 3 std(SSIM))
+FLIP_CALIBRATION_MARGIN = 0.002  # flip_threshold = max(FLIP) + max(FLIP_CALIBRATION_MARGIN, 3 std(FLIP))
 
 
 def refs_command(action: str, features_file: str | None, refs: str | None, *names: str) -> str:
@@ -178,9 +182,9 @@ _JSON_KINDS = {
 
 
 def _checked_calibration(feature: Feature, stored, path: str, exr: str, refs: str | None) -> dict:
-    """The calibration ``stored`` (read from ``path``), with its ``ssim_threshold`` as a float, if
-    it is an object that belongs to the image ``exr`` and has a usable threshold; else a
-    ``ReferenceError`` naming the file and the key."""
+    """The calibration ``stored`` (read from ``path``), with its ``ssim_threshold`` and
+    ``flip_threshold`` as floats, if it is an object that belongs to the image ``exr`` and has
+    usable thresholds; else a ``ReferenceError`` naming the file and the key."""
     if not isinstance(stored, dict):
         raise ReferenceError(
             feature,
@@ -188,7 +192,7 @@ def _checked_calibration(feature: Feature, stored, path: str, exr: str, refs: st
             "calibrate",
             refs,
         )
-    for key in ("reference_sha256", "ssim_threshold"):
+    for key in ("reference_sha256", "ssim_threshold", "flip_threshold"):
         if key not in stored:
             raise ReferenceError(feature, f"{path}: missing key {key!r}", "calibrate", refs)
     sha = stored["reference_sha256"]
@@ -204,9 +208,10 @@ def _checked_calibration(feature: Feature, stored, path: str, exr: str, refs: st
         )
     try:
         threshold = check_threshold(stored["ssim_threshold"], f"{path}: ssim_threshold")
+        flip_threshold = check_flip_threshold(stored["flip_threshold"], f"{path}: flip_threshold")
     except WrtError as e:
         raise ReferenceError(feature, str(e), "calibrate", refs) from None
-    return {**stored, "ssim_threshold": threshold}
+    return {**stored, "ssim_threshold": threshold, "flip_threshold": flip_threshold}
 
 
 def render_reference(
@@ -266,9 +271,11 @@ def calibrate(
     feature: Feature, reference: Reference, device: str = "cpu", threads: int | None = None, cluster=None
 ) -> dict:
     """Render the feature at its test spp with ``CALIBRATION_SEEDS`` (on ``cluster``: one task
-    each) and set its SSIM threshold under the spread: ``min - max(CALIBRATION_MARGIN, 3 std)``."""
+    each) and set its SSIM threshold under the spread, ``min - max(CALIBRATION_MARGIN, 3 std)``,
+    and its FLIP threshold (of ``FLIP_CRITERION``, an error) above it,
+    ``max + max(FLIP_CALIBRATION_MARGIN, 3 std)``; HDR- and LDR-FLIP are both recorded."""
     seeds = CALIBRATION_SEEDS if feature.stochastic else CALIBRATION_SEEDS[:1]
-    scores = []
+    scores, flips = [], []
     for seed, rgb in zip(seeds, render_images(feature, seeds, device=device, threads=threads, cluster=cluster)):
         problem = image_problem(rgb)
         if problem:
@@ -276,8 +283,12 @@ def calibrate(
                 f"feature {feature.name!r}: the calibration render with seed {seed} is not finite: {problem}"
             )
         scores.append(ssim(rgb, reference.rgb))
+        flips.append(flip(rgb, reference.rgb))
     spread = statistics.stdev(scores) if len(scores) > 1 else 0.0
     margin = max(CALIBRATION_MARGIN, 3.0 * spread)
+    criterion = [f.criterion for f in flips]
+    flip_spread = statistics.stdev(criterion) if len(criterion) > 1 else 0.0
+    flip_margin = max(FLIP_CALIBRATION_MARGIN, 3.0 * flip_spread)
     return {
         "feature": feature.name,
         "test_spp": feature.spp,
@@ -288,6 +299,13 @@ def calibrate(
         "margin": margin,
         "ssim_threshold": min(scores) - margin,
         "rule": "threshold = min(ssim) - max(0.002, 3 * std(ssim))",
+        "hdr_flip": [f.hdr for f in flips],
+        "ldr_flip": [f.ldr for f in flips],
+        "flip_criterion": FLIP_CRITERION,
+        "flip_std": flip_spread,
+        "flip_margin": flip_margin,
+        "flip_threshold": max(criterion) + flip_margin,
+        "flip_rule": f"flip_threshold = max({FLIP_CRITERION}_flip) + max(0.002, 3 * std({FLIP_CRITERION}_flip))",
     }
 
 

@@ -1,9 +1,11 @@
 """The matrix's HTML report: one static page and its PNGs, readable with no server.
 
-One row per feature: reference, render, absolute-difference heat map, the geometry oracle pair
-(pyvista's rasterised ids and the ray tracer's ``object_id`` AOV through one palette), a
-three-quarter view with the camera frustum, the scores against their thresholds, the time, and
-pass/fail colouring; a checkbox shows failures only; the header names machine, device, version.
+One row per feature: reference, render, absolute-difference heat map, the FLIP error map (the
+per-pixel FLIP of the pass criterion, ``flip.FLIP_CRITERION``, in FLIP's magma colours), the
+geometry oracle pair (pyvista's rasterised ids and the ray tracer's ``object_id`` AOV through one
+palette), a three-quarter view with the camera frustum, the scores against their thresholds, the
+time, and pass/fail colouring; a checkbox shows failures only; the header names machine, device,
+version.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import wrt
 from wrt.host import machine_line
 from wrt.imageio import srgb_encode, write_image
 
+from .flip import FLIP_CRITERION, error_map_image
 from .matrix import load_feature_scene
 from .oracle import overview, palette
 from .run import FeatureResult
@@ -53,6 +56,14 @@ def _scores(r: FeatureResult) -> str:
         return text if ok else f'<span class="bad">{text}</span>'
 
     lines = [mark(r.ssim >= r.ssim_threshold, f"SSIM {r.ssim:.4f} &ge; {r.ssim_threshold:.4f}")]
+    if r.flip is not None:
+        lines.append(
+            mark(
+                r.flip.criterion <= r.flip_threshold,
+                f"{FLIP_CRITERION.upper()}-FLIP {r.flip.criterion:.4f} &le; {r.flip_threshold:.4f} "
+                f"(HDR {r.flip.hdr:.4f}, LDR {r.flip.ldr:.4f})",
+            )
+        )
     if r.z is not None:
         lines.append(
             mark(r.z.passed, f"Z-test min p {r.z.min_p:.2e} (level {r.z.threshold:.1e}), {r.z.rejected} rejected")
@@ -65,10 +76,21 @@ def _scores(r: FeatureResult) -> str:
     )
     lines.append(f"RMSE {r.rmse:.2e}, max error {r.max_error:.2e}")
     if r.convergence:
+        z = r.convergence["z"]
         lines.append(
             mark(
-                r.convergence["slope"] <= -0.35,
-                f"convergence slope {r.convergence['slope']:.2f} over spp {r.convergence['spp']}",
+                z.passed,
+                f"converged: {sum(r.convergence['spp'])} spp pooled, Z-test min p {z.min_p:.1e} "
+                f"(level {z.threshold:.1e}); RMSE slope {r.convergence['slope']:.2f}",
+            )
+        )
+    if r.bias:
+        b = r.bias
+        lines.append(
+            mark(
+                b.passed,
+                f"bias: max |z| {b.max_z:.1f} &le; {b.threshold:.1f} ({b.worst}); image mean "
+                + " ".join(f"{x:+.2%}" for x in b.image_bias),
             )
         )
     if r.rerendered:
@@ -94,16 +116,17 @@ def write_report(results: list[FeatureResult], folder: str, device: str) -> str:
                     "reference": r.images["reference"],
                     "render": r.images["render"],
                     "diff": heat_map(r.images["render"], r.images["reference"]),
+                    "flip": error_map_image(r.images["render"], r.images["reference"]),
                     "raster_ids": palette(r.images["raster_ids"]),
                     "ids": palette(r.images["ids"]),
                 }
                 for key, image in pictures.items():
                     write_image(os.path.join(work, f"{name}.{key}.png"), image)
                 overview(load_feature_scene(r.feature), os.path.join(work, f"{name}.overview.png"), size=(320, 240))
-                for key in ("reference", "render", "diff", "raster_ids", "ids", "overview"):
+                for key in ("reference", "render", "diff", "flip", "raster_ids", "ids", "overview"):
                     cells.append(f'<td><img src="{name}.{key}.png" alt="{key}"></td>')
             else:
-                cells = ['<td colspan="6">no images</td>']
+                cells = ['<td colspan="7">no images</td>']
             status = "pass" if r.passed else "fail"
             rows.append(
                 f'<tr class="{status}" id="{name}"><td>{html.escape(name)}<br>'
@@ -125,9 +148,10 @@ def write_report(results: list[FeatureResult], folder: str, device: str) -> str:
 <p id="machine">{header}</p>
 <p><label><input type="checkbox" id="failures-only"
   onchange="document.body.classList.toggle('failures-only', this.checked)"> show failures only</label>
-&middot; heat map: |render - reference| of the tone-mapped images, white at {HEAT_SCALE}</p>
+&middot; heat map: |render - reference| of the tone-mapped images, white at {HEAT_SCALE}
+&middot; FLIP: per-pixel {FLIP_CRITERION.upper()}-FLIP, magma (black 0, pale yellow 1)</p>
 <table id="matrix">
-<thead><tr><th>feature</th><th>status</th><th>reference</th><th>render</th><th>difference</th>
+<thead><tr><th>feature</th><th>status</th><th>reference</th><th>render</th><th>difference</th><th>FLIP</th>
 <th>pyvista ids</th><th>ray-traced ids</th><th>scene and camera</th><th>scores</th><th>time</th></tr></thead>
 <tbody>
 {chr(10).join(rows)}

@@ -1,4 +1,5 @@
-"""Image scores of the regression harness: SSIM, RMSE, max error, a per-pixel Z-test, convergence.
+"""Image scores of the regression harness: SSIM, RMSE, max error, a per-pixel Z-test, a bias test
+of region means, convergence.
 
 SSIM is computed on tone-mapped images (clip to [0, 1], sRGB curve: what a person sees) with
 scikit-image's ``structural_similarity(channel_axis=-1, data_range=1.0)``; RMSE and the maximum
@@ -18,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import maximum_filter
-from scipy.special import erfc
+from scipy.special import erfc, ndtri
 from skimage.metrics import structural_similarity
 
 from wrt.errors import WrtError
@@ -34,6 +35,12 @@ Z_FLOOR_REL = 1e-3
 # A block's variance is the largest of its neighbourhood's: a sliver of a bright object that the
 # reference's samples rarely or never hit sits next to pixels whose variance shows the edge.
 VARIANCE_NEIGHBOURHOOD = 5
+BIAS_ALPHA = 1e-3  # family-wise false-alarm level of the bias test (regions x channels)
+BIAS_GRID = 4  # the bias test's regions: the whole image and a BIAS_GRID x BIAS_GRID grid over it
+# Standard deviation floor of a region mean, relative to the reference's: the reference is stored
+# in half floats (11-bit significand), whose rounding is the same in every pixel of a flat region.
+BIAS_FLOOR_REL = 5e-4
+BIAS_FLOOR_ABS = 1e-6
 
 
 def check_threshold(value, name: str) -> float:
@@ -158,6 +165,77 @@ def z_test(image: np.ndarray, spp: int, reference: np.ndarray, ref_variance: np.
     threshold = Z_TEST_ALPHA / p.size
     rejected = int(np.count_nonzero(~(p >= threshold)))  # NaN p: rejected
     return ZTest(passed=rejected == 0, min_p=float(p.min()), threshold=threshold, rejected=rejected)
+
+
+def batch_variance(images: list[np.ndarray], spps: list[int]) -> np.ndarray:
+    """Per-sample variance of each pixel estimated from independent renders (batches) of ``spps``
+    samples: the between-batch sum of squares ``sum n_i (x_i - x)^2 / (k - 1)`` around the pooled
+    mean ``x``, unbiased for any batch sizes (one-way analysis of variance). With k = 3 it has 2
+    degrees of freedom: too noisy alone, but it sees this render's own rare events (a firefly in
+    one batch), which the reference's batches may have missed in that pixel."""
+    n = np.asarray(spps, np.float64).reshape(-1, *([1] * images[0].ndim))
+    x = np.stack([np.asarray(i, np.float64) for i in images])
+    mean = (n * x).sum(axis=0) / n.sum()
+    return (n * (x - mean) ** 2).sum(axis=0) / (len(images) - 1)
+
+
+@dataclass(frozen=True)
+class BiasTest:
+    """Outcome of the bias test of a render's region means against a reference's."""
+
+    passed: bool
+    max_z: float  # largest |z| over regions and channels (NaN when a number is not finite)
+    threshold: float  # |z| above which a region mean is rejected (Bonferroni at BIAS_ALPHA)
+    worst: str  # where max_z is: "image R", "region (row 1, col 2) G", ...
+    image_bias: tuple[float, float, float]  # image mean / reference's - 1, per channel
+
+
+def region_sums(image: np.ndarray, grid: int = BIAS_GRID) -> tuple[np.ndarray, np.ndarray]:
+    """Sums over the whole image and each cell of a ``grid`` x ``grid`` partition of it (rows of
+    cells in order): ``(1 + grid**2, channels)`` float64 sums and the pixel count of each region."""
+    a = np.asarray(image, np.float64)
+    rows = np.array_split(np.arange(a.shape[0]), grid)
+    cols = np.array_split(np.arange(a.shape[1]), grid)
+    cells = [a[r[0] : r[-1] + 1, c[0] : c[-1] + 1] for r in rows for c in cols]
+    sums = np.stack([a.sum(axis=(0, 1))] + [cell.sum(axis=(0, 1)) for cell in cells])
+    counts = np.array([a.shape[0] * a.shape[1]] + [cell.shape[0] * cell.shape[1] for cell in cells], np.float64)
+    return sums, counts
+
+
+def bias_test(image: np.ndarray, spp: int, reference: np.ndarray, ref_variance: np.ndarray, ref_spp: int) -> BiasTest:
+    """Is the mean of ``image`` (``spp`` samples per pixel) over the whole image and over large
+    regions the reference's? A global or regional bias of 1% hides in per-pixel noise, but not in
+    a mean over thousands of pixels and samples.
+
+    With independent samples per pixel, a region mean of ``n`` pixels has the variance
+    ``sum(per-sample variance) / n^2 * (1/spp + 1/ref_spp)``, from the reference's per-sample
+    variance (its own batches: the estimate is unbiased pixel by pixel, and its error averages out
+    over a region), floored by ``BIAS_FLOOR_ABS + BIAS_FLOOR_REL |mean|``. Each region and channel
+    is a two-sided test, Bonferroni-corrected to ``BIAS_ALPHA`` over all of them. Pass the mean of
+    as many samples as there are (``run.py`` pools the convergence renders): the test's power
+    grows with them, and so does the normality of the region means it assumes. A NaN anywhere
+    fails.
+    """
+    sums, counts = region_sums(image)
+    ref_sums, _ = region_sums(reference)
+    var_sums, _ = region_sums(np.maximum(ref_variance, 0.0))
+    mean, ref_mean = sums / counts[:, None], ref_sums / counts[:, None]
+    var = var_sums / counts[:, None] ** 2 * (1.0 / spp + 1.0 / ref_spp)
+    z = (mean - ref_mean) / np.sqrt(var + (BIAS_FLOOR_ABS + BIAS_FLOOR_REL * np.abs(ref_mean)) ** 2)
+    threshold = float(-ndtri(0.5 * BIAS_ALPHA / z.size))
+    abs_z = np.where(np.isfinite(z), np.abs(z), np.inf)
+    region, channel = np.unravel_index(int(np.argmax(abs_z)), z.shape)
+    where = "image" if region == 0 else f"region (row {(region - 1) // BIAS_GRID}, col {(region - 1) % BIAS_GRID})"
+    with np.errstate(divide="ignore", invalid="ignore"):
+        image_bias = tuple(float(x) for x in mean[0] / ref_mean[0] - 1.0)
+    max_z = float(abs_z.max()) if np.all(np.isfinite(z)) else float("nan")
+    return BiasTest(
+        passed=bool(max_z <= threshold),
+        max_z=max_z,
+        threshold=threshold,
+        worst=f"{where} {'RGB'[channel]}",
+        image_bias=image_bias,
+    )
 
 
 def convergence_slope(spps: list[int], errors: list[float]) -> float:

@@ -173,6 +173,22 @@ def test_report_renders_in_headless_chromium(tmp_path):
     assert "wrt feature matrix: 1 of 2 pass" in dom
     rows = re.findall(r'<tr class="(pass|fail)" id="([a-z_]+)"', dom)
     assert rows == [("pass", "raycast_triangle"), ("fail", "refraction")]
+    # each row's FLIP error map is on the page, and the browser decodes it (at the render's size)
+    assert re.findall(r'<img src="([a-z_]+)\.flip\.png" alt="flip">', dom) == ["raycast_triangle", "refraction"]
+    assert "HDR-FLIP " in dom and "FLIP</th>" in dom
+    probe = tmp_path / "flip_maps.html"
+    probe.write_text(
+        '<!DOCTYPE html><body><iframe id="report" src="report/index.html"></iframe><p id="sizes"></p><script>'
+        "window.addEventListener('load', () => { const maps = document.getElementById('report')"
+        ".contentDocument.querySelectorAll('img[alt=flip]'); document.getElementById('sizes').textContent = "
+        "[...maps].map(i => i.complete ? `${i.naturalWidth}x${i.naturalHeight}` : 'pending').join(' '); });"
+        "</script></body>"
+    )
+    sizes = subprocess.run(
+        [chromium, *flags, "--dump-dom", f"file://{probe}"], capture_output=True, text=True, timeout=120
+    ).stdout
+    expected = " ".join(f"{r.feature.width}x{r.feature.height}" for r in (good, bad))
+    assert f'<p id="sizes">{expected}</p>' in sizes, sizes
     shot = tmp_path / "shot.png"
     subprocess.run(
         [chromium, *flags, f"--screenshot={shot}", "--window-size=1400,900", f"file://{page}"],
