@@ -4,7 +4,8 @@ oracle, tell noise from regressions, check convergence.
 A feature passes when all hold:
 - SSIM against the reference >= its calibrated threshold, HDR-FLIP (``flip.py``) <= its
   calibrated threshold, and the per-pixel Z-test passes (a stochastic feature that misses any is
-  re-rendered once at 4x spp: noise goes away, a real regression stays);
+  re-rendered once at 4x spp and scored as both renders pooled: noise goes away, a real
+  regression stays);
 - SSIM of the ``object_id`` AOV against pyvista's rasterisation >= the geometry threshold;
 - stochastic features: three more renders at N, 4N and 16N spp (independent seeds) pooled into
   one of 21N spp converge to the reference: the per-pixel Z-test passes at 21N spp, where a wrong
@@ -82,14 +83,20 @@ class FeatureResult:
 
 
 def score_render(
-    feature: Feature, rgb: np.ndarray, spp: int, reference, threshold: float, flip_threshold: float
+    feature: Feature,
+    rgb: np.ndarray,
+    spp: int,
+    reference,
+    threshold: float,
+    flip_threshold: float,
+    variance: np.ndarray | None = None,
 ) -> tuple[float, Flip | None, ZTest, bool]:
-    """SSIM and FLIP (NaN and None for a render with NaN or Inf values, which fails), the Z-test,
-    and whether all three pass."""
+    """SSIM and FLIP (NaN and None for a render with NaN or Inf values, which fails), the Z-test
+    (per-sample ``variance``, default the reference's), and whether all three pass."""
     clean = not image_problem(rgb)
     s = ssim(rgb, reference.rgb) if clean else float("nan")
     f = flip(rgb, reference.rgb) if clean else None
-    z = z_test(rgb, spp, reference.rgb, reference.variance, reference.spp)
+    z = z_test(rgb, spp, reference.rgb, reference.variance if variance is None else variance, reference.spp)
     return s, f, z, s >= threshold and f is not None and f.criterion <= flip_threshold and z.passed
 
 
@@ -158,10 +165,14 @@ def score_against_reference(
             scene=scene,
         )
         out.rerendered = True
+        # both renders pooled (5N spp); the Z-test's noise per pixel is the larger of the
+        # reference's and theirs (two batches): a rare bright path one of them drew is noise
+        both = [result.spp, again.spp]
+        rgb = (result.spp * result.rgb.astype(np.float64) + again.spp * again.rgb) / sum(both)
+        noise = np.maximum(reference.variance, batch_variance([result.rgb, again.rgb], both))
         out.ssim, out.flip, out.z, ok = score_render(
-            feature, again.rgb, again.spp, reference, threshold, flip_threshold
+            feature, rgb, sum(both), reference, threshold, flip_threshold, noise
         )
-        rgb = again.rgb
     problem = image_problem(rgb)
     if problem:
         out.fail("finite", f"render has non-finite values: {problem}")
