@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 import warp as wp
 import wrt.kernels  # noqa: F401  (configures Warp)
+import wrt_harness.references as references
 
 from wrt.device import init_warp
 from wrt.loader import parse_scene
@@ -91,3 +93,14 @@ class Tracer(PrimitiveTracer):
 @pytest.fixture
 def rng():
     return np.random.default_rng(20261125)
+
+
+def copy_references(tmp_path, monkeypatch, names):
+    """Copy the named features' reference files to ``tmp_path/refs`` and point the harness there."""
+    folder = tmp_path / "refs"
+    folder.mkdir()
+    for name in names:
+        for path in references.paths(name).values():
+            shutil.copy(path, folder)
+    monkeypatch.setattr(references, "REFERENCE_DIR", str(folder))
+    return folder

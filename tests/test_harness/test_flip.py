@@ -3,13 +3,13 @@ matrix (a perturbed render fails by FLIP, a FLIP miss is re-rendered at 4x spp l
 a calibration without a FLIP threshold, and ``wrt compare --metric flip``."""
 
 import json
-import shutil
 
 import flip_evaluator
 import numpy as np
 import pytest
 import wrt_harness.references as references
 import wrt_harness.run as run
+from conftest import copy_references
 from wrt_harness.flip import ACES_TARGET, FLIP_CRITERION, check_flip_threshold, error_map_image, flip
 from wrt_harness.matrix import load_features, select
 from wrt_harness.score import srgb_encode
@@ -27,15 +27,6 @@ def pair(seed=0, size=(24, 32)):
     reference = rng.uniform(0.0, 4.0, (*size, 3)).astype(np.float32)
     image = (reference * rng.uniform(0.8, 1.2, reference.shape)).astype(np.float32)
     return image, reference
-
-
-def copy_reference(tmp_path, monkeypatch, name):
-    folder = tmp_path / "refs"
-    folder.mkdir()
-    for path in references.paths(name).values():
-        shutil.copy(path, folder)
-    monkeypatch.setattr(references, "REFERENCE_DIR", str(folder))
-    return folder
 
 
 def edit_calibration(folder, name, change):
@@ -135,7 +126,7 @@ def test_the_stored_flip_thresholds_are_calibrated():
 def test_a_perturbed_render_fails_by_flip(tmp_path, monkeypatch, capsys):
     """A deterministic feature whose render has a bright square (an emitter 5 x too bright)."""
     name = "raycast_sphere"
-    copy_reference(tmp_path, monkeypatch, name)
+    copy_references(tmp_path, monkeypatch, [name])
     real = run.render_feature
 
     def perturbed(*args, **kwargs):
@@ -158,7 +149,7 @@ def test_a_flip_miss_is_rerendered_at_4x_spp(tmp_path, monkeypatch):
     SSIM miss, and scored by the re-render."""
     name = "antialiasing"
     feature = select(FEATURES, [name])[0]
-    folder = copy_reference(tmp_path, monkeypatch, name)
+    folder = copy_references(tmp_path, monkeypatch, [name])
     reference = references.load_reference(feature)
     ok = run.score_render(feature, reference.rgb, feature.spp, reference, -1.0, 0.0)[-1]
     assert ok  # the reference scores FLIP 0 against itself: a threshold of 0 is met
@@ -189,7 +180,7 @@ def test_a_flip_miss_is_rerendered_at_4x_spp(tmp_path, monkeypatch):
 )
 def test_a_calibration_without_a_usable_flip_threshold_names_the_fix(tmp_path, monkeypatch, capsys, change, message):
     name = "raycast_sphere"
-    folder = copy_reference(tmp_path, monkeypatch, name)
+    folder = copy_references(tmp_path, monkeypatch, [name])
     path = edit_calibration(folder, name, change)
     assert main(["matrix", name]) == 2
     err = capsys.readouterr().err

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import wrt_harness.references as references
 import wrt_harness.run as run
+from conftest import copy_references
 from wrt_harness.matrix import load_features, select
 
 from wrt.cli import main
@@ -18,15 +19,6 @@ from wrt.errors import WrtError
 from wrt.imageio import read_image, write_image
 
 FEATURE = "raycast_sphere"  # deterministic and fast: the matrix renders it in milliseconds
-
-
-def copy_reference(tmp_path, monkeypatch, name=FEATURE):
-    folder = tmp_path / "refs"
-    folder.mkdir()
-    for path in references.paths(name).values():
-        shutil.copy(path, folder)
-    monkeypatch.setattr(references, "REFERENCE_DIR", str(folder))
-    return folder
 
 
 def rewrite_reference(folder, name=FEATURE, rgb=None, variance=None):
@@ -79,7 +71,7 @@ CORRUPTIONS = {
 def test_a_corrupt_reference_is_refused_by_matrix_and_compare(tmp_path, monkeypatch, capsys, corruption):
     """Class 1: NaN variance used to skip the Z-test (an all-NaN reference passed)."""
     changes, problem = CORRUPTIONS[corruption]
-    folder = copy_reference(tmp_path, monkeypatch)
+    folder = copy_references(tmp_path, monkeypatch, [FEATURE])
     clean = tmp_path / "clean.exr"
     shutil.copy(folder / f"{FEATURE}.exr", clean)
     exr = rewrite_reference(folder, **changes)
@@ -98,7 +90,7 @@ THRESHOLDS = [float("-inf"), float("inf"), float("nan"), 1.5, -1.01]
 @pytest.mark.parametrize("value", THRESHOLDS, ids=str)
 def test_a_calibrated_threshold_out_of_range_is_refused(tmp_path, monkeypatch, capsys, value):
     """Class 2: ssim_threshold = -Infinity in the calibration turned the SSIM check off."""
-    folder = copy_reference(tmp_path, monkeypatch)
+    folder = copy_references(tmp_path, monkeypatch, [FEATURE])
     path = folder / f"{FEATURE}.json"
     data = json.loads(path.read_text())
     data["ssim_threshold"] = value
@@ -177,7 +169,7 @@ def test_compare_refuses_non_finite_pixels(tmp_path, capsys, bad):
 
 def test_a_render_with_non_finite_pixels_fails_the_matrix(tmp_path, monkeypatch, capsys):
     """Class 3: the matrix scored a render with NaN pixels as if they were black."""
-    copy_reference(tmp_path, monkeypatch)
+    copy_references(tmp_path, monkeypatch, [FEATURE])
     real = run.render_feature
 
     def holed(*args, **kwargs):
@@ -206,7 +198,7 @@ MALFORMED = {
 @pytest.mark.parametrize("shape", MALFORMED, ids=list(MALFORMED))
 def test_a_malformed_calibration_is_one_line(tmp_path, monkeypatch, capsys, shape):
     """Class 4: a calibration of the wrong shape gave a traceback (or a 'crashed' feature)."""
-    folder = copy_reference(tmp_path, monkeypatch)
+    folder = copy_references(tmp_path, monkeypatch, [FEATURE])
     path = folder / f"{FEATURE}.json"
     text = path.read_text()
     data = json.loads(text)
@@ -246,7 +238,7 @@ def test_compare_refuses_images_of_different_sizes(tmp_path, capsys):
 @pytest.mark.parametrize("spp", [0, -4])
 def test_a_sample_count_below_one_is_refused(tmp_path, monkeypatch, capsys, spp):
     """Corrupt numbers in the metadata: the Z-test divides by wrt:spp (0 crashed, < 0 passed)."""
-    folder = copy_reference(tmp_path, monkeypatch)
+    folder = copy_references(tmp_path, monkeypatch, [FEATURE])
     exr = folder / f"{FEATURE}.exr"
     image = read_image(str(exr))
     write_image(str(exr), image.rgb, aovs=image.aovs, metadata={**image.metadata, "spp": spp}, half=True)

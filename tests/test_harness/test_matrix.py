@@ -12,6 +12,7 @@ import sys
 import numpy as np
 import pytest
 import wrt_harness.references as references
+from conftest import copy_references
 from wrt_harness.matrix import load_features, select
 from wrt_harness.report import write_report
 from wrt_harness.run import evaluate
@@ -47,16 +48,6 @@ def test_wrong_variant_fails(feature):
     assert feature.wrong.get("description"), "every feature needs a wrong variant"
     result = evaluate(feature, wrong=True)
     assert not result.passed, f"wrong variant ({feature.wrong['description']}) still passes:\n{describe(result)}"
-
-
-def copy_references(tmp_path, monkeypatch, names):
-    folder = tmp_path / "refs"
-    folder.mkdir()
-    for name in names:
-        for path in references.paths(name).values():
-            shutil.copy(path, folder)
-    monkeypatch.setattr(references, "REFERENCE_DIR", str(folder))
-    return folder
 
 
 def test_missing_corrupt_and_stale_references_name_the_fix(tmp_path, monkeypatch, capsys):
