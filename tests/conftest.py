@@ -104,3 +104,13 @@ def copy_references(tmp_path, monkeypatch, names):
             shutil.copy(path, folder)
     monkeypatch.setattr(references, "REFERENCE_DIR", str(folder))
     return folder
+
+
+def one_feature_file(tmp_path, extra: str):
+    """A features file of one small raycast feature, with the TOML lines ``extra`` added to it."""
+    path = tmp_path / "features.toml"
+    path.write_text(
+        '[[feature]]\nname = "x"\nscene = "wrt.examples:raycast/raycast_sphere.toml"\nintegrator = "raycast"\n'
+        f"width = 16\nheight = 16\n{extra}\n"
+    )
+    return path

@@ -4,6 +4,7 @@ features file's ``closed_form_mean`` key."""
 
 import numpy as np
 import pytest
+from conftest import one_feature_file
 from wrt_harness.closed_form import CLOSED_FORM_K, HALF_RTOL, closed_form_failure
 from wrt_harness.matrix import load_features
 from wrt_harness.references import load_reference, render_feature
@@ -74,11 +75,7 @@ def test_a_nan_misses():
 
 @pytest.mark.parametrize("value", ["[0.5, 0.5]", "[0.5, 0.5, nan]", "[0.5, -0.1, 0.5]", '"0.5"', "[0.5, true, 0.5]"])
 def test_a_bad_closed_form_mean_is_refused(tmp_path, value):
-    features = tmp_path / "features.toml"
-    features.write_text(
-        '[[feature]]\nname = "x"\nscene = "wrt.examples:raycast/raycast_sphere.toml"\nintegrator = "raycast"\n'
-        f"width = 16\nheight = 16\nclosed_form_mean = {value}\n"
-    )
+    features = one_feature_file(tmp_path, f"closed_form_mean = {value}")
     with pytest.raises(WrtError) as e:
         load_features(str(features))
     message = str(e.value)

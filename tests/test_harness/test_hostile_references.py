@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import wrt_harness.references as references
 import wrt_harness.run as run
-from conftest import copy_references
+from conftest import copy_references, one_feature_file
 from wrt_harness.matrix import load_features, select
 
 from wrt.cli import main
@@ -103,11 +103,7 @@ def test_a_calibrated_threshold_out_of_range_is_refused(tmp_path, monkeypatch, c
 @pytest.mark.parametrize("value", ["-inf", "nan", "inf", "1.5", "-3"])
 def test_a_geometry_threshold_out_of_range_is_refused(tmp_path, value):
     """Class 2, the feature list: geometry_threshold = -inf turned the geometry oracle off."""
-    features = tmp_path / "features.toml"
-    features.write_text(
-        '[[feature]]\nname = "x"\nscene = "wrt.examples:raycast/raycast_sphere.toml"\nintegrator = "raycast"\n'
-        f"width = 16\nheight = 16\ngeometry_threshold = {value}\n"
-    )
+    features = one_feature_file(tmp_path, f"geometry_threshold = {value}")
     with pytest.raises(WrtError) as e:
         load_features(str(features))
     message = str(e.value)
@@ -115,11 +111,7 @@ def test_a_geometry_threshold_out_of_range_is_refused(tmp_path, value):
 
 
 def test_a_geometry_threshold_string_is_refused(tmp_path):
-    features = tmp_path / "features.toml"
-    features.write_text(
-        '[[feature]]\nname = "x"\nscene = "wrt.examples:raycast/raycast_sphere.toml"\nintegrator = "raycast"\n'
-        'width = 16\nheight = 16\ngeometry_threshold = "0.9"\n'
-    )
+    features = one_feature_file(tmp_path, 'geometry_threshold = "0.9"')
     with pytest.raises(WrtError, match=r"geometry_threshold = '0.9'"):
         load_features(str(features))
 
