@@ -240,7 +240,8 @@ def refs_calibrate(names: list[str], device: str, features_file: str | None = No
 def compare(a: str, b: str, threshold: float | None, metric: str = "ssim") -> int:
     """Score image ``a`` against ``b`` by ``metric``: "ssim" (exit 1 when SSIM < ``threshold``) or
     "flip" (HDR- and LDR-FLIP; exit 1 when the pass criterion's FLIP, ``flip.FLIP_CRITERION``, >
-    ``threshold``). Refused (``WrtError``): a threshold that is not a finite number in [-1, 1]
+    ``threshold``); exit 1 as well when the Z-test runs (``b`` has a variance, both a ``wrt:spp``)
+    and fails. Refused (``WrtError``): a threshold that is not a finite number in [-1, 1]
     (SSIM) or >= 0 (FLIP), an image with NaN or Inf values or a negative variance, smaller than the
     SSIM window (SSIM), of another size than the other, or with a ``wrt:spp`` that is not a whole
     number >= 1."""
@@ -268,6 +269,7 @@ def compare(a: str, b: str, threshold: float | None, metric: str = "ssim") -> in
         score = ssim(image.rgb, reference.rgb)
         print(f"SSIM {score:.6f} (tone-mapped sRGB, data_range 1)")
     print(f"RMSE {rmse(image.rgb, reference.rgb):.6e}  max error {max_error(image.rgb, reference.rgb):.6e} (linear)")
+    z = None
     if "variance" in reference.aovs and "spp" in image.metadata and "spp" in reference.metadata:
         z = z_test(
             image.rgb,
@@ -280,13 +282,11 @@ def compare(a: str, b: str, threshold: float | None, metric: str = "ssim") -> in
             f"Z-test {'pass' if z.passed else 'FAIL'}: min p {z.min_p:.3e}, level {z.threshold:.3e}, {z.rejected} "
             "rejected"
         )
-    if threshold is None:
-        return 0
-    if metric == "flip":
-        if not scores.criterion <= threshold:
-            print(f"FAIL: {FLIP_CRITERION.upper()}-FLIP {scores.criterion:.6f} > {threshold}")
-            return 1
-    elif not score >= threshold:
+    failed = z is not None and not z.passed
+    if threshold is not None and metric == "flip" and not scores.criterion <= threshold:
+        print(f"FAIL: {FLIP_CRITERION.upper()}-FLIP {scores.criterion:.6f} > {threshold}")
+        failed = True
+    elif threshold is not None and metric == "ssim" and not score >= threshold:
         print(f"FAIL: SSIM {score:.6f} < {threshold}")
-        return 1
-    return 0
+        failed = True
+    return 1 if failed else 0

@@ -128,6 +128,21 @@ def test_compare(tmp_path, capsys):
     assert main(["compare", str(tmp_path / "a.exr"), str(tmp_path / "missing.exr")]) == 2
 
 
+def test_compare_exits_1_on_a_failing_z_test(tmp_path, capsys):
+    """With a reference variance and both spp, a mean shifted beyond the noise fails, threshold or not."""
+    rng = np.random.default_rng(1)
+    reference = rng.uniform(0.2, 1.0, (32, 32, 3)).astype(np.float32)
+    variance = np.full_like(reference, 0.01)
+    write_image(str(tmp_path / "ref.exr"), reference, aovs={"variance": variance}, metadata={"spp": 1024})
+    noisy = reference + rng.normal(size=reference.shape).astype(np.float32) * 0.1 / 4  # 16 spp of variance 0.01
+    write_image(str(tmp_path / "ok.exr"), noisy, metadata={"spp": 16})
+    write_image(str(tmp_path / "bright.exr"), noisy * 1.2, metadata={"spp": 16})
+    assert main(["compare", str(tmp_path / "ok.exr"), str(tmp_path / "ref.exr")]) == 0
+    assert "Z-test pass" in capsys.readouterr().out
+    assert main(["compare", str(tmp_path / "bright.exr"), str(tmp_path / "ref.exr")]) == 1
+    assert "Z-test FAIL" in capsys.readouterr().out
+
+
 def test_the_harness_has_a_command_of_its_own(tmp_path):
     """``python -m wrt_harness`` (``wrt-harness``) runs the same verbs without ``wrt``."""
     write_image(str(tmp_path / "a.exr"), np.full((8, 8, 3), 0.5, np.float32))
