@@ -796,26 +796,7 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
     if len(maps) > 1:
         raise SceneError(file, f"light[{maps[1]}]", "file", f"a second environment map (light[{maps[0]}] has one)")
     if render.integrator == "whitted":
-        for i, light in enumerate(lights):
-            if isinstance(light, (AreaLight, SphereLight, EnvironmentLight)):
-                raise SceneError(
-                    file,
-                    f"light[{i}]",
-                    "type",
-                    "the whitted integrator takes point, directional and spot lights (area, sphere and environment "
-                    'lights need integrator = "path")',
-                    light.type,
-                )
-        for i, material in enumerate(materials):
-            if material.type in ("rough_dielectric", "mask"):
-                raise SceneError(
-                    file,
-                    f"material[{i}]",
-                    "type",
-                    f"the whitted integrator traces delta lobes only (a {material.type.replace('_', ' ')} needs "
-                    'integrator = "path")',
-                    material.type,
-                )
+        _check_whitted(file, lights, materials)
     return Scene(
         render=render,
         camera=camera,
@@ -825,6 +806,31 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
         path=file,
         groups=tuple(groups),
     )
+
+
+def _check_whitted(source: str, lights, materials) -> None:
+    """Refuse what the whitted integrator cannot render: lights that are surfaces or a sky, and
+    materials with glossy or stochastic lobes (``SceneError`` naming ``source``, the entry and its type)."""
+    for i, light in enumerate(lights):
+        if isinstance(light, (AreaLight, SphereLight, EnvironmentLight)):
+            raise SceneError(
+                source,
+                f"light[{i}]",
+                "type",
+                "the whitted integrator takes point, directional and spot lights (area, sphere and environment "
+                'lights need integrator = "path")',
+                light.type,
+            )
+    for i, material in enumerate(materials):
+        if material.type in ("rough_dielectric", "mask"):
+            raise SceneError(
+                source,
+                f"material[{i}]",
+                "type",
+                f"the whitted integrator traces delta lobes only (a {material.type.replace('_', ' ')} needs "
+                'integrator = "path")',
+                material.type,
+            )
 
 
 def load_scene(path: str | os.PathLike, *, approximate: bool = False) -> Scene:
@@ -873,7 +879,9 @@ def load_scene(path: str | os.PathLike, *, approximate: bool = False) -> Scene:
 def override_render(scene: Scene, *, source: str = "command line", **changes) -> Scene:
     """A copy of ``scene`` with ``[render]`` keys replaced (None values are ignored).
 
-    The new values are validated exactly like the file's, errors naming ``source``.
+    The new values are validated exactly like the file's, errors naming ``source``; a switch to
+    the whitted integrator is refused where the file's would be (area, sphere and environment
+    lights; rough dielectrics and masks).
     """
     values = {k: v for k, v in changes.items() if v is not None}
     if not values:
@@ -881,4 +889,7 @@ def override_render(scene: Scene, *, source: str = "command line", **changes) ->
     merged = {
         k: list(v) if isinstance(v, tuple) else v for k, v in {**dataclasses.asdict(scene.render), **values}.items()
     }
-    return dataclasses.replace(scene, render=_render(source, merged))
+    render = _render(source, merged)
+    if render.integrator == "whitted" and scene.render.integrator != "whitted":
+        _check_whitted(source, scene.lights, scene.materials)
+    return dataclasses.replace(scene, render=render)

@@ -109,6 +109,21 @@ def test_two_sided_defaults_to_true(tmp_path, kind):
         assert wrt.load_scene(write(tmp_path, text)).materials[0].two_sided is expected
 
 
+@pytest.mark.parametrize(
+    "extra, where",
+    [
+        ('[[light]]\ntype = "sphere"\ncenter = [0, 3, 0]\nradius = 0.5\nradiance = [1, 1, 1]\n', "light[0].type"),
+        ('[[material]]\nname = "glass"\ntype = "rough_dielectric"\n', "material[1].type"),
+    ],
+)
+def test_switching_to_whitted_is_refused_as_the_file_would_be(tmp_path, extra, where):
+    """override_render(integrator="whitted") on a scene the file could not have asked whitted for."""
+    scene = wrt.load_scene(write(tmp_path, GOOD.replace("spp = 1", 'spp = 1\nintegrator = "path"') + extra))
+    with pytest.raises(wrt.SceneError, match=rf"python: {where.replace('[', '.').replace(']', '.')}.*path"):
+        wrt.loader.override_render(scene, source="python", integrator="whitted")
+    assert wrt.loader.override_render(scene, source="python", spp=2).render.spp == 2
+
+
 def test_lights_are_accepted_and_ignored_by_raycast(tmp_path):
     scene = wrt.load_scene(
         write(tmp_path, GOOD + '\n[[light]]\ntype = "point"\nposition = [0, 3, 0]\nintensity = [10, 10, 10]\n')
