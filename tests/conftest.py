@@ -114,3 +114,27 @@ def one_feature_file(tmp_path, extra: str):
         f"width = 16\nheight = 16\n{extra}\n"
     )
     return path
+
+
+def corner_form_factor(a, b, h):
+    """Form factor from a differential floor area to a parallel a x b rectangle at height h above
+    one of its corners (Howell's catalogue of configuration factors)."""
+    x, y = a / h, b / h
+    return (
+        x / np.sqrt(1 + x * x) * np.arctan(y / np.sqrt(1 + x * x))
+        + y / np.sqrt(1 + y * y) * np.arctan(x / np.sqrt(1 + y * y))
+    ) / (2 * np.pi)
+
+
+LAMP_ALBEDO, LAMP_RADIANCE = 0.6, 4.0  # the floor's albedo and the lamps' emitted radiance
+LAMP_MATERIALS = [
+    {"name": "floor", "albedo": [LAMP_ALBEDO] * 3},
+    {"name": "lamp", "albedo": [0, 0, 0], "emission": [LAMP_RADIANCE] * 3},
+]
+
+
+def render_lamp_scene(shapes, camera, size, spp, groups=None, **settings):
+    """A path-traced render (max_depth 2: direct light) of ``shapes`` made of ``LAMP_MATERIALS``."""
+    settings = {"width": size[0], "height": size[1], "integrator": "path", "spp": spp, "max_depth": 2, **settings}
+    scene = make_scene(shapes, materials=LAMP_MATERIALS, camera=camera, render=settings, groups=groups)
+    return wrt.render(scene, device="cpu")

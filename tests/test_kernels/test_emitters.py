@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 import warp as wp
 import wrt.kernels  # noqa: F401
+from conftest import corner_form_factor
 from wrt.kernels.emitters import emitter_pdf, sample_emitter
 from wrt.kernels.lights import AREA, ENVIRONMENT, SPHERE_LIGHT, LightData
 from wrt.kernels.sample_warps import concentric_disk, cosine_hemisphere, frame, power_heuristic
@@ -42,15 +43,6 @@ def estimate(lights, p, n, count=200_000):
     wp.launch(irradiance_samples, dim=count, inputs=[lights, wp.vec3(*p), wp.vec3(*n), out, err])
     v = out.numpy().astype(np.float64)
     return v.mean(), v.std() / np.sqrt(count), err.numpy().max()
-
-
-def corner_form_factor(a, b, h):
-    """Differential area at height h below a corner of a parallel a x b rectangle (Howell's catalogue)."""
-    x, y = a / h, b / h
-    return (
-        x / np.sqrt(1 + x * x) * np.arctan(y / np.sqrt(1 + x * x))
-        + y / np.sqrt(1 + y * y) * np.arctan(x / np.sqrt(1 + y * y))
-    ) / (2 * np.pi)
 
 
 def test_parallelogram_light_irradiance_matches_the_form_factor():

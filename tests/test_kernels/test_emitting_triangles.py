@@ -3,42 +3,35 @@ closed form, the MIS-combined estimator against BSDF sampling alone, and their n
 
 import numpy as np
 import pytest
-from conftest import make_scene
-from test_path import corner_form_factor
+from conftest import LAMP_ALBEDO, LAMP_MATERIALS, LAMP_RADIANCE, corner_form_factor, make_scene
+from conftest import render_lamp_scene as render
 
 import wrt
 from wrt.emitting import emitting_primitives
 from wrt.geometry import flatten
 from wrt.renderer import scene_features
 
-A, B, H, L, ALBEDO = 2.0, 1.0, 1.5, 4.0, 0.6
+A, B, H, L, ALBEDO = 2.0, 1.0, 1.5, LAMP_RADIANCE, LAMP_ALBEDO
 FLOOR = {"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "floor"}
 # an a x b rectangle at height h over the origin's corner, two triangles wound to emit downward
 QUAD = [
     {"type": "triangle", "vertices": [[0, H, 0], [A, H, 0], [A, H, B]], "material": "lamp"},
     {"type": "triangle", "vertices": [[0, H, 0], [A, H, B], [0, H, B]], "material": "lamp"},
 ]
-MATERIALS = [{"name": "floor", "albedo": [ALBEDO] * 3}, {"name": "lamp", "albedo": [0, 0, 0], "emission": [L] * 3}]
 CORNER = {"origin": [0, 0.5, 0.0], "look_at": [0, 0, 0], "up": [0, 0, 1], "fov": 1.0}
-
-
-def render(shapes, camera, size, spp, groups=None, **settings):
-    settings = {"width": size[0], "height": size[1], "integrator": "path", "spp": spp, "max_depth": 2, **settings}
-    scene = make_scene(shapes, materials=MATERIALS, camera=camera, render=settings, groups=groups)
-    return wrt.render(scene, device="cpu")
 
 
 def test_distribution_is_by_power_and_skips_other_shapes():
     scene = make_scene(
         [FLOOR, *QUAD, {"type": "triangle", "vertices": [[0, 0, 0], [1, 0, 0], [0, 0, 1]], "material": "floor"}],
-        materials=MATERIALS,
+        materials=LAMP_MATERIALS,
     )
     emitting = emitting_primitives(scene, flatten(scene))
     assert list(emitting.prim) == [0, 1]
     assert list(emitting.of_triangle) == [0, 1, -1]
     np.testing.assert_allclose(emitting.cdf, [0.0, 0.5, 1.0])
     assert scene_features(scene).emissive
-    assert not scene_features(make_scene([FLOOR], materials=MATERIALS)).emissive
+    assert not scene_features(make_scene([FLOOR], materials=LAMP_MATERIALS)).emissive
 
 
 def test_emissive_quad_over_a_corner_matches_the_form_factor():

@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from conftest import CAMERA, make_scene
+from conftest import CAMERA, corner_form_factor, make_scene
 
 import wrt
 
@@ -42,14 +42,6 @@ def test_diffuse_plane_under_uniform_sky_returns_albedo_times_radiance(device):
     )
     mean = r.rgb.reshape(-1, 3).mean(axis=0)
     np.testing.assert_allclose(mean, [0.1, 0.25, 0.4], rtol=0.01)
-
-
-def corner_form_factor(a, b, h):
-    x, y = a / h, b / h
-    return (
-        x / np.sqrt(1 + x * x) * np.arctan(y / np.sqrt(1 + x * x))
-        + y / np.sqrt(1 + y * y) * np.arctan(x / np.sqrt(1 + y * y))
-    ) / (2 * np.pi)
 
 
 def test_area_light_over_a_corner_matches_the_form_factor():

@@ -5,19 +5,19 @@ closed forms on a diffuse floor, and the MIS-combined estimator against BSDF sam
 import numpy as np
 import pytest
 import warp as wp
-from conftest import make_scene
+from conftest import LAMP_ALBEDO, LAMP_MATERIALS, LAMP_RADIANCE, corner_form_factor, make_scene
+from conftest import render_lamp_scene as render
 from wrt.kernels.emitters import make_emitting_pdf, make_sample_emitting
 from wrt.kernels.lights import LightData
 from wrt.kernels.materials import MaterialData
 from wrt.kernels.traverse import POLYGON, SPHERE, GeometryData
 
-import wrt
 from wrt.device import upload_geometry, upload_lights, upload_materials
 from wrt.emitting import emitting_primitives
 from wrt.geometry import build, flatten
 from wrt.renderer import scene_features
 
-H, L, ALBEDO = 1.5, 4.0, 0.6
+H, L, ALBEDO = 1.5, LAMP_RADIANCE, LAMP_ALBEDO
 FLOOR = {"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "floor"}
 # a non-convex L of [0, 2] x [0, 1] and [0, 1] x [0, 2] (x, z) at height H, wound to emit downward
 ELL = {
@@ -29,23 +29,7 @@ CENTER, RADIUS = (0.0, 2.0, 0.0), 0.5
 BALL = {"type": "sphere", "center": list(CENTER), "radius": RADIUS, "material": "lamp"}
 sample_emitting = make_sample_emitting(False, True)
 emitting_pdf = make_emitting_pdf(True)
-MATERIALS = [{"name": "floor", "albedo": [ALBEDO] * 3}, {"name": "lamp", "albedo": [0, 0, 0], "emission": [L] * 3}]
 DOWN = {"origin": [0, 0.5, 0.0], "look_at": [0, 0, 0], "up": [0, 0, 1], "fov": 1.0}
-
-
-def render(shapes, camera, size, spp, groups=None, **settings):
-    settings = {"width": size[0], "height": size[1], "integrator": "path", "spp": spp, "max_depth": 2, **settings}
-    scene = make_scene(shapes, materials=MATERIALS, camera=camera, render=settings, groups=groups)
-    return wrt.render(scene, device="cpu")
-
-
-def corner_form_factor(a, b, h):
-    """Form factor from a floor point to a parallel a x b rectangle at height h above one corner."""
-    x, y = a / h, b / h
-    return (
-        x / np.sqrt(1 + x * x) * np.arctan(y / np.sqrt(1 + x * x))
-        + y / np.sqrt(1 + y * y) * np.arctan(x / np.sqrt(1 + y * y))
-    ) / (2 * np.pi)
 
 
 def corner_solid_angle(a, b, h):
@@ -59,7 +43,7 @@ def ell(f, h):
 
 
 def test_pool_is_by_power_over_polygons_and_spheres():
-    scene = make_scene([FLOOR, ELL, BALL], materials=MATERIALS)
+    scene = make_scene([FLOOR, ELL, BALL], materials=LAMP_MATERIALS)
     pool = emitting_primitives(scene, flatten(scene))
     assert list(pool.kind) == [POLYGON, SPHERE]
     assert list(pool.of_polygon) == [0] and list(pool.of_sphere) == [1]
@@ -71,10 +55,10 @@ def test_pool_is_by_power_over_polygons_and_spheres():
     features = scene_features(scene)
     assert features.emissive and features.emissive_shapes
     triangle = {"type": "triangle", "vertices": ELL["vertices"][:3], "material": "lamp"}
-    triangles_only = scene_features(make_scene([FLOOR, triangle], materials=MATERIALS))
+    triangles_only = scene_features(make_scene([FLOOR, triangle], materials=LAMP_MATERIALS))
     assert triangles_only.emissive and not triangles_only.emissive_shapes
     # a self-intersecting (bow-tie) polygon stays BSDF-sampled only
-    bow = make_scene([{**ELL, "vertices": [[0, H, 0], [2, H, 1], [2, H, 0], [0, H, 2]]}], materials=MATERIALS)
+    bow = make_scene([{**ELL, "vertices": [[0, H, 0], [2, H, 1], [2, H, 0], [0, H, 2]]}], materials=LAMP_MATERIALS)
     assert len(emitting_primitives(bow, flatten(bow)).kind) == 0
 
 
@@ -116,7 +100,7 @@ def test_sampled_density_integrates_to_one():
     of 1/pdf is the solid angle the emitters subtend, and the density integrated over the
     directions that meet each (uniform directions, a Monte Carlo estimate; the L hides part of
     the sphere, which the sum ignores) is 1."""
-    scene = make_scene([ELL, BALL], materials=MATERIALS)
+    scene = make_scene([ELL, BALL], materials=LAMP_MATERIALS)
     device = wp.get_device("cpu")
     prims = build(scene, device)
     geometry, materials = upload_geometry(prims, device), upload_materials(scene, device)
