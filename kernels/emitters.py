@@ -35,6 +35,34 @@ def area_normal_and_size(lights: LightData, i: wp.int32):
 
 
 @wp.func
+def sphere_solid_angle(center: wp.vec3, r: float, p: wp.vec3) -> float:
+    """Solid angle ``2 pi (1 - cos_max)`` that a sphere subtends from ``p``; 0 from inside it."""
+    to_c = center - p
+    dist2 = wp.dot(to_c, to_c)
+    if dist2 <= r * r:
+        return 0.0
+    return 2.0 * wp.pi * cone_one_minus_cos(r * r / dist2)
+
+
+@wp.func
+def sample_sphere_cone(center: wp.vec3, r: float, p: wp.vec3, u1: float, u2: float):
+    """A direction from ``p`` uniform in the cone a sphere subtends: ``(wi, distance to the sphere
+    along wi, the cone's solid angle)`` (the density is its inverse); from inside the sphere
+    ``((0, 0, 1), 0, 0)``."""
+    to_c = center - p
+    dist2 = wp.dot(to_c, to_c)
+    if dist2 <= r * r:
+        return wp.vec3(0.0, 0.0, 1.0), 0.0, 0.0
+    one_minus_cos = cone_one_minus_cos(r * r / dist2)
+    wi = frame(to_c / wp.sqrt(dist2)) * uniform_cone(u1, u2, one_minus_cos)
+    tangent = wp.sqrt(wp.max(0.0, dist2 - r * r))
+    dist = intersect_sphere(p, wi, center, r, 0.0, tangent * 2.0)
+    if dist >= tangent * 2.0:  # grazing the silhouette: rounding missed it
+        dist = tangent
+    return wi, dist, 2.0 * wp.pi * one_minus_cos
+
+
+@wp.func
 def sample_emitter(lights: LightData, i: wp.int32, p: wp.vec3, u1: float, u2: float):
     """Direction toward emitter ``i`` from ``p``: ``(wi, distance, radiance, pdf)``.
 
@@ -57,18 +85,10 @@ def sample_emitter(lights: LightData, i: wp.int32, p: wp.vec3, u1: float, u2: fl
             return wi, dist, wp.vec3(0.0), 0.0
         return wi, dist, lights.power[i], dist2 / (area * cos_light)
     if kind == SPHERE_LIGHT:
-        to_c = lights.position[i] - p
-        dist2 = wp.dot(to_c, to_c)
-        r = lights.radius[i]
-        if dist2 <= r * r:
-            return wp.vec3(0.0, 0.0, 1.0), 0.0, wp.vec3(0.0), 0.0
-        one_minus_cos = cone_one_minus_cos(r * r / dist2)
-        wi = frame(to_c / wp.sqrt(dist2)) * uniform_cone(u1, u2, one_minus_cos)
-        tangent = wp.sqrt(wp.max(0.0, dist2 - r * r))
-        dist = intersect_sphere(p, wi, lights.position[i], r, 0.0, tangent * 2.0)
-        if dist >= tangent * 2.0:  # grazing the silhouette: rounding missed it
-            dist = tangent
-        return wi, dist, lights.power[i], 1.0 / (2.0 * wp.pi * one_minus_cos)
+        wi, dist, solid_angle = sample_sphere_cone(lights.position[i], lights.radius[i], p, u1, u2)
+        if solid_angle == 0.0:
+            return wi, dist, wp.vec3(0.0), 0.0
+        return wi, dist, lights.power[i], 1.0 / solid_angle
     return uniform_sphere(u1, u2), wp.inf, lights.power[i], 1.0 / (4.0 * wp.pi)
 
 
@@ -84,12 +104,8 @@ def emitter_pdf(lights: LightData, i: wp.int32, p: wp.vec3, wi: wp.vec3, dist: f
             return 0.0
         return dist * dist / (area * cos_light)
     if kind == SPHERE_LIGHT:
-        to_c = lights.position[i] - p
-        dist2 = wp.dot(to_c, to_c)
-        r = lights.radius[i]
-        if dist2 <= r * r:
-            return 0.0
-        return 1.0 / (2.0 * wp.pi * cone_one_minus_cos(r * r / dist2))
+        solid_angle = sphere_solid_angle(lights.position[i], lights.radius[i], p)
+        return wp.where(solid_angle == 0.0, 0.0, 1.0 / solid_angle)
     if kind == ENVIRONMENT:
         return 1.0 / (4.0 * wp.pi)
     return 0.0
@@ -214,12 +230,8 @@ def make_emitting_pdf(shapes: bool):
         if wp.static(shapes):
             kind = lights.emit_kind[e]
             if kind == SPHERE:
-                to_c = geometry.sphere_center[i] - p
-                dist2 = wp.dot(to_c, to_c)
-                r = geometry.sphere_radius[i]
-                if dist2 <= r * r:
-                    return 0.0
-                return selection / (2.0 * wp.pi * cone_one_minus_cos(r * r / dist2))
+                solid_angle = sphere_solid_angle(geometry.sphere_center[i], geometry.sphere_radius[i], p)
+                return wp.where(solid_angle == 0.0, 0.0, selection / solid_angle)
             if kind == POLYGON:
                 cos_light = wp.abs(wp.dot(wi, geometry.poly_normal[i]))
                 if cos_light <= 0.0:
@@ -280,21 +292,14 @@ def make_sample_emitting(smooth: bool, shapes: bool):
         if wp.static(shapes):
             kind = lights.emit_kind[e]
             if kind == SPHERE:
-                c = geometry.sphere_center[i]
-                r = geometry.sphere_radius[i]
-                to_c = c - p
-                dist2 = wp.dot(to_c, to_c)
-                if dist2 <= r * r:
-                    return wp.vec3(0.0, 0.0, 1.0), 0.0, wp.vec3(0.0), 0.0
-                one_minus_cos = cone_one_minus_cos(r * r / dist2)
-                wi = frame(to_c / wp.sqrt(dist2)) * uniform_cone(u1, u2, one_minus_cos)
-                tangent = wp.sqrt(wp.max(0.0, dist2 - r * r))
-                dist = intersect_sphere(p, wi, c, r, 0.0, tangent * 2.0)
-                if dist >= tangent * 2.0:  # grazing the silhouette: rounding missed it
-                    dist = tangent
+                wi, dist, solid_angle = sample_sphere_cone(
+                    geometry.sphere_center[i], geometry.sphere_radius[i], p, u1, u2
+                )
+                if solid_angle == 0.0:
+                    return wi, dist, wp.vec3(0.0), 0.0
                 radiance = materials.emission[materials.shape_material[geometry.sphere_shape[i]]]
                 selection = lights.emit_cdf[e + 1] - lights.emit_cdf[e]
-                return wi, dist, radiance, selection / (2.0 * wp.pi * one_minus_cos)
+                return wi, dist, radiance, selection / solid_angle
         a = wp.vec3(0.0)
         b = wp.vec3(0.0)
         c = wp.vec3(0.0)
