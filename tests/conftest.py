@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
+import errno
+import os
 import shutil
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -138,3 +142,89 @@ def render_lamp_scene(shapes, camera, size, spp, groups=None, **settings):
     settings = {"width": size[0], "height": size[1], "integrator": "path", "spp": spp, "max_depth": 2, **settings}
     scene = make_scene(shapes, materials=LAMP_MATERIALS, camera=camera, render=settings, groups=groups)
     return wrt.render(scene, device="cpu")
+
+
+# --- file systems that refuse writes: a small full tmpfs, a read-only one ----------------------
+# We run as root, so permission bits do not stop a write; a real file system does. Mounting needs
+# root (CAP_SYS_ADMIN): where it is refused, the tests that need one are skipped with the reason.
+
+
+def _mount_tmpfs(folder: Path, options: str) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    done = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)], capture_output=True, text=True, check=False
+    )
+    if done.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here ({done.stderr.strip() or 'mount failed'})")
+
+
+def _unmount(folder: Path) -> None:
+    subprocess.run(["umount", "-l", str(folder)], capture_output=True, check=False)
+
+
+class FullDisk:
+    """A small tmpfs (``path``) that ``fill()`` fills to the last byte: every write to it fails
+    with ENOSPC until ``free()`` removes the filler."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.filler = path / ".filler"
+
+    def fill(self) -> None:
+        with open(self.filler, "ab", buffering=0) as f:
+            chunk = b"\0" * 4096
+            with contextlib.suppress(OSError):
+                while True:
+                    f.write(chunk)
+            with contextlib.suppress(OSError):
+                while True:
+                    f.write(b"\0")
+        probe = self.path / ".probe"
+        try:
+            probe.write_bytes(b"x")
+        except OSError as e:
+            assert e.errno == errno.ENOSPC, e
+        else:
+            raise AssertionError("the tmpfs took a byte after it was filled")
+        finally:
+            with contextlib.suppress(OSError):
+                probe.unlink()
+
+    def free(self) -> None:
+        with contextlib.suppress(FileNotFoundError):
+            self.filler.unlink()
+
+
+@pytest.fixture
+def full_disk(tmp_path):
+    """A 1 MiB tmpfs to fill (``FullDisk``): put good files there, ``fill()``, then write."""
+    disk = FullDisk(tmp_path / "tmpfs")
+    _mount_tmpfs(disk.path, "size=1m,mode=0777")
+    try:
+        yield disk
+    finally:
+        _unmount(disk.path)
+
+
+@pytest.fixture
+def read_only_folder(tmp_path):
+    """``make(files)``: a read-only tmpfs holding ``files`` (name -> bytes); returns its path."""
+    mounted = []
+
+    def make(files: dict | None = None, name: str = "ro") -> Path:
+        folder = tmp_path / name
+        _mount_tmpfs(folder, "size=16m,mode=0777")
+        mounted.append(folder)
+        for rel, data in (files or {}).items():
+            (folder / rel).parent.mkdir(parents=True, exist_ok=True)
+            (folder / rel).write_bytes(data)
+        done = subprocess.run(["mount", "-o", "remount,ro", str(folder)], capture_output=True, text=True, check=False)
+        if done.returncode != 0:
+            pytest.skip(f"cannot remount a tmpfs read-only here ({done.stderr.strip()})")
+        return folder
+
+    try:
+        yield make
+    finally:
+        for folder in mounted:
+            _unmount(folder)

@@ -12,15 +12,17 @@ from __future__ import annotations
 import argparse
 import atexit
 import contextlib
+import errno
 import gc
 import os
 import re
 import signal
 import sys
 import threading
+import time
 
 from .errors import SceneError, WrtError
-from .loader import MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SEED, MAX_SPP
+from .limits import MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SEED, MAX_SPP
 
 MAX_CAPACITY = 1 << 24
 """Most segments ``wrt rays --capacity`` may reserve: 92 bytes each, 1.5 GiB in all."""
@@ -51,6 +53,36 @@ def int_in(lo: int | None, hi: int, option: str, key: str | None = None):
     parse.__name__ = "int"  # argparse names the type in "invalid int value"
     parse.range = (lo, hi)
     return parse
+
+
+def finite_float(lo: float, hi: float, option: str):
+    """The argparse ``type`` of a real-valued option: a finite number in ``[lo, hi]`` (NaN, Inf and
+    1e308 are refused as one line naming the option and the value)."""
+
+    def parse(text: str) -> float:
+        value = float(text)  # ValueError: argparse's "invalid float value"
+        if lo <= value <= hi:
+            return value
+        raise WrtError(f"{option} {text}: must be a finite number in [{lo:g}, {hi:g}]")
+
+    parse.__name__ = "float"
+    return parse
+
+
+DEVICE_NAME = re.compile(r"cpu|cuda(:\d{1,4})?")
+
+
+def device_name(text: str) -> str:
+    """The argparse ``type`` of ``--device``: ``cpu``, ``cuda`` or ``cuda:N`` (whether Warp has
+    that device is checked when it is used)."""
+    if DEVICE_NAME.fullmatch(text):
+        return text
+    raise argparse.ArgumentTypeError(f"invalid device {text!r} (use cpu, cuda or cuda:N)")
+
+
+def add_device_option(parser: argparse.ArgumentParser) -> None:
+    """``--device cpu|cuda|cuda:N``, the same in every verb."""
+    parser.add_argument("--device", type=device_name, default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
 
 
 AOV_CHOICES = {
@@ -136,7 +168,7 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
         type=int_in(1, MAX_IMAGE_SIDE, "--height", "height"),
         help="image height in pixels (default: the scene's)",
     )
-    r.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
+    add_device_option(r)
     r.add_argument(
         "--threads",
         type=int_in(1, MAX_THREADS, "--threads"),
@@ -152,7 +184,7 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
     r.add_argument("--half", action="store_true", help="store EXR RGB as half floats (AOVs stay float32)")
     r.add_argument(
         "--target-error",
-        type=float,
+        type=finite_float(0.0, 1e6, "--target-error"),
         metavar="E",
         help="adaptive sampling: a pixel stops once the estimated relative standard error of its mean luminance is "
         "below E (e.g. 0.02); --spp is then the most a pixel takes, and an EXR output gets the per-pixel sample count "
@@ -215,11 +247,11 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
     rays.add_argument(
         "--view",
         nargs=2,
-        type=float,
+        type=finite_float(-360.0, 360.0, "--view"),
         metavar=("AZIMUTH", "ELEVATION"),
         help="view angles in degrees relative to the scene camera (default: automatic)",
     )
-    rays.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
+    add_device_option(rays)
     rays.add_argument(
         "--capacity",
         type=int_in(1, MAX_CAPACITY, "--capacity"),
@@ -254,25 +286,72 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
     return parser, runs
 
 
-@contextlib.contextmanager
-def _stop_on_signal():
-    """Within: the first Ctrl-C (SIGINT) or SIGTERM sets the event yielded instead of ending the
-    process (a render then stops after its pass and writes the samples done); a second one ends
-    it as usual. ``stop.signum`` is the signal that came."""
-    stop = threading.Event()
-    stop.signum = 0
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread as Ctrl-C raises ``KeyboardInterrupt``, so that the same
+    clean-up runs (a file being written is left as it was, its temporary file removed); exit code
+    143 where Ctrl-C's is 130."""
 
-    def first_signal(signum, frame):
-        stop.signum = signum
-        stop.set()
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
-    previous = {signum: signal.signal(signum, first_signal) for signum in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield stop
-    finally:
-        for signum, handler in previous.items():
+def _interruption(signum: int) -> KeyboardInterrupt:
+    return Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+def _terminate(signum, frame):
+    raise Terminated()
+
+
+SIGNAL_GRACE_S = 1.0
+"""A signal this soon after the first is the same request: one Ctrl-C under ``timeout`` arrives
+twice, from the terminal and forwarded by ``timeout``."""
+
+
+class StopRequest:
+    """The render's handling of Ctrl-C (SIGINT) and SIGTERM, as a context.
+
+    Within it, the first signal sets ``event`` (a render then stops at its next tile and writes
+    the samples done) and records ``signum``; a repeat within ``SIGNAL_GRACE_S`` is the same
+    request. A later one ends the process as usual (``KeyboardInterrupt`` or ``Terminated``),
+    except while a file is being written (``writing``): then the write completes first. The
+    previous handlers come back when the context ends.
+    """
+
+    def __init__(self):
+        self.event = threading.Event()
+        self.signum = 0
+        self._first = 0.0
+        self._writing = False
+        self._deferred = 0
+
+    def _handle(self, signum, frame):
+        now = time.monotonic()
+        if not self.event.is_set():
+            self.signum, self._first = signum, now
+            self.event.set()
+        elif now - self._first < SIGNAL_GRACE_S:
+            return
+        elif self._writing:
+            self._deferred = signum
+        else:
+            raise _interruption(signum)
+
+    @contextlib.contextmanager
+    def writing(self):
+        """Within: a file is being written, and no signal interrupts it; one that asked to end the
+        process does so once the write is done."""
+        self._writing = True
+        try:
+            yield
+        finally:
+            self._writing = False
+        if self._deferred:
+            raise _interruption(self._deferred)
+
+    def __enter__(self) -> StopRequest:
+        self._previous = {signum: signal.signal(signum, self._handle) for signum in (signal.SIGINT, signal.SIGTERM)}
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for signum, handler in self._previous.items():
             signal.signal(signum, handler)
 
 
@@ -282,7 +361,7 @@ def _render(args) -> int:
     from . import __version__
     from .device import init_warp
     from .files import check_writable
-    from .imageio import write_image
+    from .imageio import half_overflow, write_image
     from .loader import load_scene, override_render
     from .renderer import render
 
@@ -291,8 +370,9 @@ def _render(args) -> int:
     ext = os.path.splitext(args.output)[1].lower()
     if ext not in (".exr", ".png"):
         raise WrtError(f"{args.output}: unsupported output format {ext or '(none)'!r} (use .exr or .png)")
-    if args.aov and ext != ".exr":
-        raise WrtError(f"{args.output}: --aov needs an .exr output")
+    for option, given in (("--aov", args.aov), ("--half", args.half)):
+        if given and ext != ".exr":
+            raise WrtError(f"{args.output}: {option} needs an .exr output")
     if args.scheduler is not None and args.target_error is not None:
         raise WrtError("--target-error: adaptive sampling runs locally only, not with --scheduler")
     if args.scheduler is not None and args.threads is not None:
@@ -342,7 +422,8 @@ def _render(args) -> int:
         file=sys.stderr,
         disable=True if scene.render.spp == 1 else None,  # None: shown on a terminal only
     )
-    with cluster, bar, _stop_on_signal() as stop:
+    with cluster, bar, StopRequest() as request:
+        stop = request.event
 
         def on_pass(done: int, spp: int, elapsed: float, snapshot) -> bool:
             if args.target_error is None:
@@ -355,7 +436,8 @@ def _render(args) -> int:
                 bar.set_postfix_str(f"{tqdm.format_interval(elapsed)}, adaptive", refresh=False)
             bar.update(done - bar.n)
             if args.checkpoint_every and done % args.checkpoint_every == 0 and done < spp and not stop.is_set():
-                write(snapshot())
+                with request.writing():
+                    write(snapshot())
             return not stop.is_set()
 
         options = {"device": args.device, "progress": on_pass, "progress_every": args.checkpoint_every, "stop": stop}
@@ -363,11 +445,12 @@ def _render(args) -> int:
             result = render(scene, threads=args.threads, target_error=args.target_error, **options)
         else:
             result = cluster.render(scene, **options)
-    what = "interrupted" if stop.signum == signal.SIGINT else "terminated"  # when a signal came
-    if result.spp == 0:  # a signal before the first pass ended: no sample to write
-        print(f"wrt: {what} before the first pass ended: nothing written", file=sys.stderr)
-        return 128 + stop.signum
-    write(result)
+        what = "interrupted" if request.signum == signal.SIGINT else "terminated"  # when a signal came
+        if result.spp == 0:  # a signal before the first pass ended: no sample to write
+            print(f"wrt: {what} before the first pass ended: nothing written", file=sys.stderr)
+            return 128 + request.signum
+        with request.writing():
+            write(result)
     h, w = result.rgb.shape[:2]
     samples = int(result.aovs["spp"].sum()) if "spp" in result.aovs else result.spp * pixels  # adaptive: as taken
     adaptive = f" (adaptive: {samples / pixels:.1f} on average)" if "spp" in result.aovs else ""
@@ -377,15 +460,21 @@ def _render(args) -> int:
         f"kernels {result.compile_time_s:.2f} s, render {result.render_time_s:.3f} s "
         f"({samples / max(result.render_time_s, 1e-9) / 1e6:.3g} M samples/s)"
     )
+    if args.half and half_overflow(result.rgb):
+        print(
+            f"wrt: warning: {half_overflow(result.rgb)} radiance values exceed 65504, the largest half float, and "
+            "were stored as 65504 (--half)",
+            file=sys.stderr,
+        )
     if result.rejected_samples:
         print(
             f"wrt: warning: {result.rejected_samples} samples were NaN or Inf (or entered more than 8 nested "
             "dielectrics) and were taken as black",
             file=sys.stderr,
         )
-    if stop.is_set():  # a signal, not adaptive sampling's early convergence
+    if request.signum:  # a signal, not adaptive sampling's early convergence
         print(f"wrt: {what}: wrote the {result.spp} of {scene.render.spp} spp done", file=sys.stderr)
-        return 128 + stop.signum
+        return 128 + request.signum
     return 0
 
 
@@ -421,8 +510,8 @@ LIBRARY_VERBS = ("render", "rays", "stress")
 
 def run_verb(run, args: argparse.Namespace, prog: str = "wrt") -> int:
     """Run a verb's function: its exit code; a ``WrtError`` is one line on stderr and exit code 2,
-    an interruption exit code 130. Warp is initialised first (``render`` does it itself, to show
-    its messages only for CUDA)."""
+    an interruption exit code 130 (SIGTERM: 143). Warp is initialised first (``render`` does it
+    itself, to show its messages only for CUDA)."""
     try:
         if args.verb != "render":
             from .device import init_warp
@@ -431,9 +520,14 @@ def run_verb(run, args: argparse.Namespace, prog: str = "wrt") -> int:
         return run(args)
     except WrtError as e:
         return report_error(e, prog)
-    except KeyboardInterrupt:
-        print(f"{prog}: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as e:
+        return interrupted(e, prog)
+
+
+def interrupted(e: KeyboardInterrupt, prog: str = "wrt") -> int:
+    """Say that Ctrl-C (or SIGTERM, ``Terminated``) ended the command; its exit code, 130 (143)."""
+    print(f"{prog}: {'terminated' if isinstance(e, Terminated) else 'interrupted'}", file=sys.stderr)
+    return 128 + (signal.SIGTERM if isinstance(e, Terminated) else signal.SIGINT)
 
 
 _CONTROL = re.compile("[\x00-\x1f\x7f-\x9f]")
@@ -461,17 +555,70 @@ def main(argv: list[str] | None = None) -> int:
     return run_verb(runs[args.verb], args)
 
 
+class GuardedStdout:
+    """Standard output that cannot end a command that has done its work: a write that fails (a
+    closed pipe, ``| head -0``; a full disk, ``> /dev/full``) is recorded, output is dropped from
+    then on, and file descriptor 1 is pointed at ``/dev/null`` so that no later flush fails again."""
+
+    def __init__(self, stream):
+        self.stream = stream
+        self.error: OSError | None = None
+
+    def write(self, text: str) -> int:
+        if self.error is None:
+            try:
+                return self.stream.write(text)
+            except OSError as e:
+                self._failed(e)
+        return len(text)
+
+    def flush(self) -> None:
+        if self.error is None:
+            try:
+                self.stream.flush()
+            except OSError as e:
+                self._failed(e)
+
+    def _failed(self, error: OSError) -> None:
+        self.error = error
+        with contextlib.suppress(OSError, ValueError):
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, self.stream.fileno())
+            os.close(devnull)
+
+    def __getattr__(self, name):
+        return getattr(self.stream, name)
+
+
 def console() -> int:
     """The ``wrt`` command: :func:`main` in a process of its own.
 
-    What is alive once wrt is imported (modules, Warp's builtins, the kernels' parsed functions)
-    lives as long as the process: frozen, it is left out of the cyclic collector's full passes,
-    each of which would otherwise scan it again (about 50 ms of a one-second render). It is
-    unfrozen at exit, so that shutdown frees it as usual.
+    - SIGTERM is handled like Ctrl-C from the first moment (``Terminated``), and either one during
+      start-up or a verb is one line and exit code 130 (143), never a traceback.
+    - Standard output is guarded (``GuardedStdout``): when it cannot be written, the command
+      still finishes its work; a closed pipe is silent, another error (a full disk) one line on
+      stderr and exit code 1 where the command would have exited 0.
+    - What is alive once wrt's core is imported (modules, Warp's builtins, the kernels' parsed
+      functions) lives as long as the process: frozen, it is left out of the cyclic collector's
+      full passes, each of which would otherwise scan it again (about 50 ms of a one-second
+      render). It is unfrozen at exit, so that shutdown frees it as usual.
     """
-    gc.freeze()
-    atexit.register(gc.unfreeze)
-    return main()
+    signal.signal(signal.SIGTERM, _terminate)
+    stdout = sys.stdout = GuardedStdout(sys.stdout)
+    try:
+        import wrt
+
+        wrt.render, wrt.load_scene  # noqa: B018 (the core, imported with the collector paused)
+        gc.freeze()
+        atexit.register(gc.unfreeze)
+        code = main()
+        stdout.flush()
+    except KeyboardInterrupt as e:
+        code = interrupted(e)
+    if stdout.error is not None and stdout.error.errno != errno.EPIPE:
+        print(f"wrt: error: cannot write to standard output ({stdout.error.strerror})", file=sys.stderr)
+        code = code or 1
+    return code
 
 
 if __name__ == "__main__":

@@ -1,13 +1,28 @@
-"""Atomic file writes: a temporary file in the target's folder, then a rename over the target.
+"""Files in and out: atomic, checked writes; bounded reads; report folders that replace only reports.
 
-The target is always either the previous file or the complete new one, never a partial write,
-whatever stops the program (an exception, Ctrl-C, SIGTERM). A new file gets the usual
+Writes. The target is always either the previous file or the complete new one, never a partial
+write, whatever stops the program (an exception, a full disk, Ctrl-C, SIGTERM): the data goes to
+a temporary file in the target's folder, every write, flush, close and ``fsync`` is checked, a
+writer that cannot report its own errors (OpenImageIO's PNG writer, VTK) has its file read back
+by a ``verify`` function, and only then is it renamed over the target. Any failure keeps the old
+file and is one ``WrtError`` naming the target and the reason. A new file gets the usual
 permissions (``0o666`` less the umask; ``mkstemp`` alone would leave ``0o600``); a replaced one
 keeps its own. ``check_writable`` says before any work is done whether a path can be written.
 
 Temporary names carry the writer's process id (``.NAME.PID.XXXXXXXX``): a process killed
 mid-write (``kill -9``, a power cut) leaves its temporary file behind, and the next write to the
 same target removes those whose process is gone.
+
+Reads. ``read_bytes`` reads a regular file of at most a given size, refusing FIFOs, devices
+(``/dev/zero``) and sockets before reading, so that no input can block or exhaust memory;
+``check_regular_file`` applies the same test to files another library opens; ``read_json``
+adds JSON's errors, deep nesting included.
+
+Report folders. ``report_folder`` builds a report (the matrix's HTML, the stress suite's tables)
+in a fresh folder and moves it into place. The folder it replaces must be absent, empty, or a
+report wrt wrote: one holding the mark ``REPORT_MARK`` and only the files that mark lists. Any
+other folder, and a path that is a file, is refused before the work starts, so a report never
+deletes what a user keeps.
 """
 
 from __future__ import annotations
@@ -15,14 +30,19 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import shutil
 import stat
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 from .errors import WrtError
 
 NAME_MAX = 255  # bytes in a file name (Linux, macOS, Windows)
 RANDOM_CHARS = 8  # what mkstemp appends to the prefix
+MAX_TEXT_BYTES = 64 << 20
+"""Largest text input wrt reads: a scene, features or faults file, an XML fragment, a spectrum, JSON."""
+REPORT_MARK = ".wrt-report.json"
+"""The file wrt writes into every report folder: which command wrote it and the files it holds."""
 
 
 def _temp_stem(name: str, suffix: str) -> str:
@@ -45,56 +65,90 @@ def _process_gone(pid: int) -> bool:
 
 
 def _remove_stale(folder: str, stem: str, suffix: str) -> None:
-    """Remove temporary files of writes to the same target whose process is gone."""
-    for entry in os.listdir(folder):
-        if not (entry.startswith(stem) and entry.endswith(suffix)):
-            continue
-        pid = entry[len(stem) :].split(".", 1)[0]
-        if pid.isdigit() and int(pid) != os.getpid() and _process_gone(int(pid)):
-            with contextlib.suppress(OSError):
-                os.unlink(os.path.join(folder, entry))
+    """Remove temporary files and folders of writes to the same target whose process is gone."""
+    with contextlib.suppress(OSError):
+        for entry in os.listdir(folder):
+            if not (entry.startswith(stem) and entry.endswith(suffix)):
+                continue
+            pid = entry[len(stem) :].split(".", 1)[0]
+            if pid.isdigit() and int(pid) != os.getpid() and _process_gone(int(pid)):
+                stale = os.path.join(folder, entry)
+                if os.path.isdir(stale) and not os.path.islink(stale):
+                    shutil.rmtree(stale, ignore_errors=True)
+                else:
+                    with contextlib.suppress(OSError):
+                        os.unlink(stale)
 
 
-def check_writable(path: str | os.PathLike, *, protect: tuple = ()) -> None:
-    """Raise ``WrtError`` naming ``path`` when it cannot be written: its folder is missing or not
-    writable, it is a folder, its name is longer than ``NAME_MAX`` bytes, or it is one of the
-    files in ``protect`` (the input being read)."""
+def _reason(error: OSError) -> str:
+    return error.strerror or str(error)
+
+
+def check_writable(path: str | os.PathLike, *, protect: tuple = (), option: str | None = None) -> None:
+    """Raise ``WrtError`` naming ``path`` (after ``option``, when given) when it cannot be written:
+    its folder is missing or not writable, it is a folder, its name is longer than ``NAME_MAX``
+    bytes, or it is one of the files in ``protect`` (the input being read)."""
     path = os.fspath(path)
+    shown = f"{option} {path}" if option else path
     folder, name = os.path.split(os.path.abspath(path))
     if not name or os.path.isdir(path):
-        raise WrtError(f"{path}: is a folder, not a file name")
+        raise WrtError(f"{shown}: is a folder, not a file name")
     if len(name.encode()) > NAME_MAX:
-        raise WrtError(f"{path}: file name longer than {NAME_MAX} bytes")
+        raise WrtError(f"{shown}: file name longer than {NAME_MAX} bytes")
     if not os.path.isdir(folder):
-        raise WrtError(f"{path}: folder {folder} does not exist")
+        raise WrtError(f"{shown}: folder {folder} does not exist")
     if not os.access(folder, os.W_OK | os.X_OK):
-        raise WrtError(f"{path}: folder {folder} is not writable")
+        raise WrtError(f"{shown}: folder {folder} is not writable")
     for other in protect:
         if os.path.exists(path) and os.path.exists(other) and os.path.samefile(path, other):
-            raise WrtError(f"{path}: is the input {os.fspath(other)}; refusing to overwrite it")
+            raise WrtError(f"{shown}: is the input {os.fspath(other)}; refusing to overwrite it")
+
+
+def _fsync(path: str) -> None:
+    """Flush ``path``'s data to the disk (``OSError`` when the disk refuses it)."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 @contextlib.contextmanager
-def atomic_path(path: str | os.PathLike, suffix: str = "") -> Iterator[str]:
+def atomic_path(
+    path: str | os.PathLike, suffix: str = "", *, verify: Callable[[str], None] | None = None
+) -> Iterator[str]:
     """A temporary file beside ``path`` (same folder, which must exist; name
-    ``.NAME.PID.XXXXXXXX`` + ``suffix``) for the block to write; renamed over ``path`` when the
-    block ends normally, removed when it raises (Ctrl-C included). Stale temporary files of
-    dead writers to ``path`` are removed first."""
+    ``.NAME.PID.XXXXXXXX`` + ``suffix``) for the block to write. When the block ends normally the
+    file is synced to disk, checked by ``verify(tmp)`` (which raises when the file is not what was
+    meant to be written), and renamed over ``path``; when anything raises (Ctrl-C included) it is
+    removed and ``path`` is left as it was. Errors of the file system (a full disk, a read-only
+    folder) are ``WrtError`` naming ``path``. Stale temporary files of dead writers to ``path``
+    are removed first."""
+    path = os.fspath(path)
     folder, name = os.path.split(os.path.abspath(path))
     stem = _temp_stem(name, suffix)
     _remove_stale(folder, stem, suffix)
-    fd, tmp = tempfile.mkstemp(prefix=f"{stem}{os.getpid()}.", suffix=suffix, dir=folder)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f"{stem}{os.getpid()}.", suffix=suffix, dir=folder)
+    except OSError as e:
+        raise WrtError(f"{path}: cannot write ({_reason(e)})") from None
     os.close(fd)
     try:
         yield tmp
         try:
-            mode = stat.S_IMODE(os.stat(path).st_mode)  # a replaced file keeps its permissions
-        except FileNotFoundError:
-            umask = os.umask(0)
-            os.umask(umask)
-            mode = 0o666 & ~umask
-        os.chmod(tmp, mode)
-        os.replace(tmp, path)
+            _fsync(tmp)
+            if verify is not None:
+                verify(tmp)
+            try:
+                mode = stat.S_IMODE(os.stat(path).st_mode)  # a replaced file keeps its permissions
+            except FileNotFoundError:
+                umask = os.umask(0)
+                os.umask(umask)
+                mode = 0o666 & ~umask
+            os.chmod(tmp, mode)
+            os.replace(tmp, path)
+        except OSError as e:
+            raise WrtError(f"{path}: cannot write ({_reason(e)}); the file was left as it was") from None
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
@@ -102,12 +156,224 @@ def atomic_path(path: str | os.PathLike, suffix: str = "") -> Iterator[str]:
 
 
 def write_atomic(path: str | os.PathLike, data: bytes | str) -> None:
-    """Write ``data`` (text is UTF-8 encoded) to ``path``; the folder is created if missing."""
-    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    with atomic_path(path) as tmp, open(tmp, "wb") as f:
-        f.write(data.encode() if isinstance(data, str) else data)
+    """Write ``data`` (text is UTF-8 encoded) to ``path`` atomically, every byte checked (see
+    ``atomic_path``); the folder is created if missing."""
+    path = os.fspath(path)
+    try:
+        os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    except OSError as e:
+        raise WrtError(f"{path}: cannot make its folder ({_reason(e)})") from None
+    data = data.encode() if isinstance(data, str) else data
+    with atomic_path(path) as tmp:
+        try:
+            with open(tmp, "wb") as f:  # close() raises when the last flush fails
+                f.write(data)
+        except OSError as e:
+            raise WrtError(f"{path}: cannot write ({_reason(e)}); the file was left as it was") from None
 
 
 def write_json(path: str | os.PathLike, data, **dump_options) -> None:
     """``write_atomic`` of ``data`` as indented JSON with a final newline."""
     write_atomic(path, json.dumps(data, indent=2, **dump_options) + "\n")
+
+
+# --- reading ------------------------------------------------------------------------------------
+
+
+def _unreadable(path: str, what: str, error: OSError) -> str:
+    if isinstance(error, FileNotFoundError):
+        return f"{path}: no such file"
+    if os.path.isdir(path):
+        return f"{path}: is a folder, not a {what} file"
+    return f"{path}: cannot read {what} file ({_reason(error)})"
+
+
+def _kind(mode: int) -> str:
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def _refusal(path: str, what: str, st: os.stat_result, limit: int) -> str | None:
+    """Why the file of status ``st`` is not read as ``what``, or None."""
+    if not stat.S_ISREG(st.st_mode):
+        return f"{path}: is {_kind(st.st_mode)}, not a {what} file"
+    if st.st_size > limit:
+        return f"{path}: {what} file of {st.st_size} bytes, larger than the {limit} bytes wrt reads"
+    return None
+
+
+def check_regular_file(path: str | os.PathLike, what: str, *, limit: int, error: type[WrtError] = WrtError) -> None:
+    """Raise ``error`` naming ``path`` unless it is a regular file of at most ``limit`` bytes (a
+    FIFO, a device such as ``/dev/zero`` or a socket would block or never end): the check before
+    another library (OpenImageIO, VTK) opens it. ``what`` names the file's role ("scene")."""
+    path = os.fspath(path)
+    try:
+        st = os.stat(path)
+    except OSError as e:
+        raise error(_unreadable(path, what, e)) from None
+    problem = _refusal(path, what, st, limit)
+    if problem:
+        raise error(problem)
+
+
+def read_bytes(
+    path: str | os.PathLike, what: str, *, limit: int = MAX_TEXT_BYTES, error: type[WrtError] = WrtError
+) -> bytes:
+    """The contents of the regular file ``path``, at most ``limit`` bytes.
+
+    The file is opened without blocking and its kind and size checked before a byte is read; no
+    more than ``limit + 1`` bytes are ever read (``/proc`` files report a size of 0). Raises
+    ``error`` naming ``path`` and ``what`` it was to be when it is missing, unreadable, not a
+    regular file (a FIFO, a device, a socket, a folder) or larger than ``limit``. Messages never
+    quote the contents.
+    """
+    path = os.fspath(path)
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    except OSError as e:
+        raise error(_unreadable(path, what, e)) from None
+    try:
+        problem = _refusal(path, what, os.fstat(fd), limit)
+        if problem:
+            raise error(problem)
+        chunks, size = [], 0
+        while size <= limit:
+            chunk = os.read(fd, min(1 << 20, limit + 1 - size))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+    except OSError as e:
+        raise error(f"{path}: cannot read {what} file ({_reason(e)})") from None
+    finally:
+        os.close(fd)
+    if size > limit:
+        raise error(f"{path}: {what} file larger than the {limit} bytes wrt reads")
+    return b"".join(chunks)
+
+
+def read_json(path: str | os.PathLike, what: str, *, limit: int = MAX_TEXT_BYTES, error: type[WrtError] = WrtError):
+    """The JSON document in ``path`` (``read_bytes``); ``error`` naming the file, and the line and
+    column, when it is not JSON or is nested too deeply to read. Its shape is the caller's to check."""
+    path = os.fspath(path)
+    data = read_bytes(path, what, limit=limit, error=error)
+    try:
+        return json.loads(data.decode("utf-8"))
+    except UnicodeDecodeError as e:
+        raise error(f"{path}: not a {what} file: not UTF-8 text (byte {e.start})") from None
+    except json.JSONDecodeError as e:
+        raise error(f"{path}: not a {what} file: not JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
+    except RecursionError:
+        raise error(f"{path}: not a {what} file: JSON nested too deeply") from None
+
+
+# --- report folders -----------------------------------------------------------------------------
+
+
+def _listing(folder: str) -> set[str]:
+    """Every entry under ``folder``, files and folders, as paths relative to it ('/'-separated)."""
+    found = set()
+    for top, dirs, files in os.walk(folder):
+        rel = os.path.relpath(top, folder)
+        for entry in dirs + files:
+            found.add(entry if rel == "." else f"{rel}/{entry}".replace(os.sep, "/"))
+    return found
+
+
+def _report_files(folder: str) -> set[str] | None:
+    """The files the mark of the report in ``folder`` lists, or None when it has no valid mark."""
+    mark = os.path.join(folder, REPORT_MARK)
+    if not os.path.isfile(mark) or os.path.islink(mark):
+        return None
+    try:
+        doc = read_json(mark, "report mark", limit=1 << 20)
+    except WrtError:
+        return None
+    files = doc.get("files") if isinstance(doc, dict) and doc.get("wrt") == "report" else None
+    if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
+        return None
+    return set(files)
+
+
+def check_report_folder(folder: str | os.PathLike, option: str = "--report") -> None:
+    """Raise ``WrtError`` unless a report may be written to ``folder``: it does not exist (its
+    parent folders are made, or can be), it is an empty folder, or it is a report wrt wrote (its
+    ``REPORT_MARK`` lists everything in it: a file added since would be lost, so it is refused).
+    Called before the work, and again just before the report replaces the folder."""
+    folder = os.fspath(folder)
+    shown = f"{option} {folder}"
+    if os.path.lexists(folder) and not os.path.isdir(folder):
+        raise WrtError(f"{shown}: is a file, not a folder; name a new folder for the report")
+    if os.path.islink(folder):
+        raise WrtError(f"{shown}: is a symbolic link; name the folder itself")
+    if os.path.isdir(folder):
+        try:
+            present = _listing(folder)
+        except OSError as e:
+            raise WrtError(f"{shown}: cannot be read ({_reason(e)})") from None
+        listed = _report_files(folder)
+        if present and (listed is None or not present <= listed | {REPORT_MARK}):
+            kept = sorted(present - (listed or set()) - {REPORT_MARK})
+            shown_files = ", ".join(repr(f) for f in kept[:3]) + (", ..." if len(kept) > 3 else "")
+            raise WrtError(
+                f"{shown}: holds files that are not part of a report wrt wrote ({shown_files}); a report replaces "
+                "only an earlier report: name a new or empty folder"
+            )
+        parent = os.path.dirname(os.path.abspath(folder))
+    else:
+        parent = os.path.dirname(os.path.abspath(folder))
+        while not os.path.isdir(parent):
+            if os.path.lexists(parent):
+                raise WrtError(f"{shown}: {parent} is a file, not a folder")
+            parent = os.path.dirname(parent)
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise WrtError(f"{shown}: folder {parent} is not writable")
+
+
+@contextlib.contextmanager
+def report_folder(folder: str | os.PathLike, command: str, option: str = "--report") -> Iterator[str]:
+    """A new, empty folder beside ``folder`` for the block to fill with a report of ``command``
+    ("wrt matrix"). When the block ends normally, the mark ``REPORT_MARK`` listing what it holds
+    is written, and the folder replaces ``folder`` (``check_report_folder`` is asked again
+    first), whose old report is then removed. When the block raises, the new folder is removed
+    and ``folder`` is left as it was."""
+    folder = os.path.abspath(os.fspath(folder))
+    check_report_folder(folder, option)
+    parent = os.path.dirname(folder)
+    try:
+        os.makedirs(parent, exist_ok=True)
+        stem = _temp_stem(os.path.basename(folder), "")
+        _remove_stale(parent, stem, "")
+        work = tempfile.mkdtemp(prefix=f"{stem}{os.getpid()}.", dir=parent)
+    except OSError as e:
+        raise WrtError(f"{option} {folder}: cannot make the report ({_reason(e)})") from None
+    aside = None
+    try:
+        yield work
+        files = sorted(_listing(work))
+        write_json(os.path.join(work, REPORT_MARK), {"wrt": "report", "command": command, "files": files})
+        check_report_folder(folder, option)
+        try:
+            if os.path.isdir(folder):
+                aside = tempfile.mkdtemp(prefix=f"{stem}{os.getpid()}.old.", dir=parent)
+                os.rename(folder, os.path.join(aside, "report"))
+            os.rename(work, folder)
+        except OSError as e:
+            raise WrtError(f"{option} {folder}: cannot move the report into place ({_reason(e)})") from None
+    except BaseException:
+        if aside is not None and not os.path.exists(folder):  # put the old report back
+            with contextlib.suppress(OSError):
+                os.rename(os.path.join(aside, "report"), folder)
+        shutil.rmtree(work, ignore_errors=True)
+        if aside is not None:
+            shutil.rmtree(aside, ignore_errors=True)
+        raise
+    if aside is not None:
+        shutil.rmtree(aside, ignore_errors=True)

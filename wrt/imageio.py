@@ -5,8 +5,11 @@ on request) followed by the AOV channels named in `AOV_CHANNELS` (always float32
 render metadata as header attributes prefixed with ``wrt:``. A ``.png`` file holds the
 radiance tone-mapped by `tonemap_srgb` only.
 
-Files are written to a temporary file in the target's folder and moved into place with
-`os.replace`, so the target is always either the previous file or the complete new one.
+Files are written to a temporary file in the target's folder, read back and compared with the
+pixels meant (OpenImageIO's PNG writer does not report a failed write: a full disk left a 0-byte
+file), and moved into place with `os.replace` (``wrt.files.atomic_path``), so the target is
+always either the previous file or the complete new one. Reading checks the file's kind and
+its size in pixels before a pixel is allocated.
 """
 
 import os
@@ -16,7 +19,8 @@ import numpy as np
 import OpenImageIO as oiio
 
 from .errors import WrtError
-from .files import atomic_path
+from .files import atomic_path, check_regular_file
+from .limits import MAX_IMAGE_SIDE
 
 AOV_CHANNELS = {
     "depth": ("Z",),
@@ -39,6 +43,12 @@ SUPPORTED_EXTENSIONS = (".exr", ".png")
 METADATA_PREFIX = "wrt:"
 _RGB_CHANNELS = ("R", "G", "B")
 _MAX_EXACT_ID = 2**24  # largest magnitude up to which every integer is exact in float32
+HALF_MAX = 65504.0
+"""Largest finite half float: ``--half`` radiance beyond it is stored as this, never as Inf."""
+MAX_CHANNELS = 64
+"""Most channels an image read may have (wrt writes at most 18)."""
+MAX_IMAGE_BYTES = 1 << 40
+"""Largest image file read (bytes); its pixel count is bounded by ``MAX_IMAGE_SIDE`` too."""
 _INT32 = np.iinfo(np.int32)
 
 
@@ -143,7 +153,9 @@ def write_image(path, rgb, *, aovs=None, metadata=None, half=False):
         Written as header attributes named ``wrt:<key>``; ints must fit in int32 and
         floats are stored as float32. PNG stores them as text.
     half : bool, optional
-        Store ``R``, ``G``, ``B`` as half floats in EXR; AOVs stay float32.
+        Store ``R``, ``G``, ``B`` as half floats in EXR; AOVs stay float32. Values beyond
+        ``HALF_MAX`` in magnitude (+-Inf included) are stored as +-``HALF_MAX`` (`half_overflow`
+        counts them), so no Inf is written.
 
     Raises
     ------
@@ -151,7 +163,8 @@ def write_image(path, rgb, *, aovs=None, metadata=None, half=False):
         If `rgb`, `aovs` or `metadata` have the wrong names, types or shapes.
     WrtError
         If the extension is unsupported, AOVs are given for a PNG, the folder does not
-        exist, or OpenImageIO fails to write.
+        exist, or the file cannot be written completely (a full disk, a read-only folder);
+        the previous file is then left as it was.
     """
     path = os.fspath(path)
     ext = _extension(path)
@@ -164,7 +177,33 @@ def write_image(path, rgb, *, aovs=None, metadata=None, half=False):
         spec, pixels = _png_spec_and_pixels(rgb, metadata)
     else:
         spec, pixels = _exr_spec_and_pixels(rgb, aovs, metadata, half)
-    _write_atomically(path, ext, spec, pixels)
+    _write_atomically(path, ext, spec, pixels, half_channels=3 if half and ext == ".exr" else 0)
+
+
+def write_srgb_png(path, pixels):
+    """Write 8-bit sRGB pixels as they are to a PNG, atomically and checked like `write_image`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Target file ending in ``.png`` (any case). Its folder must exist.
+    pixels : array_like
+        (H, W, 3) uint8 sRGB-encoded values (a screenshot, say), row 0 at the top.
+    """
+    path = os.fspath(path)
+    if _extension(path) != ".png":
+        raise WrtError(f"{path}: 8-bit sRGB pixels are written as .png")
+    pixels = np.ascontiguousarray(pixels)
+    if pixels.ndim != 3 or pixels.shape[2] != 3 or pixels.dtype != np.uint8 or 0 in pixels.shape:
+        raise ValueError(f"pixels must be a non-empty (H, W, 3) uint8 array, got {pixels.shape} {pixels.dtype}")
+    height, width, _ = pixels.shape
+    _write_atomically(path, ".png", oiio.ImageSpec(width, height, 3, "uint8"), pixels)
+
+
+def half_overflow(rgb) -> int:
+    """How many values of ``rgb`` a half-float EXR (``write_image(..., half=True)``) stores as
+    +-``HALF_MAX`` because they are larger in magnitude (Inf included)."""
+    return int(np.count_nonzero(np.abs(np.asarray(rgb)) > HALF_MAX))
 
 
 def read_image(path):
@@ -184,18 +223,15 @@ def read_image(path):
     Raises
     ------
     WrtError
-        If the file is missing, has an unsupported extension, is corrupt or truncated, or
-        lacks the ``R``, ``G``, ``B`` channels or part of an AOV's channels.
+        If the file is missing, not a regular file, has an unsupported extension, is corrupt or
+        truncated, is larger than ``MAX_IMAGE_SIDE`` pixels a side or has more than
+        ``MAX_CHANNELS`` channels (checked before its pixels are allocated), or lacks the ``R``,
+        ``G``, ``B`` channels or part of an AOV's channels.
     """
     path = os.fspath(path)
     ext = _extension(path)
-    if not os.path.isfile(path):
-        raise WrtError(f"{path}: no such file")
-    inp = oiio.ImageInput.open(path)
-    if inp is None:
-        raise WrtError(f"{path}: cannot read image: {oiio.geterror()}")
+    inp, spec = open_image(path, "image")
     try:
-        spec = inp.spec()
         pixels = inp.read_image("uint8" if ext == ".png" else "float")
         if pixels is None:
             raise WrtError(f"{path}: cannot read image: {inp.geterror()}")
@@ -216,6 +252,31 @@ def read_image(path):
         aovs=_aovs_from_channels(path, channels),
         metadata=metadata,
     )
+
+
+def open_image(path, what: str, *, error: type[WrtError] = WrtError):
+    """``(ImageInput, ImageSpec)`` of the image file ``path``, opened by OpenImageIO once it is
+    known to be a regular file (a FIFO would block) of a size in pixels wrt reads: at most
+    ``MAX_IMAGE_SIDE`` a side and ``MAX_CHANNELS`` channels, refused before any pixel is
+    allocated. ``error`` (naming ``path`` and ``what`` it is) otherwise. The caller closes it."""
+    path = os.fspath(path)
+    check_regular_file(path, what, limit=MAX_IMAGE_BYTES, error=error)
+    inp = oiio.ImageInput.open(path)
+    if inp is None:
+        raise error(f"{path}: cannot read {what}: {_oiio_error(oiio.geterror())}")
+    spec = inp.spec()
+    if max(spec.width, spec.height) > MAX_IMAGE_SIDE or spec.nchannels > MAX_CHANNELS or spec.depth > 1:
+        inp.close()
+        raise error(
+            f"{path}: {what} of {spec.width} x {spec.height} pixels, {spec.nchannels} channels: wrt reads at most "
+            f"{MAX_IMAGE_SIDE} pixels a side and {MAX_CHANNELS} channels"
+        )
+    return inp, spec
+
+
+def _oiio_error(message: str) -> str:
+    """OpenImageIO's error message, first line only (it may hold several)."""
+    return (message.strip().splitlines() or ["unknown error"])[0]
 
 
 def _extension(path):
@@ -271,19 +332,19 @@ def _checked_metadata(metadata):
 
 
 def _exr_spec_and_pixels(rgb, aovs, metadata, half):
-    """Return the OIIO spec and the (H, W, C) float32 pixels of an EXR with AOVs and metadata."""
+    """Return the OIIO spec and the (H, W, C) float32 pixels of an EXR with AOVs and metadata;
+    ``half``: R, G, B as half floats, clamped to +-``HALF_MAX``."""
     names = list(_RGB_CHANNELS)
-    planes = [rgb.astype(np.float32)]
+    planes = [np.clip(rgb, -HALF_MAX, HALF_MAX).astype(np.float32) if half else rgb.astype(np.float32)]
     for name, values in aovs.items():
         names += AOV_CHANNELS[name]
         planes.append(values.astype(np.float32).reshape(*values.shape[:2], -1))
     pixels = np.ascontiguousarray(np.concatenate(planes, axis=2))
     height, width, nchannels = pixels.shape
-    spec = oiio.ImageSpec(width, height, nchannels, "float")
+    spec = oiio.ImageSpec(width, height, nchannels, "half" if half and nchannels == 3 else "float")
     spec.channelnames = tuple(names)
-    if half:
-        aov_formats = (oiio.TypeDesc("float"),) * (nchannels - 3)
-        spec.channelformats = (oiio.TypeDesc("half"),) * 3 + aov_formats
+    if half and nchannels > 3:  # per-channel formats apply only where they differ
+        spec.channelformats = (oiio.TypeDesc("half"),) * 3 + (oiio.TypeDesc("float"),) * (nchannels - 3)
     for key, value in metadata.items():
         spec.attribute(METADATA_PREFIX + key, value)
     return spec, pixels
@@ -299,21 +360,47 @@ def _png_spec_and_pixels(rgb, metadata):
     return spec, pixels
 
 
-def _write_atomically(path, ext, spec, pixels):
-    """Write `pixels` to a temporary file beside `path`, then move it over `path`
-    (``wrt.files.atomic_path``): on any failure, KeyboardInterrupt included, `path` is left as it was."""
+def _write_atomically(path, ext, spec, pixels, half_channels=0):
+    """Write `pixels` to a temporary file beside `path`, read it back, and move it over `path`
+    (``wrt.files.atomic_path``) only if it holds exactly `pixels` (the first `half_channels`
+    rounded to half floats): on any failure, KeyboardInterrupt included, `path` is left as it was."""
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
         raise WrtError(f"{path}: folder {folder} does not exist")
-    with atomic_path(path, suffix=ext) as tmp:
+    expected = pixels
+    if half_channels:
+        expected = pixels.copy()
+        expected[..., :half_channels] = pixels[..., :half_channels].astype(np.float16)
+
+    def verify(tmp):
+        inp = oiio.ImageInput.open(tmp)
+        written = None
+        if inp is None:
+            oiio.geterror()  # retrieved, so that OpenImageIO does not print it at exit
+        else:
+            names = list(inp.spec().channelnames)  # EXR stores channels in its own order
+            written = inp.read_image("uint8" if ext == ".png" else "float")
+            inp.geterror()
+            inp.close()
+            if written is not None and sorted(names) == sorted(spec.channelnames):
+                written = written[..., [names.index(n) for n in spec.channelnames]]
+        if written is None or written.shape != expected.shape or not np.array_equal(written, expected, equal_nan=True):
+            raise WrtError(
+                f"{path}: cannot write image: the file written is incomplete (is the disk full?); the file was left "
+                "as it was"
+            )
+
+    with atomic_path(path, suffix=ext, verify=verify) as tmp:
         out = oiio.ImageOutput.create(tmp)
         if out is None:
-            raise WrtError(f"{path}: cannot write image: {oiio.geterror()}")
+            raise WrtError(f"{path}: cannot write image: {_oiio_error(oiio.geterror())}")
         ok = out.open(tmp, spec) and out.write_image(pixels)
         error = out.geterror()
         ok = out.close() and ok
         if not ok:
-            raise WrtError(f"{path}: cannot write image: {error or out.geterror()}")
+            raise WrtError(
+                f"{path}: cannot write image: {_oiio_error(error or out.geterror())}; the file was left as it was"
+            )
 
 
 def _stacked(path, channels, names):

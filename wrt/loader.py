@@ -20,6 +20,7 @@ import tomllib
 from .conductors import METALS
 from .envmap import EnvironmentMapError, read_environment_map
 from .errors import MeshFileError, SceneError, WrtError
+from .limits import MAX_DEPTH, MAX_IMAGE_SIDE, MAX_MAGNITUDE, MAX_SEED, MAX_SPP
 from .meshio import apply_transform, load_mesh, transform_matrix, transform_normals, vertex_normals
 from .scene import (
     CAMERA_TYPES,
@@ -58,18 +59,8 @@ GROUP_SHAPE_TYPES = ("sphere", "triangle", "polygon", "mesh", "disk", "cylinder"
 MESH_SHADING = ("flat", "smooth")  # a mesh's shading normals: its face normals, or interpolated vertex normals
 LIGHT_TYPES = ("point", "directional", "spot", "area", "sphere", "environment")
 DEFAULT_MATERIAL = Material(name="default", type="diffuse", albedo=(0.5, 0.5, 0.5))
-MAX_IMAGE_SIDE = 16384
-MAX_SPP = 1 << 20
-MAX_DEPTH = 1024
-MAX_SEED = 2**31 - 1
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 FLOAT32_TINY = float(np.finfo(np.float32).tiny)  # the smallest normal float32
-MAX_MAGNITUDE = 1e18
-"""Largest magnitude of any number of a scene (coordinates, lengths, radiances, shutter times) and
-of a shape's displacement over the shutter (``|velocity| * max(|open|, |close|)``). The kernels
-compute in float32 (largest finite value about 3.4e38): squared distances between points within
-this bound (at most 3 * (2e18)^2 = 1.2e37) and a radiance summed over 2^20 samples (1e24) stay
-finite, with a factor of 28 to spare. Larger numbers are refused rather than rendered as Inf or NaN."""
 BEYOND_FLOAT32 = f"must be at most {MAX_MAGNITUDE:g} in magnitude (so that float32 products of it stay finite)"
 _REQUIRED = object()
 

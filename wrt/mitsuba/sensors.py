@@ -7,13 +7,11 @@ import math
 
 import numpy as np
 
-from ..loader import MAX_MAGNITUDE
+from ..limits import MAX_DEPTH, MAX_MAGNITUDE
 from .transforms import as_list, mirrors, vertical_fov
 from .xml import Document, Element, Plugin, parse_number
 
 SENSORS = ("perspective", "thinlens", "orthographic")
-MAX_DEPTH = 1024
-"""wrt's largest ``max_depth``: what Mitsuba's ``max_depth = -1`` (unbounded) becomes."""
 
 FILTERS = {"box": ("radius", 0.5), "gaussian": ("stddev", 0.5), "tent": ("radius", 1.0)}
 """Mitsuba reconstruction filters wrt has, with the parameter that sets their width and the
