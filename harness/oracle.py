@@ -19,6 +19,7 @@ import threading
 
 import numpy as np
 
+from wrt.imageio import write_srgb_png
 from wrt.scene import AreaLight, Cylinder, Disk, Instance, Plane, Polygon, Scene, Sphere, SphereLight, Triangle
 
 QUADRIC_SIDES = 512  # vertices of the rims of disks and tubes: chords within 2e-5 of the radius (1 - cos(pi/512))
@@ -180,8 +181,8 @@ def _rasterize(scene: Scene, pv, w: int, h: int, reach: float) -> np.ndarray:
 
 def overview(scene: Scene, path: str, size: tuple[int, int] = (480, 360)) -> None:
     """A three-quarter view of the scene, shapes and light surfaces in their ``palette`` colours, with
-    the camera's frustum drawn, written to ``path`` (PNG): from behind the camera, to its right and
-    above, the scene camera's ``up`` vertical on screen."""
+    the camera's frustum drawn, written to ``path`` (PNG, by ``wrt.imageio.write_srgb_png``): from
+    behind the camera, to its right and above, the scene camera's ``up`` vertical on screen."""
     _offscreen_environment()
     import pyvista as pv
 
@@ -219,6 +220,6 @@ def _overview(scene, pv, path, size, center, radius) -> None:
         plotter.camera.position = center + 2.6 * radius * diagonal / np.linalg.norm(diagonal)
         plotter.camera.focal_point = center
         plotter.camera.up = up
-        plotter.screenshot(path)
+        write_srgb_png(path, plotter.screenshot(return_img=True)[..., :3])
     finally:
         plotter.close()

@@ -13,12 +13,11 @@ from __future__ import annotations
 import datetime
 import html
 import os
-import shutil
-import tempfile
 
 import numpy as np
 
 import wrt
+from wrt.files import report_folder, write_atomic
 from wrt.host import machine_line
 from wrt.imageio import srgb_encode, write_image
 
@@ -100,13 +99,10 @@ def _scores(r: FeatureResult) -> str:
 
 
 def write_report(results: list[FeatureResult], folder: str, device: str) -> str:
-    """Write ``folder/index.html`` and its images (atomically: built in a temporary folder, then
-    moved into place); returns the page's path."""
-    folder = os.path.abspath(folder)
-    parent = os.path.dirname(folder)
-    os.makedirs(parent, exist_ok=True)
-    work = tempfile.mkdtemp(prefix=".report-", dir=parent)
-    try:
+    """Write ``folder/index.html`` and its images, built in a new folder that then replaces
+    ``folder`` (``wrt.files.report_folder``: only an earlier report is ever replaced, anything
+    else is refused); returns the page's path."""
+    with report_folder(folder, "wrt matrix") as work:
         rows = []
         for r in results:
             name = r.feature.name
@@ -158,16 +154,5 @@ def write_report(results: list[FeatureResult], folder: str, device: str) -> str:
 </tbody></table>
 </body></html>
 """
-        with open(os.path.join(work, "index.html"), "w") as f:
-            f.write(page)
-        old = None
-        if os.path.exists(folder):
-            old = tempfile.mkdtemp(prefix=".report-old-", dir=parent)
-            os.rename(folder, os.path.join(old, "r"))
-        os.rename(work, folder)
-        if old:
-            shutil.rmtree(old, ignore_errors=True)
-    except BaseException:
-        shutil.rmtree(work, ignore_errors=True)
-        raise
+        write_atomic(os.path.join(work, "index.html"), page)
     return os.path.join(folder, "index.html")

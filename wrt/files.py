@@ -104,6 +104,12 @@ def check_writable(path: str | os.PathLike, *, protect: tuple = (), option: str 
             raise WrtError(f"{shown}: is the input {os.fspath(other)}; refusing to overwrite it")
 
 
+def _umask() -> int:
+    umask = os.umask(0)
+    os.umask(umask)
+    return umask
+
+
 def _fsync(path: str) -> None:
     """Flush ``path``'s data to the disk (``OSError`` when the disk refuses it)."""
     fd = os.open(path, os.O_RDONLY)
@@ -142,9 +148,7 @@ def atomic_path(
             try:
                 mode = stat.S_IMODE(os.stat(path).st_mode)  # a replaced file keeps its permissions
             except FileNotFoundError:
-                umask = os.umask(0)
-                os.umask(umask)
-                mode = 0o666 & ~umask
+                mode = 0o666 & ~_umask()
             os.chmod(tmp, mode)
             os.replace(tmp, path)
         except OSError as e:
@@ -323,8 +327,8 @@ def check_report_folder(folder: str | os.PathLike, option: str = "--report") -> 
             kept = sorted(present - (listed or set()) - {REPORT_MARK})
             shown_files = ", ".join(repr(f) for f in kept[:3]) + (", ..." if len(kept) > 3 else "")
             raise WrtError(
-                f"{shown}: holds files that are not part of a report wrt wrote ({shown_files}); a report replaces "
-                "only an earlier report: name a new or empty folder"
+                f"{shown}: holds files wrt did not write there ({shown_files}); wrt replaces only a folder it wrote "
+                "itself: name a new or empty folder"
             )
         parent = os.path.dirname(os.path.abspath(folder))
     else:
@@ -352,6 +356,7 @@ def report_folder(folder: str | os.PathLike, command: str, option: str = "--repo
         stem = _temp_stem(os.path.basename(folder), "")
         _remove_stale(parent, stem, "")
         work = tempfile.mkdtemp(prefix=f"{stem}{os.getpid()}.", dir=parent)
+        os.chmod(work, 0o777 & ~_umask())  # mkdtemp's 0o700 is for temporary folders, not for a report
     except OSError as e:
         raise WrtError(f"{option} {folder}: cannot make the report ({_reason(e)})") from None
     aside = None

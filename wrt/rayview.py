@@ -44,6 +44,8 @@ import numpy as np
 import pyvista as pv
 
 from .errors import WrtError
+from .files import atomic_path, check_report_folder, check_writable, report_folder
+from .imageio import write_srgb_png
 from .loader import load_scene
 from .rays import DEFAULT_CAPACITY, RayTree, grid_pixels, trace_rays
 from .scene import (
@@ -405,20 +407,17 @@ def _offscreen_backend() -> None:
 def save_view(
     tree: RayTree, path: str, size: tuple[int, int] = (1280, 960), view: tuple[float, float] | None = None
 ) -> None:
-    """Render the recording off screen to the PNG ``path`` (``view``: see ``draw``), atomically: to a
-    temporary file beside it, renamed into place once complete."""
-    folder, name = _folder_of(path)
-    tmp = os.path.join(folder, f".{name}.{os.getpid()}.png")
+    """Render the recording off screen to the PNG ``path`` (``view``: see ``draw``), written and
+    checked by ``wrt.imageio.write_srgb_png`` (atomic; a failed write keeps the old file)."""
+    _folder_of(path)
     _offscreen_backend()
     plotter = pv.Plotter(off_screen=True, window_size=list(size))
     try:
         draw(plotter, tree, view)
-        plotter.screenshot(tmp)
-        os.replace(tmp, path)
+        image = plotter.screenshot(return_img=True)
     finally:
         plotter.close()
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    write_srgb_png(path, np.ascontiguousarray(image[..., :3]))
 
 
 def show(tree: RayTree, view: tuple[float, float] | None = None) -> None:
@@ -429,10 +428,54 @@ def show(tree: RayTree, view: tuple[float, float] | None = None) -> None:
     plotter.show()
 
 
+def pieces_folder(path: str) -> str:
+    """The folder of pieces VTK writes beside the multiblock file ``path`` (``rays.vtm``: ``rays/``)."""
+    return os.path.splitext(path)[0]
+
+
+def _leaf_points(blocks: pv.MultiBlock) -> list[int]:
+    """The point count of every dataset in ``blocks``, depth first."""
+    counts = []
+    for block in blocks:
+        counts += _leaf_points(block) if isinstance(block, pv.MultiBlock) else [0 if block is None else block.n_points]
+    return counts
+
+
 def export(tree: RayTree, path: str) -> None:
-    """Write the blocks of ``ray_blocks`` to a VTK multiblock file (``.vtm`` plus a folder of pieces)."""
-    _folder_of(path)
-    ray_blocks(tree).save(path)
+    """Write the blocks of ``ray_blocks`` to a VTK multiblock: the file ``path`` (``.vtm``) and its
+    folder of pieces (``pieces_folder``).
+
+    Both are written to temporary places beside them with VTK's errors collected, read back and
+    compared with the blocks, and only then moved into place; the pieces folder replaces only a
+    folder of pieces wrt wrote (``wrt.files.report_folder``). Any failure (a full disk) is one
+    ``WrtError`` and leaves the previous export as it was.
+    """
+    folder, name = _folder_of(path)
+    blocks = ray_blocks(tree)
+    stem = os.path.splitext(name)[0]
+    with atomic_path(path, suffix=".vtm") as vtm, report_folder(pieces_folder(path), "wrt rays", "--export") as work:
+        staged = os.path.join(work, name)
+        with pv.vtk_verbosity("off"), pv.VtkErrorCatcher(send_to_logging=False) as catcher:
+            blocks.save(staged)
+        if catcher.error_events or not os.path.isfile(staged):
+            detail = catcher.error_events[0].alert.strip().splitlines()[-1] if catcher.error_events else "no file"
+            raise WrtError(f"{path}: cannot write the multiblock ({detail}); the previous export was left as it was")
+        with pv.vtk_verbosity("off"), pv.VtkErrorCatcher(send_to_logging=False) as catcher:
+            written = pv.read(staged)
+        if catcher.error_events or _leaf_points(written) != _leaf_points(blocks):
+            raise WrtError(
+                f"{path}: the multiblock written is incomplete (is the disk full?); the previous export "
+                "was left as it was"
+            )
+        try:
+            for piece in os.listdir(os.path.join(work, stem)):
+                os.rename(os.path.join(work, stem, piece), os.path.join(work, piece))
+            os.rmdir(os.path.join(work, stem))
+            os.replace(staged, vtm)
+        except OSError as e:
+            raise WrtError(
+                f"{path}: cannot write the multiblock ({e.strerror}); the previous export was left as it was"
+            )
 
 
 def run(
@@ -454,11 +497,12 @@ def run(
     if output is not None:
         if os.path.splitext(output)[1].lower() != ".png":
             raise WrtError(f"{output}: -o writes a picture, use a .png name")
-        _folder_of(output)
+        check_writable(output, option="-o", protect=(scene_file,))
     if export_path is not None:
         if os.path.splitext(export_path)[1].lower() != ".vtm":
             raise WrtError(f"{export_path}: --export writes a VTK multiblock, use a .vtm name")
-        _folder_of(export_path)
+        check_writable(export_path, option="--export", protect=(scene_file,))
+        check_report_folder(pieces_folder(export_path), "--export")
     if interactive:
         _require_display()
     scene = load_scene(scene_file)

@@ -9,7 +9,7 @@ import math
 import os
 from dataclasses import dataclass, field
 
-from ..files import write_atomic
+from ..files import report_folder, write_atomic
 from ..tables import text_table
 
 
@@ -93,15 +93,15 @@ def format_markdown(results: list[CaseResult], rays: int, seed: int) -> str:
 
 
 def write_report(results: list[CaseResult], folder: str, rays: int, seed: int) -> tuple[str, str]:
-    """Write ``stress.json`` and ``stress.md`` into ``folder`` (created if needed); returns their paths."""
-    os.makedirs(folder, exist_ok=True)
-    json_path, md_path = os.path.join(folder, "stress.json"), os.path.join(folder, "stress.md")
+    """Write ``stress.json`` and ``stress.md`` as the report folder ``folder``
+    (``wrt.files.report_folder``: it replaces only an earlier report); returns their paths."""
     doc = {
         "rays": rays,
         "seed": seed,
         "passed": all(r.passed for r in results),
         "cases": [r.as_dict() for r in results],
     }
-    write_atomic(json_path, json.dumps(doc, indent=2, default=float) + "\n")
-    write_atomic(md_path, format_markdown(results, rays, seed))
-    return json_path, md_path
+    with report_folder(folder, "wrt stress") as work:
+        write_atomic(os.path.join(work, "stress.json"), json.dumps(doc, indent=2, default=float) + "\n")
+        write_atomic(os.path.join(work, "stress.md"), format_markdown(results, rays, seed))
+    return os.path.join(folder, "stress.json"), os.path.join(folder, "stress.md")

@@ -8,7 +8,7 @@ import time
 import numpy as np
 
 from ..device import init_warp
-from ..errors import WrtError
+from ..files import check_report_folder
 from .degenerate import (
     case_coincident,
     case_degenerate_triangles,
@@ -81,6 +81,8 @@ def run_suite(*, rays: int = DEFAULT_RAYS, seed: int = 0, only=None, progress=No
 
 def command(rays: int, seed: int, report: str | None) -> int:
     """``wrt stress``: run the suite, print the table (and write the report); 0 if all pass, else 1."""
+    if report:
+        check_report_folder(report)  # before the work, not after it
     start = time.perf_counter()
     results = run_suite(
         rays=rays,
@@ -96,9 +98,5 @@ def command(rays: int, seed: int, report: str | None) -> int:
         f"{time.perf_counter() - start:.0f} s"
     )
     if report:
-        try:
-            paths = write_report(results, report, rays, seed)
-        except OSError as e:
-            raise WrtError(f"{report}: cannot write the report ({e.strerror})") from None
-        print("wrote " + ", ".join(paths))
+        print("wrote " + ", ".join(write_report(results, report, rays, seed)))
     return 1 if failed else 0
