@@ -115,7 +115,9 @@ def resolve_device(name: str | wp.Device | None) -> wp.Device:
     """
     if isinstance(name, wp.Device):
         return name
-    name = name or "cpu"
+    name = "cpu" if name is None else name
+    if not isinstance(name, str) or not name:
+        raise WrtError(f"device {name!r}: not a device name (use cpu, cuda or cuda:N)")
     if name.startswith("cuda") and not wp.is_cuda_available():
         raise WrtError(f"device {name!r}: Warp found no CUDA device on this machine (use --device cpu)")
     try:

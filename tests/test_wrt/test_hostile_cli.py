@@ -273,3 +273,12 @@ def test_compare_refuses_a_huge_image_before_allocating_it(tmp_path, capsys):
     code = main(["compare", str(big), str(big)])
     assert code == 2
     assert "20000 x 20000 pixels" in one_error_line(capsys)
+
+
+def test_an_empty_device_name_is_refused_by_the_library_too():
+    import wrt
+    from wrt.errors import WrtError
+
+    scene = wrt.load_scene(SCENE)
+    with pytest.raises(WrtError, match="device ''"):
+        wrt.render(scene, device="")
