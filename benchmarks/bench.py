@@ -49,6 +49,7 @@ from importlib import resources
 
 import numpy as np
 from wrt_harness import mitsuba_peer
+from wrt_harness.commands import check_output_folder
 from wrt_harness.references import REFERENCE_SEED
 from wrt_harness.score import convergence_slope, rmse, ssim
 
@@ -287,17 +288,9 @@ def reference_image(bench: BenchScene, folder: str, spp: int, device: str, log=N
     between the halves: the reference's own RMSE), ``source`` and ``path``."""
     scene = override_render(bench.load(), sampler=REFERENCE_SAMPLER)
     path = os.path.join(folder, f"{bench.name}-{scene_key(scene)}.exr")
-    if os.path.exists(path):
-        cached = read_image(path)
-        if int(cached.metadata.get("spp", 0)) >= spp:
-            return {
-                "rgb": cached.rgb,
-                "spp": int(cached.metadata["spp"]),
-                "rmse_floor": float(cached.metadata["rmse_floor"]),
-                "source": "cached",
-                "path": path,
-                "render_s": float(cached.metadata["render_time_s"]),
-            }
+    cached = _cached_reference(path)
+    if cached is not None and cached["spp"] >= spp:
+        return cached
     if log:
         log(f"  reference: {REFERENCE_SAMPLER}, {spp} spp in two halves ...")
     half = max(1, spp // 2)
@@ -322,6 +315,27 @@ def reference_image(bench: BenchScene, folder: str, spp: int, device: str, log=N
         },
     )
     return {"rgb": rgb, "spp": 2 * half, "rmse_floor": floor, "source": "rendered", "path": path, "render_s": seconds}
+
+
+def _cached_reference(path: str) -> dict | None:
+    """The reference ``reference_image`` wrote to ``path`` (``rgb``, ``spp``, ``rmse_floor``...), or
+    None when there is none or it is not one (unreadable, or metadata missing or not numbers): it
+    is rendered again and replaces the file."""
+    if not os.path.exists(path):
+        return None
+    try:
+        cached = read_image(path)
+        found = {
+            "rgb": cached.rgb,
+            "spp": int(cached.metadata["spp"]),
+            "rmse_floor": float(cached.metadata["rmse_floor"]),
+            "source": "cached",
+            "path": path,
+            "render_s": float(cached.metadata["render_time_s"]),
+        }
+    except (WrtError, KeyError, TypeError, ValueError):
+        return None
+    return found
 
 
 def reference_spp(spp_per_s: float, budget_s: float) -> int:
@@ -743,6 +757,10 @@ def command(
     scenes = [BenchScene(p) for p in paths] or default_scenes(quick)
     if quick and paths:
         scenes = [s if s.is_mitsuba else quick_size(s) for s in scenes]
+    outputs = ["results.json", "results.csv", *(f"{s.name}.png" for s in scenes)]
+    outputs += ["throughput.json", "targets.json"] if triangles else []
+    for folder, names in ((out_dir, outputs), (os.path.join(out_dir, "references"), ())):  # before the work
+        check_output_folder(folder, names, option="-o", protect=tuple(paths))
     resolve_device(device)  # an unknown device or a missing GPU stops here too
     for s in scenes:
         s.load()  # bad scenes stop here, before anything is rendered

@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable
 
+from wrt.cli import add_device_option
+
 
 def bench_verb(verbs) -> Callable[[argparse.Namespace], int]:
     """``wrt bench [SCENE...] [--budget S] [-o DIR] [--device] [--quick] [--triangles N]``."""
@@ -37,7 +39,7 @@ def bench_verb(verbs) -> Callable[[argparse.Namespace], int]:
         metavar="DIR",
         help="output folder (default bench-results); references are cached in DIR/references",
     )
-    b.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
+    add_device_option(b)
     b.add_argument(
         "--quick",
         action="store_true",

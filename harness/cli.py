@@ -13,6 +13,7 @@ import argparse
 import contextlib
 from collections.abc import Callable
 
+from wrt.cli import add_device_option
 from wrt.errors import WrtError
 
 Run = Callable[[argparse.Namespace], int]
@@ -58,7 +59,7 @@ def matrix_verb(verbs) -> Run:
         "convergence, print a table. Exit 0 when all pass, 1 on a regression, 2 on bad input.",
     )
     m.add_argument("features", nargs="*", metavar="FEATURE", help="feature names (default: all)")
-    m.add_argument("--device", default="cpu", help="Warp device: cpu (default), cuda or cuda:N")
+    add_device_option(m)
     m.add_argument("--jobs", type=int, default=1, help="features rendered at once (default 1; each uses all cores)")
     m.add_argument("--report", metavar="DIR", help="write an HTML report (DIR/index.html and PNGs)")
     m.add_argument(
@@ -110,7 +111,7 @@ def refs_verb(verbs) -> Run:
     regen.add_argument("features", nargs="*", metavar="FEATURE")
     regen.add_argument("--failed", action="store_true", help="only features that fail (or lack a valid reference)")
     regen.add_argument("--spp", type=int, help="reference spp (default: the matrix entry's reference_spp)")
-    regen.add_argument("--device", default="cpu")
+    add_device_option(regen)
     add_matrix_options(regen)
     add_scheduler_option(regen, "reference batch and calibration render")
     cal = actions.add_parser(
@@ -120,7 +121,7 @@ def refs_verb(verbs) -> Run:
         "reference and set the threshold under it (min - max(0.002, 3 std)); stored beside the reference as NAME.json.",
     )
     cal.add_argument("features", nargs="*", metavar="FEATURE")
-    cal.add_argument("--device", default="cpu")
+    add_device_option(cal)
     add_matrix_options(cal)
     fa = actions.add_parser(
         "false-alarms",
@@ -133,7 +134,7 @@ def refs_verb(verbs) -> Run:
     fa.add_argument("--seeds", type=int, default=50, help="seeds per feature (default 50)")
     fa.add_argument("--max-rate", type=float, default=0.01, help="largest acceptable rate (default 0.01)")
     fa.add_argument("--json", metavar="FILE", help="also write the counts and failures to FILE (atomically)")
-    fa.add_argument("--device", default="cpu")
+    add_device_option(fa)
     add_matrix_options(fa)
 
     def run(args: argparse.Namespace) -> int:
@@ -226,7 +227,7 @@ def mutants_verb(verbs) -> Run:
         metavar="DIR",
         help="Warp kernel cache of the mutant runs (default: Warp's own, where the unmutated kernels are cached)",
     )
-    m.add_argument("--device", default="cpu", help="Warp device (default cpu)")
+    add_device_option(m)
     add_matrix_options(m)
 
     def run(args: argparse.Namespace) -> int:

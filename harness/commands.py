@@ -17,7 +17,7 @@ import sys
 from tqdm import tqdm
 
 from wrt.errors import WrtError
-from wrt.files import write_json
+from wrt.files import check_report_folder, check_writable, write_json
 from wrt.host import machine_info
 from wrt.imageio import read_image
 
@@ -27,6 +27,7 @@ from .matrix import FEATURES_FILE, Feature, load_features, select
 from .references import (
     ReferenceError,
     calibrate,
+    check_storable,
     load_reference,
     refs_command,
     render_reference,
@@ -86,6 +87,30 @@ def matrix_json(results, wrong: bool = False) -> dict:
     return {"wrong": wrong, "features": features}
 
 
+def check_output_folder(folder: str, names=(), *, option: str, protect: tuple = ()) -> None:
+    """``WrtError`` (naming ``option`` and the path) unless a command can write the files ``names``
+    into ``folder``, before its work: ``folder`` is absent, and the nearest folder above it that
+    exists is writable (it is made), or it is a writable folder in which none of ``names`` is a
+    folder or one of the inputs ``protect``. Only those files are written; nothing else in the
+    folder is touched."""
+    shown = f"{option} {folder}"
+    if os.path.lexists(folder) and not os.path.isdir(folder):
+        raise WrtError(f"{shown}: is a file, not a folder")
+    if not os.path.isdir(folder):
+        parent = os.path.dirname(os.path.abspath(folder))
+        while not os.path.isdir(parent):
+            if os.path.lexists(parent):
+                raise WrtError(f"{shown}: {parent} is a file, not a folder")
+            parent = os.path.dirname(parent)
+        if not os.access(parent, os.W_OK | os.X_OK):
+            raise WrtError(f"{shown}: folder {parent} is not writable")
+        return
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise WrtError(f"{shown}: folder is not writable")
+    for name in names:
+        check_writable(os.path.join(folder, name), option=option, protect=protect)
+
+
 def _features(names: list[str], features_file: str | None, refs: str | None, made: bool = True) -> list[Feature]:
     """The features called ``names`` (all when empty) of ``features_file``; ``WrtError`` when a
     features file comes without ``refs``, or (``made``) when the folder ``refs`` does not exist."""
@@ -113,6 +138,10 @@ def matrix(
     ``cluster`` (a ``wrt.distributed.Cluster``), one task per feature; with ``json_path``, write
     the results there too (``matrix_json``)."""
     features = _features(names, features_file, refs)
+    if json_path:  # every output is checked before the renders
+        check_writable(json_path, option="--json", protect=(features_file or FEATURES_FILE,))
+    if report:
+        check_report_folder(report)
     if wrong:
         missing = [f for f in features if not f.wrong]
         if missing:
@@ -165,6 +194,7 @@ def refs_regenerate(
             os.makedirs(refs, exist_ok=True)
         except OSError as e:
             raise WrtError(f"--refs {refs}: cannot make the folder ({e.strerror})") from None
+    check_storable(features, refs)  # before any render: a read-only folder, a folder in a file's place
     if failed_only:
         todo = []
         for feature in features:
@@ -207,6 +237,8 @@ def refs_false_alarms(
     """Measure the false-alarm rate of each stochastic feature over ``count`` seeds
     (``false_alarms.false_alarms``); exit 1 when one exceeds ``max_rate``."""
     features = [f for f in _features(names, features_file, refs) if f.stochastic]
+    if json_path:
+        check_writable(json_path, option="--json", protect=(features_file or FEATURES_FILE,))
     results = []
     for feature in features:
         with tqdm(total=count, desc=feature.name, unit="seed", file=sys.stderr, disable=None) as bar:
@@ -225,7 +257,10 @@ def refs_false_alarms(
 
 
 def refs_calibrate(names: list[str], device: str, features_file: str | None = None, refs: str | None = None) -> int:
-    for feature in _features(names, features_file, refs):
+    """Calibrate the stored references of the features called ``names`` (all when empty) again."""
+    features = _features(names, features_file, refs)
+    check_storable(features, refs, ("json",))
+    for feature in features:
         cal = calibrate(feature, load_reference(feature, refs, calibration=False), device=device)
         store_calibration(feature, cal, refs)
         flips = cal[f"{cal['flip_criterion']}_flip"]

@@ -18,16 +18,17 @@ from __future__ import annotations
 
 import copy
 import hashlib
+import importlib.util
 import json
 import math
 import os
 import re
 from dataclasses import dataclass, field
-from importlib import resources
 
 import tomllib
 
 from wrt.errors import WrtError
+from wrt.files import read_bytes
 from wrt.loader import override_render, parse_scene
 from wrt.scene import INTEGRATORS, EnvironmentLight, Mesh, Scene
 
@@ -42,6 +43,9 @@ MATRIX_SAMPLER = "independent"  # unless a feature's scene names one (see load_f
 _PATH_PART = re.compile(r"^(?P<key>[A-Za-z_]\w*)(\[(?P<sel>[^\]]+)\])?$")
 # a feature's name names its reference files (NAME.exr ...) and the report's row
 _NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
+# PACKAGE:PATH scenes: files of wrt's own packages only, found without running any module's code
+OWN_PACKAGES = ("wrt", "wrt_harness", "wrt_benchmarks")
+_PACKAGE = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*")
 _KEYS = "name scene integrator width height spp seed reference_spp geometry_threshold closed_form_mean wrong".split()
 
 
@@ -102,26 +106,59 @@ def _set_path(doc: dict, path: str, value, where: str) -> None:
         node = items[index]
 
 
-def _read_toml(path: str) -> dict:
+def _read_toml(path: str, what: str) -> dict:
+    """The TOML document of the ``what`` file ``path`` (read by ``wrt.files.read_bytes``: a FIFO,
+    a device or an oversized file is refused before a byte is read); ``WrtError`` naming the file
+    when it cannot be read, is not UTF-8 text or not TOML, or is nested too deeply to parse."""
+    if not os.path.lexists(path):  # the words of wrt.loader's scene files
+        raise WrtError(f"{path}: cannot read {what} file (no such file)")
+    data = read_bytes(path, what).removeprefix(b"\xef\xbb\xbf")  # the BOM Windows editors write
     try:
-        with open(path, "rb") as f:
-            return tomllib.load(f)
-    except OSError as e:
-        raise WrtError(f"{path}: cannot read ({e.strerror})") from None
+        return tomllib.loads(data.decode("utf-8"))
+    except UnicodeDecodeError as e:
+        raise WrtError(f"{path}: not valid TOML: not UTF-8 text (byte {e.start})") from None
     except tomllib.TOMLDecodeError as e:
         raise WrtError(f"{path}: not valid TOML: {e}") from None
+    except ValueError:  # an integer of more digits than Python converts (sys.get_int_max_str_digits)
+        raise WrtError(f"{path}: not valid TOML: an integer of too many digits") from None
+    except RecursionError:  # tomllib recurses once per level of [ or {
+        raise WrtError(f"{path}: not valid TOML: arrays or inline tables nested too deeply") from None
 
 
-def scene_path(spec: str, base: str) -> str:
-    """The file a feature's ``scene`` names: ``PACKAGE:PATH``, a file of an installed package
-    (``wrt.examples:path/cornell_box.toml``: wrt's example scenes), or a path relative to the
-    features file's folder ``base``."""
+def package_folder(package: str, where: str = "scene") -> str:
+    """The folder of ``package``, one of wrt's own packages (``OWN_PACKAGES`` and their
+    subpackages: ``wrt.examples``), found by ``importlib.util.find_spec`` one level at a time:
+    only wrt's own packages are imported on the way (a parent's ``__init__``), never the module
+    named, and never a module that is not a package (``wrt_harness.__main__`` runs a command).
+    Any other name is a ``WrtError`` naming ``where``."""
+    parts = package.split(".")
+    if not _PACKAGE.fullmatch(package) or parts[0] not in OWN_PACKAGES:
+        raise WrtError(
+            f"{where}: PACKAGE:PATH names a file of wrt's own packages ({', '.join(OWN_PACKAGES)} and their "
+            f"subpackages), not of {package!r}; name any other file by its path"
+        )
+    spec = None
+    for n in range(1, len(parts) + 1):
+        name = ".".join(parts[:n])
+        try:
+            spec = importlib.util.find_spec(name)  # imports name's parent: a package of wrt's, checked below
+        except (ImportError, ValueError):
+            spec = None
+        if spec is None:
+            raise WrtError(f"{where}: no package {name!r} in wrt")
+        if spec.submodule_search_locations is None:
+            raise WrtError(f"{where}: {name!r} is a module of wrt, not a package")
+    return list(spec.submodule_search_locations)[0]
+
+
+def scene_path(spec: str, base: str, where: str | None = None) -> str:
+    """The file a feature's ``scene`` names: ``PACKAGE:PATH``, a file of one of wrt's own packages
+    (``wrt.examples:path/cornell_box.toml``: wrt's example scenes; ``package_folder``), or a path
+    relative to the features file's folder ``base``. ``where`` names the key in errors."""
     package, sep, rest = spec.partition(":")
     if sep and re.fullmatch(r"[A-Za-z_][\w.]*", package):
-        try:
-            return os.path.normpath(os.path.join(str(resources.files(package)), rest))
-        except ModuleNotFoundError:
-            raise WrtError(f"scene {spec!r}: no installed package {package!r}") from None
+        folder = package_folder(package, f"{where or 'scene'} = {spec!r}")
+        return os.path.normpath(os.path.join(folder, rest))
     return os.path.normpath(os.path.join(base, spec))
 
 
@@ -130,7 +167,7 @@ def load_features(path: str = FEATURES_FILE) -> list[Feature]:
     entry that is not a table, lacks a key, has an unknown one, a value of the wrong type or out of
     range, names a scene file that does not exist or an unknown integrator, or a duplicate name is a
     ``WrtError`` naming the file, the entry and the key."""
-    doc = _read_toml(path)
+    doc = _read_toml(path, "features")
     base = os.path.dirname(os.path.abspath(path))
     entries = doc.get("feature")
     if entries is None:
@@ -164,7 +201,7 @@ def load_features(path: str = FEATURES_FILE) -> list[Feature]:
             name = text("name")
             if not _NAME.fullmatch(name):
                 raise WrtError(f"{where}.name = {name!r}: must be letters, digits, '_', '.' or '-' (it names files)")
-            scene = scene_path(text("scene"), base)
+            scene = scene_path(text("scene"), base, f"{where}.scene")
             if not os.path.isfile(scene):
                 raise WrtError(f"{where}.scene = {entry['scene']!r}: no such file {scene}")
             spp = integer("spp", 1)
@@ -235,7 +272,7 @@ def select(features: list[Feature], names: list[str]) -> list[Feature]:
 def scene_document(feature: Feature, wrong: bool = False) -> dict:
     """The feature's scene as a TOML document with its render settings (and, if ``wrong``, the
     wrong variant's patches) applied."""
-    doc = _read_toml(feature.scene)
+    doc = _read_toml(feature.scene, "scene")
     render = doc.setdefault("render", {})
     render.update(
         integrator=feature.integrator, width=feature.width, height=feature.height, spp=feature.spp, seed=feature.seed

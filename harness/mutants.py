@@ -28,9 +28,11 @@ import time
 from dataclasses import asdict, dataclass
 
 from wrt.errors import WrtError
-from wrt.files import write_json
+from wrt.files import read_bytes, read_json, write_json
 
+from .commands import check_output_folder
 from .matrix import FEATURES_FILE, _read_toml, load_features
+from .references import json_kind
 from .run import CHECKS
 
 FAULTS_FILE = os.path.join(os.path.dirname(__file__), "faults.toml")
@@ -49,6 +51,8 @@ FAULT_KEYS = ("id", "file", "old", "new", "description", "category", "expect")
 MODES = ("full", "expected", "first-catch")
 CRASH = "run crashed"  # the check named for a matrix run that crashed as a whole
 TAIL = 2000  # characters of a crashed run's output kept
+RESULTS = "mutants.json"  # the results file in the --report folder
+RESULTS_LIMIT = 256 << 20  # bytes of a results file read (all 39 faults on the full matrix: about 2 MB)
 
 
 @dataclass(frozen=True)
@@ -73,9 +77,9 @@ def load_faults(path: str = FAULTS_FILE, features_file: str | None = None) -> li
     """The faults of ``path``, validated strictly: every key of ``FAULT_KEYS`` and no other, strings
     (``expect`` a non-empty list of them), unique ids, ``expect`` naming features of ``features_file``
     (default: wrt's own). ``WrtError`` (one line, naming file, fault and key) otherwise."""
-    doc = _read_toml(path)
+    doc = _read_toml(path, "faults")
     entries = doc.get("fault")
-    if not isinstance(entries, list) or not entries:
+    if not isinstance(entries, list) or not entries or not all(isinstance(e, dict) for e in entries):
         raise WrtError(f"{path}: needs a list of [[fault]] tables")
     features = {f.name for f in load_features(features_file or FEATURES_FILE)}
     faults, seen = [], set()
@@ -90,6 +94,9 @@ def load_faults(path: str = FAULTS_FILE, features_file: str | None = None) -> li
         for key in FAULT_KEYS[:-1]:
             if not isinstance(entry[key], str) or not entry[key]:
                 raise WrtError(f"{where}: key {key!r} = {entry[key]!r}: must be a non-empty string")
+        problem = _path_problem(entry["file"])
+        if problem:
+            raise WrtError(f"{where}: key 'file' = {entry['file']!r}: {problem}")
         expect = entry["expect"]
         if not isinstance(expect, list) or not expect or not all(isinstance(e, str) for e in expect):
             raise WrtError(f"{where}: key 'expect' = {expect!r}: must be a non-empty list of feature names")
@@ -116,25 +123,44 @@ def package_dirs() -> dict[str, str]:
     return dirs
 
 
+def _path_problem(file: str) -> str | None:
+    """Why ``file`` is not the form of a path inside the installed packages, or None: it must be
+    relative, '/'-separated, with no empty, '.' or '..' part (it is joined to the scratch copy)."""
+    parts = file.split("/")
+    if file.startswith("/") or "\\" in file or any(part in ("", ".", "..") for part in parts):
+        return "must be a relative path inside the installed packages ('/'-separated, no '..', '.' or empty part)"
+    return None
+
+
 def source_file(fault: Fault, dirs: dict[str, str] | None = None) -> str:
-    """Where the file of ``fault`` (a path inside the installed packages) lies in this installation."""
+    """Where the file of ``fault`` (a path inside the installed packages) lies in this installation:
+    one of the files that ``copy_packages`` copies (``_files``), a regular file and no symbolic link
+    out of its package, else ``WrtError`` naming the fault and the key. So a fault's path can only
+    ever name a file of the scratch copy."""
     dirs = dirs or package_dirs()
-    parts = fault.file.split("/")
-    for n in range(len(parts) - 1, 0, -1):
-        package = ".".join(parts[:n])
-        if package in dirs:
-            return os.path.join(dirs[package], *parts[n:])
-    raise WrtError(f"fault {fault.id!r}: key 'file' = {fault.file!r}: not in a package of {', '.join(PACKAGES)}")
+    problem = _path_problem(fault.file)
+    path = None if problem else dict(_files(dirs)).get(fault.file)
+    if path is None:
+        problem = problem or f"not a file of the packages {', '.join(sorted(dirs))}"
+    elif os.path.islink(path) or not os.path.isfile(path):
+        problem = f"{path} is a symbolic link or not a regular file"
+    if problem:
+        raise WrtError(f"fault {fault.id!r}: key 'file' = {fault.file!r}: {problem}")
+    return path
+
+
+def _read_source(fault: Fault, path: str) -> str:
+    """The text of the fault's file at ``path``; ``WrtError`` naming the fault when it is not text."""
+    data = read_bytes(path, "source")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise WrtError(f"fault {fault.id!r}: key 'file' = {fault.file!r}: {path} is not UTF-8 text") from None
 
 
 def check_applies(fault: Fault, dirs: dict[str, str] | None = None) -> None:
     """``WrtError`` unless the snippet ``old`` of ``fault`` occurs exactly once in its file."""
-    path = source_file(fault, dirs)
-    try:
-        with open(path, encoding="utf-8") as f:
-            count = f.read().count(fault.old)
-    except OSError as e:
-        raise WrtError(f"fault {fault.id!r}: key 'file' = {fault.file!r}: cannot read {path} ({e.strerror})") from None
+    count = _read_source(fault, source_file(fault, dirs)).count(fault.old)
     if count != 1:
         raise WrtError(
             f"fault {fault.id!r}: key 'old' occurs {count} times in {fault.file} (must be exactly once): {fault.old!r}"
@@ -171,10 +197,18 @@ def copy_packages(dirs: dict[str, str], dest: str) -> None:
 
 
 def apply_fault(fault: Fault, scratch: str) -> None:
-    """Make the change of ``fault`` in the scratch copy ``scratch``."""
-    path = os.path.join(scratch, fault.file)
-    with open(path, encoding="utf-8") as f:
-        text = f.read()
+    """Make the change of ``fault`` in the scratch copy ``scratch``: only ever in a regular file
+    inside it (``WrtError`` naming the fault otherwise; ``source_file`` has checked the path)."""
+    root = os.path.realpath(scratch)
+    problem = _path_problem(fault.file)
+    path = os.path.join(root, *fault.file.split("/"))
+    if not problem and not (
+        os.path.realpath(path).startswith(root + os.sep) and os.path.isfile(path) and not os.path.islink(path)
+    ):
+        problem = "not a file of the scratch copy"
+    if problem:
+        raise WrtError(f"fault {fault.id!r}: key 'file' = {fault.file!r}: {problem}")
+    text = _read_source(fault, path)
     if text.count(fault.old) != 1:
         raise WrtError(f"fault {fault.id!r}: key 'old' does not occur exactly once in the copy of {fault.file}")
     with open(path, "w", encoding="utf-8") as f:
@@ -213,8 +247,15 @@ def run_matrix_copy(scratch: str, env: dict[str, str], names, args: list[str]) -
     out = subprocess.run(command, cwd=scratch, env=env, capture_output=True, text=True)
     if out.returncode not in (0, 1) or not os.path.exists(path):
         return {"crashed": f"exit code {out.returncode}: {(out.stdout + out.stderr).strip()[-TAIL:]}"}
-    with open(path, encoding="utf-8") as f:
-        return json.load(f)
+    try:
+        doc = read_json(path, "matrix results", limit=RESULTS_LIMIT)
+        features = _field(doc, "features", dict, "an object", "")
+        for name, feature in features.items():
+            _field(feature, "passed", bool, "true or false", f"features.{name}.")
+            _strings(_field(feature, "failed_checks", list, "an array", f"features.{name}."), f"features.{name}.")
+    except WrtError as e:  # a mutant that breaks wrt matrix --json itself
+        return {"crashed": f"the matrix run wrote malformed results: {e}"}
+    return {"features": features}
 
 
 def measure(fault: Fault, scratch: str, env, features: list[str], mode: str, args: list[str]) -> dict:
@@ -245,6 +286,66 @@ def measure(fault: Fault, scratch: str, env, features: list[str], mode: str, arg
     checks = {c for failed in caught_by.values() for c in failed} | ({CRASH} if result["crashed"] else set())
     result["checks"] = sorted(checks)
     return result
+
+
+def _field(doc, key: str, types, meant: str, where: str):
+    """``doc[key]`` when ``doc`` is an object holding it as one of ``types``; else ``WrtError``
+    naming ``where + key`` and what it should be (``meant``)."""
+    if not isinstance(doc, dict):
+        raise WrtError(f"{where.rstrip('.') or 'the document'}: not an object (it holds {json_kind(doc)})")
+    if key not in doc:
+        raise WrtError(f"{where}{key}: missing")
+    value = doc[key]
+    allowed = types if isinstance(types, tuple) else (types,)
+    if not isinstance(value, allowed) or (isinstance(value, bool) and bool not in allowed):
+        raise WrtError(f"{where}{key}: must be {meant} (it holds {json_kind(value)})")
+    return value
+
+
+def _strings(values: list, where: str) -> list:
+    if not all(isinstance(v, str) for v in values):
+        raise WrtError(f"{where}: must be an array of strings")
+    return values
+
+
+def _checked_result(r, where: str) -> dict:
+    """One fault's stored result ``r`` (``measure`` and ``mutants``' fields), its shape checked:
+    every key that a resumed run reads, of its type."""
+    _field(r, "features", dict, "an object", where)
+    crashed = _field(r, "crashed", (str, type(None)), "a string or null", where)
+    if crashed is not None and not crashed.strip():
+        raise WrtError(f"{where}crashed: must not be empty")
+    for name, checks in _field(r, "caught_by", dict, "an object", where).items():
+        if not isinstance(checks, list):
+            raise WrtError(f"{where}caught_by.{name}: must be an array (it holds {json_kind(checks)})")
+        _strings(checks, f"{where}caught_by.{name}")
+    for key in ("caught", "expected_caught"):
+        _field(r, key, bool, "true or false", where)
+    _strings(_field(r, "checks", list, "an array", where), f"{where}checks")
+    for key in ("fault", "tree", "mode"):
+        _field(r, key, str, "a string", where)
+    _strings(_field(r, "args", list, "an array", where), f"{where}args")
+    time_s = _field(r, "time_s", (int, float), "a number", where)
+    if not time_s >= 0:
+        raise WrtError(f"{where}time_s: must be a number >= 0")
+    return r
+
+
+def load_results(path: str) -> dict:
+    """The results by fault id of the ``mutants.json`` at ``path``, each of the shape ``mutants``
+    writes; ``WrtError`` naming the file and the key otherwise (not JSON, nested too deeply, an
+    array where an object belongs, a missing key, a value of another type)."""
+    what = "wrt mutants results"
+    try:
+        doc = read_json(path, what, limit=RESULTS_LIMIT)
+        faults = _field(doc, "faults", dict, "an object of results by fault id", "")
+        for fault_id, r in faults.items():
+            _checked_result(r, f"faults.{fault_id}.")
+    except WrtError as e:
+        problem = str(e).removeprefix(f"{path}: ").removeprefix(f"not a {what} file: ")
+        fix = "remove it or name another --report DIR"
+        raise WrtError(f"{path}: not the results of wrt mutants: {problem}; {fix}") from None
+    return faults
 
 
 def fault_line(fault: Fault, r: dict) -> str:
@@ -292,6 +393,12 @@ def mutants(
     if unknown:
         raise WrtError(f"{faults_file or FAULTS_FILE}: no fault {unknown[0]!r} (known: {', '.join(known)})")
     faults = [known[i] for i in ids] if ids else faults
+    results_path = os.path.join(report, RESULTS)
+    # the one file written: checked before the work (a file in the folder's place, a read-only folder)
+    inputs = (faults_file or FAULTS_FILE, features_file or FEATURES_FILE)
+    check_output_folder(report, (RESULTS,), option="--report", protect=inputs)
+    if kernel_cache:  # Warp's errors there would crash every run, and a crashed run counts as caught
+        check_output_folder(kernel_cache, option="--kernel-cache")
     dirs = package_dirs()
     for fault in faults:  # before any run: a fault that no longer applies stops the whole measurement
         check_applies(fault, dirs)
@@ -302,15 +409,7 @@ def mutants(
     elif refs is not None:
         args += ["--refs", os.path.abspath(refs)]
     tree = tree_digest(dirs)
-    results_path = os.path.join(report, "mutants.json")
-    stored = {}
-    if os.path.exists(results_path):
-        try:
-            with open(results_path, encoding="utf-8") as f:
-                stored = json.load(f)["faults"]
-        except (OSError, ValueError, KeyError, TypeError) as e:
-            problem = f"not the results of wrt mutants ({e!r}); remove it or name another --report DIR"
-            raise WrtError(f"{results_path}: {problem}") from None
+    stored = load_results(results_path) if os.path.exists(results_path) else {}
     print(f"kernel cache: {kernel_cache or os.environ.get('WARP_CACHE_PATH') or 'Warp default'}", flush=True)
     results, checked = {}, False
     for fault in faults:

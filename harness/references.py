@@ -17,7 +17,8 @@ atomically, so an interrupted regeneration leaves every file old or new; a calib
 not belong to its reference (hash mismatch) is reported, never used.
 
 Corrupt numbers are refused, never scored: a reference with NaN or Inf values or a negative
-variance, a ``wrt:spp`` that is not a whole number >= 1, a calibration that is not a JSON object,
+variance, a ``wrt:spp`` that is not a whole number >= 1, a calibration that is not JSON (or is
+nested too deeply to read, or is not a regular file: ``wrt.files.read_json``), not a JSON object,
 lacks ``reference_sha256``, ``ssim_threshold`` or ``flip_threshold``, whose SSIM threshold is not
 a finite number in [-1, 1] (``score.check_threshold``) or whose FLIP threshold is not a finite
 number >= 0 (``flip.check_flip_threshold``) is a ``ReferenceError`` naming the file, the key and
@@ -28,7 +29,6 @@ from __future__ import annotations
 
 import datetime
 import hashlib
-import json
 import os
 import shlex
 import statistics
@@ -39,7 +39,7 @@ import numpy as np
 
 import wrt
 from wrt.errors import WrtError
-from wrt.files import write_json
+from wrt.files import check_writable, read_json, write_json
 from wrt.imageio import read_image, write_image
 
 from .flip import FLIP_CRITERION, check_flip_threshold, flip
@@ -55,6 +55,7 @@ CALIBRATION_SEEDS = (11, 12, 13, 14, 15, 16)
 HALF_MAX = float(np.finfo(np.float16).max)  # the largest RGB value a reference EXR (half float) holds
 CALIBRATION_MARGIN = 0.002  # threshold = min(SSIM) - max(CALIBRATION_MARGIN, 3 std(SSIM))
 FLIP_CALIBRATION_MARGIN = 0.002  # flip_threshold = max(FLIP) + max(FLIP_CALIBRATION_MARGIN, 3 std(FLIP))
+CALIBRATION_LIMIT = 1 << 20  # bytes of a calibration file read (wrt writes about 2 KB)
 
 
 def refs_command(action: str, features_file: str | None, refs: str | None, *names: str) -> str:
@@ -91,6 +92,19 @@ def paths(name: str, refs: str | None = None) -> dict[str, str]:
     """The reference files of feature ``name`` in the folder ``refs`` (default ``REFERENCE_DIR``)."""
     refs = refs or REFERENCE_DIR
     return {ext: os.path.join(refs, f"{name}.{ext}") for ext in ("exr", "json", "png")}
+
+
+def check_storable(features: list[Feature], refs: str | None, kinds=("exr", "json", "png")) -> None:
+    """``WrtError`` unless the reference files ``kinds`` of every one of ``features`` can be written
+    into ``refs`` (which exists): the folder is writable and none of the files is a folder. Called
+    before the renders that would fill them."""
+    folder = refs or REFERENCE_DIR
+    if not os.access(folder, os.W_OK | os.X_OK):
+        shown = f"--refs {refs}" if refs is not None else f"the references folder {folder}"
+        raise WrtError(f"{shown}: not writable; nothing was rendered")
+    for feature in features:
+        for kind in kinds:
+            check_writable(paths(feature.name, refs)[kind])
 
 
 def file_sha256(path: str) -> str:
@@ -157,10 +171,9 @@ def load_reference(feature: Feature, refs: str | None = None, calibration: bool 
     stored = None
     if calibration and os.path.exists(p["json"]):
         try:
-            with open(p["json"]) as f:
-                stored = json.load(f)
-        except (OSError, ValueError) as e:
-            raise ReferenceError(feature, f"{p['json']} is unreadable ({e})", refs=refs) from None
+            stored = read_json(p["json"], "calibration", limit=CALIBRATION_LIMIT)
+        except WrtError as e:  # not JSON, nested too deeply, a folder, a FIFO...: one line
+            raise ReferenceError(feature, str(e), "calibrate", refs) from None
         stored = _checked_calibration(feature, stored, p["json"], p["exr"], refs)
     return Reference(
         rgb=image.rgb,
@@ -171,14 +184,12 @@ def load_reference(feature: Feature, refs: str | None = None, calibration: bool 
     )
 
 
-_JSON_KINDS = {
-    list: "an array",
-    str: "a string",
-    int: "a number",
-    float: "a number",
-    bool: "a boolean",
-    type(None): "null",
-}
+_JSON_KINDS = {dict: "an object", list: "an array", str: "a string", bool: "a boolean", type(None): "null"}
+
+
+def json_kind(value) -> str:
+    """What the JSON value ``value`` is, in words ("an array"): messages name it, never quote a document."""
+    return _JSON_KINDS.get(type(value), "a number" if isinstance(value, (int, float)) else "something else")
 
 
 def _checked_calibration(feature: Feature, stored, path: str, exr: str, refs: str | None) -> dict:
@@ -188,7 +199,7 @@ def _checked_calibration(feature: Feature, stored, path: str, exr: str, refs: st
     if not isinstance(stored, dict):
         raise ReferenceError(
             feature,
-            f"{path} is not a JSON object (it holds {_JSON_KINDS.get(type(stored), 'something else')})",
+            f"{path} is not a JSON object (it holds {json_kind(stored)})",
             "calibrate",
             refs,
         )

@@ -53,6 +53,8 @@ def test_every_fault_applies_to_the_tree_exactly_once():
         ({"expect": ["no_such_feature"]}, "'no_such_feature' is not a feature"),
         ({"expect": []}, "must be a non-empty list"),
         ({"old": 3}, "key 'old' = 3: must be a non-empty string"),
+        ({"file": "wrt/../device.py"}, "key 'file' = 'wrt/../device.py': must be a relative path inside"),
+        ({"file": "/etc/hostname"}, "key 'file' = '/etc/hostname': must be a relative path inside"),
         ({"duplicate": True}, "key 'id' = 'camera_fov_half_angle': duplicate id"),
     ],
 )
