@@ -25,10 +25,8 @@ import os
 import re
 from dataclasses import dataclass, field
 
-import tomllib
-
 from wrt.errors import WrtError
-from wrt.files import read_bytes
+from wrt.files import read_toml
 from wrt.loader import override_render, parse_scene
 from wrt.scene import INTEGRATORS, EnvironmentLight, Mesh, Scene
 
@@ -106,25 +104,6 @@ def _set_path(doc: dict, path: str, value, where: str) -> None:
         node = items[index]
 
 
-def _read_toml(path: str, what: str) -> dict:
-    """The TOML document of the ``what`` file ``path`` (read by ``wrt.files.read_bytes``: a FIFO,
-    a device or an oversized file is refused before a byte is read); ``WrtError`` naming the file
-    when it cannot be read, is not UTF-8 text or not TOML, or is nested too deeply to parse."""
-    if not os.path.lexists(path):  # the words of wrt.loader's scene files
-        raise WrtError(f"{path}: cannot read {what} file (no such file)")
-    data = read_bytes(path, what).removeprefix(b"\xef\xbb\xbf")  # the BOM Windows editors write
-    try:
-        return tomllib.loads(data.decode("utf-8"))
-    except UnicodeDecodeError as e:
-        raise WrtError(f"{path}: not valid TOML: not UTF-8 text (byte {e.start})") from None
-    except tomllib.TOMLDecodeError as e:
-        raise WrtError(f"{path}: not valid TOML: {e}") from None
-    except ValueError:  # an integer of more digits than Python converts (sys.get_int_max_str_digits)
-        raise WrtError(f"{path}: not valid TOML: an integer of too many digits") from None
-    except RecursionError:  # tomllib recurses once per level of [ or {
-        raise WrtError(f"{path}: not valid TOML: arrays or inline tables nested too deeply") from None
-
-
 def package_folder(package: str, where: str = "scene") -> str:
     """The folder of ``package``, one of wrt's own packages (``OWN_PACKAGES`` and their
     subpackages: ``wrt.examples``), found by ``importlib.util.find_spec`` one level at a time:
@@ -167,7 +146,7 @@ def load_features(path: str = FEATURES_FILE) -> list[Feature]:
     entry that is not a table, lacks a key, has an unknown one, a value of the wrong type or out of
     range, names a scene file that does not exist or an unknown integrator, or a duplicate name is a
     ``WrtError`` naming the file, the entry and the key."""
-    doc = _read_toml(path, "features")
+    doc = read_toml(path, "features")
     base = os.path.dirname(os.path.abspath(path))
     entries = doc.get("feature")
     if entries is None:
@@ -272,7 +251,7 @@ def select(features: list[Feature], names: list[str]) -> list[Feature]:
 def scene_document(feature: Feature, wrong: bool = False) -> dict:
     """The feature's scene as a TOML document with its render settings (and, if ``wrong``, the
     wrong variant's patches) applied."""
-    doc = _read_toml(feature.scene, "scene")
+    doc = read_toml(feature.scene, "scene")
     render = doc.setdefault("render", {})
     render.update(
         integrator=feature.integrator, width=feature.width, height=feature.height, spp=feature.spp, seed=feature.seed

@@ -28,10 +28,10 @@ import time
 from dataclasses import asdict, dataclass
 
 from wrt.errors import WrtError
-from wrt.files import read_bytes, read_json, write_json
+from wrt.files import read_bytes, read_json, read_toml, write_json
 
 from .commands import check_output_folder
-from .matrix import FEATURES_FILE, _read_toml, load_features
+from .matrix import FEATURES_FILE, load_features
 from .references import json_kind
 from .run import CHECKS
 
@@ -77,7 +77,7 @@ def load_faults(path: str = FAULTS_FILE, features_file: str | None = None) -> li
     """The faults of ``path``, validated strictly: every key of ``FAULT_KEYS`` and no other, strings
     (``expect`` a non-empty list of them), unique ids, ``expect`` naming features of ``features_file``
     (default: wrt's own). ``WrtError`` (one line, naming file, fault and key) otherwise."""
-    doc = _read_toml(path, "faults")
+    doc = read_toml(path, "faults")
     entries = doc.get("fault")
     if not isinstance(entries, list) or not entries or not all(isinstance(e, dict) for e in entries):
         raise WrtError(f"{path}: needs a list of [[fault]] tables")

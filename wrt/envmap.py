@@ -23,7 +23,9 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
-import OpenImageIO as oiio
+
+from .errors import listed
+from .imageio import read_pixels
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # of linear sRGB (Rec. 709) primaries, as Mitsuba's
 EXTENSIONS = (".exr", ".hdr")
@@ -35,26 +37,23 @@ class EnvironmentMapError(ValueError):
 
 def read_environment_map(path: str | os.PathLike) -> np.ndarray:
     """The linear RGB pixels (H, W, 3) float32 of an OpenEXR or Radiance HDR file, row 0 at the
-    top; an alpha channel must be 1 (opaque) everywhere. Raises ``EnvironmentMapError``."""
+    top; an alpha channel must be 1 (opaque) everywhere. Raises ``EnvironmentMapError``, whose
+    message says why without the path (the loader names the file): the file is missing, not a
+    regular file or too large in pixels (``wrt.imageio.read_pixels``, before a pixel is read), or
+    not an image OpenImageIO reads."""
     path = os.fspath(path)
     if os.path.splitext(path)[1].lower() not in EXTENSIONS:
         raise EnvironmentMapError("must be an OpenEXR (.exr) or Radiance HDR (.hdr) file of linear radiance")
-    if not os.path.isfile(path):
+    if not os.path.lexists(path):
         raise EnvironmentMapError("no such file")
-    inp = oiio.ImageInput.open(path)
-    if inp is None:
-        raise EnvironmentMapError(f"cannot read image: {oiio.geterror()}")
     try:
-        spec = inp.spec()
-        pixels = inp.read_image(0, 0, 0, spec.nchannels, "float")
-        if pixels is None:
-            raise EnvironmentMapError(f"cannot read image: {inp.geterror()}")
-    finally:
-        inp.close()
-    pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
+        spec, pixels = read_pixels(path, "environment map", error=EnvironmentMapError)
+    except EnvironmentMapError as e:
+        raise EnvironmentMapError(str(e).removeprefix(f"{path}: ")) from None
+    pixels = pixels.astype(np.float32)
     names = list(spec.channelnames)
     if not {"R", "G", "B"} <= set(names):
-        raise EnvironmentMapError(f"needs channels R, G, B (found {', '.join(names)})")
+        raise EnvironmentMapError(f"needs channels R, G, B (found {listed(names)})")
     if "A" in names and not np.all(pixels[..., names.index("A")] == 1.0):
         raise EnvironmentMapError("has an alpha channel that is not 1 everywhere (a map must be opaque)")
     if spec.height < 2:

@@ -15,8 +15,8 @@ same target removes those whose process is gone.
 
 Reads. ``read_bytes`` reads a regular file of at most a given size, refusing FIFOs, devices
 (``/dev/zero``) and sockets before reading, so that no input can block or exhaust memory;
-``check_regular_file`` applies the same test to files another library opens; ``read_json``
-adds JSON's errors, deep nesting included.
+``check_regular_file`` applies the same test to files another library opens; ``read_json`` and
+``read_toml`` add their formats' errors, deep nesting included.
 
 Report folders. ``report_folder`` builds a report (the matrix's HTML, the stress suite's tables)
 in a fresh folder and moves it into place. The folder it replaces must be absent, empty, or a
@@ -30,12 +30,15 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import shutil
 import stat
 import tempfile
 from collections.abc import Callable, Iterator
 
-from .errors import WrtError
+import tomllib
+
+from .errors import WrtError, shorten
 
 NAME_MAX = 255  # bytes in a file name (Linux, macOS, Windows)
 RANDOM_CHARS = 8  # what mkstemp appends to the prefix
@@ -186,7 +189,7 @@ def write_json(path: str | os.PathLike, data, **dump_options) -> None:
 
 def _unreadable(path: str, what: str, error: OSError) -> str:
     if isinstance(error, FileNotFoundError):
-        return f"{path}: no such file"
+        return f"{path}: cannot read {what} file (no such file)"
     if os.path.isdir(path):
         return f"{path}: is a folder, not a {what} file"
     return f"{path}: cannot read {what} file ({_reason(error)})"
@@ -276,6 +279,44 @@ def read_json(path: str | os.PathLike, what: str, *, limit: int = MAX_TEXT_BYTES
         raise error(f"{path}: not a {what} file: not JSON (line {e.lineno}, column {e.colno}: {e.msg})") from None
     except RecursionError:
         raise error(f"{path}: not a {what} file: JSON nested too deeply") from None
+
+
+UTF8_BOM = b"\xef\xbb\xbf"  # as Windows editors begin a text file; a second one is text
+
+_TOML_KEYS = re.compile(
+    r"(Cannot declare|Cannot mutate immutable namespace|Cannot redefine namespace|Duplicate inline table key) "
+    r"(.*?)((?: twice)? \(at [^()]*\))$",
+    re.DOTALL,
+)
+
+
+class TomlError(WrtError):
+    """A file that is not valid TOML; ``problem`` says why (``not valid TOML: ...``)."""
+
+    def __init__(self, path: str, problem: str):
+        self.path, self.problem = path, problem
+        super().__init__(f"{path}: {problem}")
+
+
+def read_toml(path: str | os.PathLike, what: str, *, limit: int = MAX_TEXT_BYTES) -> dict:
+    """The TOML document in ``path`` (``read_bytes``; a leading UTF-8 byte-order mark is
+    dropped). ``TomlError`` when it is not UTF-8 text, not TOML, holds an integer of more digits
+    than Python converts, or is nested too deeply to parse; tomllib's message, with the keys of
+    the file it quotes cut by ``wrt.errors.shorten``."""
+    path = os.fspath(path)
+    data = read_bytes(path, what, limit=limit).removeprefix(UTF8_BOM)
+    try:
+        return tomllib.loads(data.decode("utf-8"))
+    except UnicodeDecodeError as e:
+        raise TomlError(path, f"not valid TOML: not UTF-8 text (byte {e.start})") from None
+    except tomllib.TOMLDecodeError as e:
+        found = _TOML_KEYS.fullmatch(str(e))
+        message = f"{found[1]} {shorten(found[2])}{found[3]}" if found else str(e)
+        raise TomlError(path, f"not valid TOML: {message}") from None
+    except ValueError:  # an integer of more digits than Python converts (sys.get_int_max_str_digits)
+        raise TomlError(path, "not valid TOML: an integer of too many digits") from None
+    except RecursionError:  # tomllib recurses once per level of [ or {
+        raise TomlError(path, "not valid TOML: arrays or inline tables nested too deeply") from None
 
 
 # --- report folders -----------------------------------------------------------------------------

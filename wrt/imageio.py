@@ -12,13 +12,17 @@ always either the previous file or the complete new one. Reading checks the file
 its size in pixels before a pixel is allocated.
 """
 
+import contextlib
 import os
+import sys
+import tempfile
+import threading
 from dataclasses import dataclass, field
 
 import numpy as np
 import OpenImageIO as oiio
 
-from .errors import WrtError
+from .errors import WrtError, foreign
 from .files import atomic_path, check_regular_file
 from .limits import MAX_IMAGE_SIDE
 
@@ -230,14 +234,7 @@ def read_image(path):
     """
     path = os.fspath(path)
     ext = _extension(path)
-    inp, spec = open_image(path, "image")
-    try:
-        pixels = inp.read_image("uint8" if ext == ".png" else "float")
-        if pixels is None:
-            raise WrtError(f"{path}: cannot read image: {inp.geterror()}")
-    finally:
-        inp.close()
-    pixels = pixels.reshape(spec.height, spec.width, spec.nchannels)
+    spec, pixels = read_pixels(path, "image", format="uint8" if ext == ".png" else "float")
     metadata = {
         a.name[len(METADATA_PREFIX) :]: a.value for a in spec.extra_attribs if a.name.startswith(METADATA_PREFIX)
     }
@@ -254,29 +251,61 @@ def read_image(path):
     )
 
 
-def open_image(path, what: str, *, error: type[WrtError] = WrtError):
-    """``(ImageInput, ImageSpec)`` of the image file ``path``, opened by OpenImageIO once it is
-    known to be a regular file (a FIFO would block) of a size in pixels wrt reads: at most
-    ``MAX_IMAGE_SIDE`` a side and ``MAX_CHANNELS`` channels, refused before any pixel is
-    allocated. ``error`` (naming ``path`` and ``what`` it is) otherwise. The caller closes it."""
+@contextlib.contextmanager
+def _native_stderr_quiet():
+    """Within: what native libraries print to file descriptor 2 is dropped. libpng writes "libpng
+    error: ..." there itself before OpenImageIO reports the same error, which wrt then prints as
+    its one line."""
+    with _STDERR_LOCK, tempfile.TemporaryFile() as sink:
+        sys.stderr.flush()
+        saved = os.dup(2)
+        os.dup2(sink.fileno(), 2)
+        try:
+            yield
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+
+
+_STDERR_LOCK = threading.Lock()
+
+
+def read_pixels(
+    path, what: str, *, error: type[WrtError] = WrtError, format: str = "float", max_pixels: int | None = None
+):
+    """``(ImageSpec, pixels)`` of the image file ``path``: its pixels (H, W, C) as ``format``
+    ("float" or "uint8"), read by OpenImageIO once the file is known to be a regular file (a FIFO
+    would block) of a size wrt reads: at most ``MAX_IMAGE_SIDE`` pixels a side (and
+    ``max_pixels`` in all), ``MAX_CHANNELS`` channels, refused before any pixel is allocated.
+    ``error`` naming ``path`` and ``what`` it is otherwise, or when OpenImageIO cannot read it (its
+    message cut short, and nothing of libpng's own on stderr)."""
     path = os.fspath(path)
     check_regular_file(path, what, limit=MAX_IMAGE_BYTES, error=error)
-    inp = oiio.ImageInput.open(path)
-    if inp is None:
-        raise error(f"{path}: cannot read {what}: {_oiio_error(oiio.geterror())}")
-    spec = inp.spec()
-    if max(spec.width, spec.height) > MAX_IMAGE_SIDE or spec.nchannels > MAX_CHANNELS or spec.depth > 1:
-        inp.close()
-        raise error(
-            f"{path}: {what} of {spec.width} x {spec.height} pixels, {spec.nchannels} channels: wrt reads at most "
-            f"{MAX_IMAGE_SIDE} pixels a side and {MAX_CHANNELS} channels"
-        )
-    return inp, spec
+    with _native_stderr_quiet():
+        inp = oiio.ImageInput.open(path)
+        if inp is None:
+            raise error(f"{path}: cannot read {what}: {_oiio_error(oiio.geterror())}")
+        try:
+            spec = inp.spec()
+            if max(spec.width, spec.height) > MAX_IMAGE_SIDE or spec.nchannels > MAX_CHANNELS or spec.depth > 1:
+                raise error(
+                    f"{path}: {what} of {spec.width} x {spec.height} pixels, {spec.nchannels} channels: wrt reads at "
+                    f"most {MAX_IMAGE_SIDE} pixels a side and {MAX_CHANNELS} channels"
+                )
+            if max_pixels is not None and spec.width * spec.height > max_pixels:
+                raise error(f"{path}: {what} of {spec.width} x {spec.height} pixels, more than {max_pixels}")
+            pixels = inp.read_image(0, 0, 0, spec.nchannels, format)
+            if pixels is None:
+                raise error(f"{path}: cannot read {what}: {_oiio_error(inp.geterror())}")
+        finally:
+            inp.close()
+    return spec, np.asarray(pixels).reshape(spec.height, spec.width, spec.nchannels)
 
 
 def _oiio_error(message: str) -> str:
-    """OpenImageIO's error message, first line only (it may hold several)."""
-    return (message.strip().splitlines() or ["unknown error"])[0]
+    """OpenImageIO's error message as one of wrt's (``wrt.errors.foreign``: its first line, what
+    it quotes of the file cut short)."""
+    return foreign(message) if message.strip() else "unknown error"
 
 
 def _extension(path):
@@ -373,16 +402,13 @@ def _write_atomically(path, ext, spec, pixels, half_channels=0):
         expected[..., :half_channels] = pixels[..., :half_channels].astype(np.float16)
 
     def verify(tmp):
-        inp = oiio.ImageInput.open(tmp)
-        written = None
-        if inp is None:
-            oiio.geterror()  # retrieved, so that OpenImageIO does not print it at exit
+        try:
+            stored, written = read_pixels(tmp, "image", format="uint8" if ext == ".png" else "float")
+        except WrtError:
+            written = None
         else:
-            names = list(inp.spec().channelnames)  # EXR stores channels in its own order
-            written = inp.read_image("uint8" if ext == ".png" else "float")
-            inp.geterror()
-            inp.close()
-            if written is not None and sorted(names) == sorted(spec.channelnames):
+            names = list(stored.channelnames)  # EXR stores channels in its own order
+            if sorted(names) == sorted(spec.channelnames):
                 written = written[..., [names.index(n) for n in spec.channelnames]]
         if written is None or written.shape != expected.shape or not np.array_equal(written, expected, equal_nan=True):
             raise WrtError(

@@ -15,11 +15,11 @@ import sys
 from collections.abc import Mapping
 
 import numpy as np
-import tomllib
 
 from .conductors import METALS
 from .envmap import EnvironmentMapError, read_environment_map
-from .errors import MeshFileError, SceneError, WrtError
+from .errors import MeshFileError, SceneError, listed
+from .files import TomlError, read_toml
 from .limits import MAX_DEPTH, MAX_IMAGE_SIDE, MAX_MAGNITUDE, MAX_SEED, MAX_SPP
 from .meshio import apply_transform, load_mesh, transform_matrix, transform_normals, vertex_normals
 from .scene import (
@@ -52,7 +52,6 @@ from .scene import (
 )
 from .textures import SLOTS, Bitmap, read_texture
 
-UTF8_BOM = b"\xef\xbb\xbf"
 TOP_LEVEL = ("render", "camera", "material", "group", "shape", "light")
 SHAPE_TYPES = ("sphere", "plane", "triangle", "polygon", "mesh", "disk", "cylinder", "instance")
 GROUP_SHAPE_TYPES = ("sphere", "triangle", "polygon", "mesh", "disk", "cylinder")  # bounded: what a [[group]] holds
@@ -583,7 +582,7 @@ def _shape(
     if name is None:
         material = material_index[DEFAULT_MATERIAL.name]
     elif not isinstance(name, str) or name not in material_index:
-        known = ", ".join(k for k in material_index if k != DEFAULT_MATERIAL.name) or "none defined"
+        known = listed(k for k in material_index if k != DEFAULT_MATERIAL.name) or "none defined"
         raise t.error("material", f"no [[material]] with this name (known: {known})", name)
     else:
         material = material_index[name]
@@ -610,7 +609,7 @@ def _shape(
             raise t.error("material", "is not for an instance: the group's shapes keep their own materials", name)
         group = t.string("group")
         if group not in group_index:
-            known = ", ".join(group_index) or "none defined"
+            known = listed(group_index) or "none defined"
             raise t.error("group", f"no [[group]] with this name (known: {known})", group)
         shape = Instance(group=group_index[group], matrix=_transform(t), material=material)
     velocity = t.vec3("velocity", STILL) if group_index is not None else STILL
@@ -853,17 +852,9 @@ def load_scene(path: str | os.PathLike, *, approximate: bool = False) -> Scene:
             raise converted.locate(e) from None
         return dataclasses.replace(scene, approximations=tuple(converted.approximations))
     try:
-        with open(path, "rb") as f:
-            data = f.read()
-    except OSError as e:
-        raise WrtError(f"{path}: cannot read scene file ({e.strerror})") from None
-    data = data.removeprefix(UTF8_BOM)  # as Windows editors write it; a second one is text
-    try:
-        doc = tomllib.loads(data.decode("utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-        raise SceneError(path, None, None, f"not valid TOML: {e}") from None
-    except RecursionError:  # tomllib recurses once per level of [ or {
-        raise SceneError(path, None, None, "not valid TOML: arrays or inline tables nested too deeply") from None
+        doc = read_toml(path, "scene")
+    except TomlError as e:
+        raise SceneError(path, None, None, e.problem) from None
     return parse_scene(doc, file=path, scene_dir=os.path.dirname(os.path.abspath(path)))
 
 

@@ -21,17 +21,28 @@ read here (`_read_obj`), as Mitsuba 3's OBJ loader reads it.
 
 from __future__ import annotations
 
+import os
 import re
+import stat
 import struct
 from dataclasses import dataclass
 from pathlib import Path
+from xml.parsers import expat
 
 import numpy as np
 
-from wrt.errors import MeshFileError
+from wrt.errors import MeshFileError, foreign, listed, shorten, token
+from wrt.files import MAX_TEXT_BYTES, check_regular_file, read_bytes
 
 MESH_FORMATS = (".ply", ".obj", ".stl", ".vtk", ".vtp", ".vtu", ".vtm")
 """File extensions `load_mesh` reads (case-insensitive)."""
+MAX_MESH_BYTES = 16 << 30
+"""Largest mesh file read (16 GiB): a binary PLY of some 800 million triangles, more than a
+device holds once wrt has built its BVH; a larger file is refused before it is read (a PLY or
+OBJ file is read whole into memory)."""
+MAX_VTM_DEPTH = 8
+"""Deepest nesting of multiblock (``.vtm``) files read."""
+_STL_HEADER, _STL_TRIANGLE = 84, 50  # a binary STL: 80-byte header and uint32 count, then 50 bytes a triangle
 
 
 def load_mesh(path, *, return_normals=False, return_uvs=False):
@@ -69,14 +80,17 @@ def load_mesh(path, *, return_normals=False, return_uvs=False):
     Raises
     ------
     MeshFileError
-        If the file is missing, a directory, of an unsupported format, unreadable, corrupt or
-        truncated, has no faces, has NaN or infinite vertices, or has a face index outside
+        If the file is missing, a directory, not a regular file (a FIFO, a device), larger than
+        `MAX_MESH_BYTES`, of an unsupported format, unreadable, corrupt or truncated (a binary STL
+        whose size is not what its triangle count says; a multiblock file naming a file that is
+        not a mesh file), has no faces, has NaN or infinite vertices, or has a face index outside
         ``0..V-1``; for PLY also a malformed header (a property declared twice, of an unknown
         type, a list ``x``, only some of ``nx``, ``ny``, ``nz``, ...), element counts that do not
         match the body, and faces of fewer than 3 vertices. With `return_normals`, also NaN or
         infinite normals, and for OBJ a line that is not what its keyword says, a face of fewer
         than 3 corners or a normal or texture coordinate index out of range. The message is one
-        line naming `path` and the problem (for an ASCII PLY or OBJ file, the line).
+        line naming `path` and the problem (for an ASCII PLY or OBJ file, the line), quoting
+        at most ``wrt.errors.MAX_QUOTED`` characters of the file.
 
     Notes
     -----
@@ -100,6 +114,8 @@ def load_mesh(path, *, return_normals=False, return_uvs=False):
     elif suffix == ".obj" and (return_normals or return_uvs):
         mesh = _read_obj(path)
     else:
+        if suffix == ".stl":
+            _check_stl(path)
         mesh = _triangles(_read_with_vtk(path), path)
     if return_normals and mesh[2] is not None:
         bad = np.count_nonzero(~np.all(np.isfinite(mesh[2]), axis=1))
@@ -297,20 +313,81 @@ def _rotation_z(angle):
 
 
 def _check_mesh_path(path):
-    """Raise MeshFileError unless `path` is an existing regular file of a supported format."""
+    """Raise MeshFileError unless `path` is an existing regular file (not a FIFO or a device,
+    which would block or never end) of at most `MAX_MESH_BYTES` and of a supported format; for
+    a multiblock file, the same of every file it names (`_check_vtm`)."""
     try:
-        is_dir, is_file = path.is_dir(), path.is_file()
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise MeshFileError(f"{path}: no such mesh file") from None
     except OSError as e:  # a name too long for the file system, say
         raise MeshFileError(f"{path}: cannot be opened: {e.strerror or e}") from None
-    if is_dir:
+    if stat.S_ISDIR(mode):
         raise MeshFileError(f"{path}: is a directory, not a mesh file")
-    if not is_file:
-        raise MeshFileError(f"{path}: no such mesh file")
     if path.suffix.lower() not in MESH_FORMATS:
         raise MeshFileError(
-            f"{path}: unsupported mesh format {path.suffix or '(no extension)'!r}"
+            f"{path}: unsupported mesh format {token(path.suffix or '(no extension)')}"
             f" (supported: {', '.join(MESH_FORMATS)})"
         )
+    check_regular_file(path, "mesh", limit=MAX_MESH_BYTES, error=MeshFileError)
+    if path.suffix.lower() == ".vtm":
+        _check_vtm(path, 1)
+
+
+def _check_vtm(path, depth):
+    """Check, before VTK opens them, the files a multiblock (``.vtm``) file names: each
+    ``file`` attribute, relative to the ``.vtm`` file's folder, must be a regular mesh file
+    (`_check_mesh_path`; a ``.vtm`` in turn, at most ``MAX_VTM_DEPTH`` deep)."""
+    if depth > MAX_VTM_DEPTH:
+        raise MeshFileError(f"{path}: multiblock files nested more than {MAX_VTM_DEPTH} deep")
+    data = read_bytes(path, "mesh", limit=MAX_TEXT_BYTES, error=MeshFileError)
+    named = []
+    parser = expat.ParserCreate()
+    parser.StartElementHandler = lambda tag, attrs: named.append(attrs["file"]) if "file" in attrs else None
+    try:
+        parser.Parse(data, True)
+    except expat.ExpatError as e:
+        raise MeshFileError(f"{path}: not a readable mesh (line {e.lineno}: {expat.ErrorString(e.code)})") from None
+    for name in dict.fromkeys(named):
+        piece = path.parent / name
+        try:
+            if piece.suffix.lower() == ".vtm":
+                check_regular_file(piece, "mesh", limit=MAX_MESH_BYTES, error=MeshFileError)
+                _check_vtm(piece, depth + 1)
+            else:
+                _check_mesh_path(piece)
+        except MeshFileError as e:
+            raise MeshFileError(f"{path}: its block file {token(name)}: {str(e).removeprefix(f'{piece}: ')}") from None
+
+
+def _check_stl(path):
+    """Raise MeshFileError for a binary STL file (as VTK tells it from an ASCII one,
+    `_binary_stl`) whose size is not what its triangle count says: 84 + 50 per triangle bytes
+    (VTK reads what there is, whatever the count)."""
+    size = os.stat(path).st_size
+    with open(path, "rb") as f:  # a regular file (_check_mesh_path)
+        head = f.read(256)
+    if not _binary_stl(head):
+        return
+    if size < _STL_HEADER:
+        raise MeshFileError(
+            f"{path}: not a readable mesh: binary STL of {size} bytes, shorter than its {_STL_HEADER}-byte header"
+        )
+    (count,) = struct.unpack_from("<I", head, 80)
+    if size != _STL_HEADER + _STL_TRIANGLE * count:
+        raise MeshFileError(
+            f"{path}: not a readable mesh: binary STL declares {count} triangle{'s' * (count != 1)} "
+            f"({_STL_HEADER + _STL_TRIANGLE * count} bytes), "
+            f"but the file has {size} bytes"
+        )
+
+
+def _binary_stl(head):
+    """Whether VTK's STL reader reads a file starting with ``head`` (its first 256 bytes) as
+    binary: when 5% or more of them are not text (kwsys ``DetectFileType``: text is 0x20 to
+    0x7f, tab, line feed and carriage return)."""
+    text = sum(1 for byte in head if 0x20 <= byte <= 0x7F or byte in b"\t\n\r")
+    return bool(head) and (len(head) - text) / len(head) >= 0.05
 
 
 def _read_with_vtk(path):
@@ -330,7 +407,7 @@ def _read_with_vtk(path):
     failed = [e for e in catcher.events if e in catcher.error_events or "error" in e.alert.lower()]
     if failed:
         own = [e for e in failed if e.name == reader.GetClassName()]
-        detail = _vtk_message((own or failed)[0].alert)
+        detail = foreign(_vtk_message((own or failed)[0].alert))
         raise MeshFileError(f"{path}: not a readable mesh ({detail})")
     dataset = pv.wrap(reader.GetOutputDataObject(0))
     if isinstance(dataset, pv.MultiBlock):
@@ -425,10 +502,7 @@ def _read_obj(path):
     """``(vertices, faces, normals, uvs)`` of an OBJ file read Mitsuba's way (above): normals None
     without ``vn`` lines, else a zero row for a vertex whose index triple names no normal; uvs
     None without ``vt`` lines, else ``(u, 1 - v)`` ((0, 0) where the triple names none)."""
-    try:
-        data = path.read_bytes()
-    except OSError as err:
-        raise MeshFileError(f"{path}: cannot read ({err.strerror})") from None
+    data = read_bytes(path, "mesh", limit=MAX_MESH_BYTES, error=MeshFileError)
     positions, normals, texcoords = [], [], []
     corners, sizes, face_lines = [], [], []
     for number, line in enumerate(data.splitlines(), start=1):
@@ -456,7 +530,7 @@ def _read_obj(path):
         except ValueError:
             what = {b"f": "corners v, v/vt, v//vn or v/vt/vn (integers)", b"vt": "1 to 3 numbers"}.get(tag, "3 numbers")
             text = line.decode(errors="replace").strip()
-            raise MeshFileError(f"{path}: line {number}: '{tag.decode()}' takes {what}, got {text!r}") from None
+            raise MeshFileError(f"{path}: line {number}: '{shorten(tag)}' takes {what}, got {token(text)}") from None
     if not sizes:
         raise MeshFileError(f"{path}: contains no faces (empty mesh)")
     try:
@@ -566,10 +640,7 @@ def _read_ply(path):
 
     Raises MeshFileError for any file that is not a complete, well-formed PLY file.
     """
-    try:
-        data = path.read_bytes()
-    except OSError as err:
-        raise MeshFileError(f"{path}: cannot read ({err.strerror})") from None
+    data = read_bytes(path, "mesh", limit=MAX_MESH_BYTES, error=MeshFileError)
     try:
         return _ply_arrays(data)
     except _PlyError as err:
@@ -633,12 +704,12 @@ def _parse_ply_header(data):
             continue
         if words[0] == "format" and len(words) == 3:
             formats.append(words[1:])
-        elif words[0] == "element" and len(words) == 3 and re.fullmatch(r"[0-9]+", words[2]):
+        elif words[0] == "element" and len(words) == 3 and re.fullmatch(r"[0-9]{1,18}", words[2]):
             elements.append((words[1], int(words[2]), []))
         elif words[0] == "property" and elements and len(words) == (5 if words[1:2] == ["list"] else 3):
             elements[-1][2].append(words[1:])
         else:
-            raise _PlyError(f"header line {number}: unexpected {line.strip()!r}")
+            raise _PlyError(f"header line {number}: unexpected {token(line.strip())}")
     encoding, checked = _check_ply_header(formats, elements, len(data) - body_start)
     return _PlyHeader(encoding, checked, body_start, data.count(b"\n", 0, body_start) + 1)
 
@@ -669,28 +740,28 @@ def _check_ply_header(formats, elements, body_size):
         raise _PlyError("a second 'format' line")
     encoding, version = formats[0]
     if encoding not in _PLY_ENCODINGS:
-        raise _PlyError(f"unknown format {encoding!r} (known: {', '.join(_PLY_ENCODINGS)})")
+        raise _PlyError(f"unknown format {token(encoding)} (known: {', '.join(_PLY_ENCODINGS)})")
     if version != "1.0":
-        raise _PlyError(f"unsupported PLY version {version!r} (only 1.0 exists)")
+        raise _PlyError(f"unsupported PLY version {token(version)} (only 1.0 exists)")
     checked = {}
     for name, count, declared in elements:
         if name in checked:
-            raise _PlyError(f"element '{name}' is declared twice")
+            raise _PlyError(f"element '{shorten(name)}' is declared twice")
         if count and not declared:
-            raise _PlyError(f"element '{name}' has {count} entries but no properties")
+            raise _PlyError(f"element '{shorten(name)}' has {count} entries but no properties")
         properties = {}
         for words in declared:
             prop, types = words[-1], words[1:-1] if words[0] == "list" else words[:-1]
-            where = f"property '{prop}' of element '{name}'"
+            where = f"property '{shorten(prop)}' of element '{shorten(name)}'"
             if prop in properties:
                 raise _PlyError(f"{where} is declared twice")
             for kind in types:
                 if kind not in _PLY_TYPES:
-                    raise _PlyError(f"{where} has unknown type {kind!r} (known: {', '.join(_PLY_TYPES)})")
+                    raise _PlyError(f"{where} has unknown type {token(kind)} (known: {', '.join(_PLY_TYPES)})")
             if words[0] != "list":
                 properties[prop] = _PlyProperty(prop, _PLY_TYPES[types[0]])
             elif np.dtype(_PLY_TYPES[types[0]]).kind not in "iu":
-                raise _PlyError(f"{where}: list length type {types[0]!r} is not an integer type")
+                raise _PlyError(f"{where}: list length type {token(types[0])} is not an integer type")
             else:
                 properties[prop] = _PlyProperty(prop, _PLY_TYPES[types[1]], _PLY_TYPES[types[0]])
         checked[name] = _PlyElement(name, count, tuple(properties.values()))
@@ -732,7 +803,7 @@ def _ply_entry_bytes(element):
 
 def _ply_counts(elements):
     """The header's element counts as words: ``3 vertex, 1 face``."""
-    return ", ".join(f"{element.count} {element.name}" for element in elements)
+    return listed(f"{element.count} {element.name}" for element in elements)
 
 
 # --- PLY: ASCII bodies --------------------------------------------------------------------------
@@ -785,20 +856,20 @@ class _PlyAsciiEntries:
             missing = np.flatnonzero(position >= ends)
             if missing.size:
                 i = missing[0]
-                self.fail(first + i, f"{element.name} {i} has {ends[i] - starts[i]} values, it takes more")
+                self.fail(first + i, f"{shorten(element.name)} {i} has {ends[i] - starts[i]} values, it takes more")
             if prop.count_type:
                 lengths = self.tokens[position]
                 bad = np.flatnonzero(~((lengths >= 0) & (lengths < _PLY_MAX_LIST) & (lengths == np.trunc(lengths))))
                 if bad.size:
                     i = bad[0]
-                    self.fail(first + i, f"{element.name} {i} has the list length {lengths[i]:g}")
+                    self.fail(first + i, f"{shorten(element.name)} {i} has the list length {lengths[i]:g}")
                 lengths = lengths.astype(np.int64)
                 over = np.flatnonzero(position + 1 + lengths > ends)
                 if over.size:
                     i = over[0]
                     self.fail(
                         first + i,
-                        f"{element.name} {i} has a list of {lengths[i]} items, its line holds "
+                        f"{shorten(element.name)} {i} has a list of {lengths[i]} items, its line holds "
                         f"{ends[i] - position[i] - 1} more values",
                     )
                 runs = np.repeat(position + 1 - (np.cumsum(lengths) - lengths), lengths)
@@ -811,7 +882,8 @@ class _PlyAsciiEntries:
         if extra.size:
             i = extra[0]
             self.fail(
-                first + i, f"{element.name} {i} has {ends[i] - starts[i]} values, it takes {position[i] - starts[i]}"
+                first + i,
+                f"{shorten(element.name)} {i} has {ends[i] - starts[i]} values, it takes {position[i] - starts[i]}",
             )
         return values
 
@@ -828,7 +900,7 @@ def _first_non_number(lines, first_line):
             try:
                 float(word)
             except ValueError:
-                return f"line {first_line + i}: {word.decode('ascii', errors='replace')!r} is not a number"
+                return f"line {first_line + i}: {token(word.decode('ascii', errors='replace'))} is not a number"
     return "a value in the body is not a number"
 
 
@@ -935,7 +1007,7 @@ def _scan_ply_entries(body, offset, element, endian, count):
                 offset += length_field.size
             offset += length * item_size
         if offset > len(body):
-            raise _PlyError(f"truncated: the file ends inside element '{element.name}'")
+            raise _PlyError(f"truncated: the file ends inside element '{shorten(element.name)}'")
     shape = (count, -1)
     return np.reshape(starts, shape), np.reshape(np.array(lengths, dtype=np.int64), shape), offset
 
@@ -945,9 +1017,9 @@ def _ply_list_length(body, offset, length_field, element, index):
     try:
         (length,) = length_field.unpack_from(body, offset)
     except struct.error:
-        raise _PlyError(f"truncated: the file ends inside element '{element.name}'") from None
+        raise _PlyError(f"truncated: the file ends inside element '{shorten(element.name)}'") from None
     if not 0 <= length < _PLY_MAX_LIST:
-        raise _PlyError(f"{element.name} {index} has the list length {length}")
+        raise _PlyError(f"{shorten(element.name)} {index} has the list length {length}")
     return int(length)
 
 

@@ -22,7 +22,7 @@ import OpenImageIO as oiio
 
 from wrt.kernels.textures import BILINEAR, BITMAP, CHECKERBOARD, CLAMP, MIRROR, NEAREST, REPEAT, SLOTS
 
-from .imageio import srgb_decode
+from .imageio import read_pixels, srgb_decode
 
 FILTERS = {"bilinear": BILINEAR, "nearest": NEAREST}
 WRAPS = {"repeat": REPEAT, "mirror": MIRROR, "clamp": CLAMP}
@@ -86,22 +86,17 @@ def mean_value(texture: Texture) -> tuple[float, float, float]:
 def read_bitmap(path: str, *, raw: bool = False) -> np.ndarray:
     """The texels (H, W, 3) float32 linear RGB of an image file, row 0 at the top: integer
     formats sRGB-decoded unless ``raw``, floating-point ones as they are; 1 or 2 channels (grey,
-    grey and alpha) spread to RGB, an alpha channel dropped. Raises ``TextureFileError``."""
-    if not os.path.isfile(path):
+    grey and alpha) spread to RGB, an alpha channel dropped. Raises ``TextureFileError``, whose
+    message says why without the path (the loader names the file): the file is missing, not a
+    regular file or too large in pixels (``wrt.imageio.read_pixels``, before a pixel is read), or
+    not an image OpenImageIO reads."""
+    if not os.path.lexists(path):
         raise TextureFileError("no such file")
-    inp = oiio.ImageInput.open(path)
-    if inp is None:
-        raise TextureFileError(f"cannot read image: {oiio.geterror()}")
     try:
-        spec = inp.spec()
-        if spec.width * spec.height > MAX_TEXELS:
-            raise TextureFileError(f"has {spec.width} x {spec.height} texels, more than {MAX_TEXELS}")
-        pixels = inp.read_image(0, 0, 0, spec.nchannels, "float")
-        if pixels is None:
-            raise TextureFileError(f"cannot read image: {inp.geterror()}")
-    finally:
-        inp.close()
-    pixels = np.asarray(pixels, dtype=np.float64).reshape(spec.height, spec.width, spec.nchannels)
+        spec, pixels = read_pixels(path, "texture", error=TextureFileError, max_pixels=MAX_TEXELS)
+    except TextureFileError as e:
+        raise TextureFileError(str(e).removeprefix(f"{path}: ")) from None
+    pixels = pixels.astype(np.float64)
     if spec.nchannels in (1, 2):
         rgb = np.repeat(pixels[..., :1], 3, axis=2)
     elif spec.nchannels in (3, 4):

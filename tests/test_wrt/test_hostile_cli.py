@@ -282,3 +282,18 @@ def test_an_empty_device_name_is_refused_by_the_library_too():
     scene = wrt.load_scene(SCENE)
     with pytest.raises(WrtError, match="device ''"):
         wrt.render(scene, device="")
+
+
+def test_a_corrupt_png_is_one_line_with_nothing_of_libpng(tmp_path):
+    """libpng prints its own "libpng error: ..." on file descriptor 2 before OpenImageIO reports
+    the error: a second line, outside Python, unless the read keeps it off the console."""
+    from wrt.imageio import write_image
+
+    good = tmp_path / "good.png"
+    write_image(good, np.random.default_rng(3).random((64, 64, 3)).astype(np.float32))
+    data = good.read_bytes()
+    bad = tmp_path / "bad.png"
+    bad.write_bytes(data[:200] + b"x" * 50 + data[250:])
+    done = subprocess.run([*WRT, "compare", str(bad), str(good)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2
+    assert len(done.stderr.splitlines()) == 1 and done.stderr.startswith("wrt: error: "), done.stderr

@@ -252,7 +252,11 @@ MALFORMED = [  # spectrum attributes, .spd text (None: no file), what the messag
     ('value="0.5 0.7"', None, "'0.5 0.7' must be one number"),
     ('filename="none.spd"', None, "'reflectance' file 'none.spd': no such file"),
     ('filename="bad.spd"', "400 0.1\n500 x\n", "'reflectance' file 'bad.spd': line 2: 'x' is not a number"),
-    ('filename="bad.spd"', "400 0.1\n   # indented\n", "'reflectance' file 'bad.spd': line 2 '   # indented'"),
+    (
+        'filename="bad.spd"',
+        "400 0.1\n   # indented\n",
+        "'reflectance' file 'bad.spd': line 2 has 0 words, not 'wavelength value'",
+    ),
     ('filename="bad.spd"', "400 0.1\n500 0.2\n450 0.3\n", "wavelengths must increase (500 then 450)"),
     ('value="0.5" filename="bad.spd"', "400 0.1\n500 0.2\n", "needs either a 'value' or a 'filename'"),
     ("", None, "needs either a 'value' or a 'filename'"),

@@ -11,6 +11,7 @@ from collections import Counter
 from dataclasses import dataclass
 
 from ..conductors import METALS
+from ..errors import token
 from .textures import texture, textured_color
 from .xml import Document, Element, Plugin
 
@@ -76,7 +77,7 @@ def ior(p: Plugin, name: str, default: str) -> float:
     if element.tag != "string":
         return p.number(name, None)
     if text.strip().lower() not in IOR_TABLE:
-        raise p.doc.error(element, f"'{name}' = {text!r}: unknown IOR name (known: {', '.join(IOR_TABLE)})")
+        raise p.doc.error(element, f"'{name}' = {token(text)}: unknown IOR name (known: {', '.join(IOR_TABLE)})")
     return IOR_TABLE[text.strip().lower()]
 
 
@@ -87,7 +88,7 @@ def alpha(p: Plugin) -> float | dict:
     if distribution != "ggx":
         p.doc.warn(
             p.params.get("distribution", p.element),
-            f"distribution '{distribution}' is converted as GGX with the same alpha",
+            f"distribution {token(distribution)} is converted as GGX with the same alpha",
         )
     if p.has("alpha_u") or p.has("alpha_v"):
         alpha_u, alpha_v = p.number("alpha_u", 0.1), p.number("alpha_v", 0.1)
@@ -111,7 +112,7 @@ def conductor(p: Plugin, roughness: float) -> dict:
         if p.has("eta") or p.has("k"):
             raise p.doc.error(p.element, "give either eta and k or a material, not both (Mitsuba rejects it)")
         if name not in METALS:
-            raise p.doc.error(p.element, f"unknown conductor material {name!r} (known: none, {', '.join(METALS)})")
+            raise p.doc.error(p.element, f"unknown conductor material {token(name)} (known: none, {', '.join(METALS)})")
         table = {"type": "conductor", "metal": name}
     elif p.has("eta") or p.has("k"):
         table = {

@@ -4,6 +4,7 @@ instance keeps its ``to_world`` as a matrix (wrt traces instances through a two-
 
 from __future__ import annotations
 
+from ..errors import token
 from .bsdfs import Materials
 from .shapes import shape
 from .xml import Document, Element, Plugin
@@ -42,7 +43,7 @@ def instance(doc: Document, element: Element, group_names: set) -> dict:
     p.children("shape")
     name = refs[0].attrs.get("id", "")
     if name not in group_names:
-        raise doc.error(element, f"the shapegroup {name!r} must come before its instances")
+        raise doc.error(element, f"the shapegroup {token(name)} must come before its instances")
     matrix, _ = p.transform("to_world")
     p.finish()
     return {"type": "instance", "group": name, "transform": {"matrix": [float(x) for x in matrix.ravel()]}}

@@ -6,7 +6,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 
-from ..errors import SceneError, WrtError
+from ..errors import SceneError, WrtError, shown, token
 from .bsdfs import Materials
 from .emitters import emitter
 from .instances import instance, shapegroup
@@ -32,7 +32,7 @@ class Converted:
             return error
         where = error.key or ""
         if error.value is not SceneError._NO_VALUE:
-            where += f" = {error.value!r}"
+            where += f" = {shown(error.value)}"
         converted = f" (converted to {error.table}{'.' + error.key if error.key else ''})"
         return WrtError(
             f"{element.file}:{element.line}: {element.describe()}: {where + ': ' if where else ''}"
@@ -91,10 +91,10 @@ def convert(doc: Document, root: Element, sources: dict[str, Element]) -> dict:
     """The wrt scene document of the ``<scene>`` element ``root``; ``sources`` receives the
     element each table came from."""
     if root.tag != "scene":
-        raise WrtError(f"{doc.path}:{root.line}: the root element is <{root.tag}>, not a Mitsuba <scene>")
+        raise WrtError(f"{doc.path}:{root.line}: the root element is {root.describe()}, not a Mitsuba <scene>")
     version = root.attrs.get("version", "")
     if not version.split(".")[0].isdigit() or int(version.split(".")[0]) < 2:
-        doc.warn(root, f"version {version!r}: only Mitsuba 3 scenes (version 2.0 and later names) are converted")
+        doc.warn(root, f"version {token(version)}: only Mitsuba 3 scenes (version 2.0 and later names) are converted")
     doc.expand(root)
     doc.index(root)
     sensors = [c for c in root.children if c.tag == "sensor"]

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 
+from ..errors import token
 from ..limits import MAX_DEPTH, MAX_MAGNITUDE
 from .transforms import as_list, mirrors, vertical_fov
 from .xml import Document, Element, Plugin, parse_number
@@ -90,9 +91,9 @@ def perspective_fov(doc: Document, element: Element, p: Plugin, render: dict) ->
         try:
             focal = parse_number(text.strip().removesuffix("mm"))
         except ValueError as e:
-            raise doc.error(source, f"'focal_length' = {text!r} {e} (it must be of the form <x>mm)") from None
+            raise doc.error(source, f"'focal_length' = {token(text)} {e} (it must be of the form <x>mm)") from None
         if not focal > 0:
-            raise doc.error(source, f"'focal_length' = {text!r} must be > 0 mm")
+            raise doc.error(source, f"'focal_length' = {token(text)} must be > 0 mm")
         fov, axis = math.degrees(2 * math.atan(math.hypot(36.0, 24.0) / (2 * focal))), "diagonal"
     try:
         fov = vertical_fov(fov, axis, render["width"], render["height"])
@@ -100,7 +101,7 @@ def perspective_fov(doc: Document, element: Element, p: Plugin, render: dict) ->
         raise doc.error(element, str(e)) from None
     if not 0.0 < fov < 180.0:  # a fov just inside (0, 180), or a tiny focal length, rounded to an end
         value = source.attrs.get("value", "")
-        raise doc.error(source, f"'{name}' = {value!r} gives a vertical field of view of {fov:g} degrees")
+        raise doc.error(source, f"'{name}' = {token(value)} gives a vertical field of view of {fov:g} degrees")
     return fov
 
 

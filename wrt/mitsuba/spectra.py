@@ -214,13 +214,16 @@ def spd_lines(text: str) -> list[tuple[int, str, str]]:
     line that is empty or starts with ``#`` is skipped; any other starts with a wavelength and a
     value separated by white space, and the rest of it (a ``#`` comment, a third column) is
     ignored. A line with less (even one of only spaces, or an indented comment) is a ValueError
-    naming it."""
+    naming it by its number and its count of words, never quoting it: a file that is no spectrum
+    file, such as ``/etc/shadow``, must not reach the message."""
     found = []
     for number, line in enumerate(text.split("\n"), 1):
         if line[:1] in ("", "#", "\r"):
             continue
         words = line.split("#", 1)[0].split()
         if len(words) < 2:
-            raise ValueError(f"line {number} {line.rstrip()!r} is not 'wavelength value'")
+            raise ValueError(
+                f"line {number} has {len(words)} word{'' if len(words) == 1 else 's'}, not 'wavelength value'"
+            )
         found.append((number, words[0], words[1]))
     return found

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import token
 from .transforms import as_list
 from .xml import Document, Element, Plugin
 
@@ -34,12 +35,14 @@ def texture(doc: Document, element: Element) -> dict:
         for key, parameter, choices in (("filter", "filter_type", FILTERS), ("wrap", "wrap_mode", WRAPS)):
             value = p.string(parameter, choices[0])
             if value not in choices:
-                raise doc.error(p.params[parameter], f"'{parameter}' = {value!r} must be one of {', '.join(choices)}")
+                raise doc.error(
+                    p.params[parameter], f"'{parameter}' = {token(value)} must be one of {', '.join(choices)}"
+                )
             table[key] = value
         if p.boolean("raw", False):
             table["raw"] = True
     else:
-        raise doc.error(element, f"texture type '{p.type}' is not supported (wrt has checkerboard and bitmap)")
+        raise doc.error(element, f"texture type {token(p.type)} is not supported (wrt has checkerboard and bitmap)")
     matrix, _ = p.transform("to_uv")
     if not np.array_equal(matrix, np.eye(4)):
         # Mitsuba's to_uv acts on (u, v, 1): the 4x4 transform without its z row and column

@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 
+from ..errors import token
+
 
 def look_at_matrix(origin, target, up) -> np.ndarray:
     """Mitsuba's ``lookat`` camera-to-world matrix: columns left, up', forward, origin.
@@ -62,7 +64,7 @@ def vertical_fov(fov: float, fov_axis: str, width: int, height: int) -> float:
     elif axis == "diagonal":
         half /= math.sqrt(1.0 + aspect * aspect)
     elif axis != "y":
-        raise ValueError(f"fov_axis must be x, y, diagonal, smaller or larger, got {fov_axis!r}")
+        raise ValueError(f"fov_axis must be x, y, diagonal, smaller or larger, got {token(fov_axis)}")
     return math.degrees(2 * math.atan(half))
 
 

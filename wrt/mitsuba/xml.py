@@ -7,6 +7,15 @@ A ``Document`` is one scene being read: it splices ``<include>``d files in place
 read with ``approximate``, records them). Every element remembers its file and line, so messages name the
 fragment a problem is in. A ``Plugin`` is one plugin element's parameters and nested plugins; it
 records which ones a converter read so that ``finish`` can report the rest.
+
+What Mitsuba's parser refuses, wrt refuses too, before converting anything: an element Mitsuba
+does not know, an attribute an element does not take or a required one missing (``ATTRIBUTES``),
+a transform operation outside a ``<transform>``, an element inside a property, a ``<path>``
+that is not a child of its file's root or names no folder, a parameter given twice. Every file
+is read by ``wrt.files.read_bytes`` (a regular file of at most ``MAX_TEXT_BYTES``), and a scene
+with its includes expanded holds at most ``MAX_ELEMENTS`` elements, checked before the
+expansion is built. Messages quote the file's values by ``wrt.errors.token`` (at most
+``MAX_QUOTED`` characters of them).
 """
 
 from __future__ import annotations
@@ -19,7 +28,8 @@ from xml.parsers import expat
 
 import numpy as np
 
-from ..errors import WrtError
+from ..errors import MAX_LISTED, WrtError, shorten, token
+from ..files import MAX_TEXT_BYTES, read_bytes
 from . import spectra
 from .transforms import look_at_matrix, rotation_matrix
 
@@ -38,6 +48,31 @@ PLUGIN_TAGS = (
     "sensor",
     "integrator",
 )
+OBJECT_TAGS = (*PLUGIN_TAGS, "field", "scene")
+"""Mitsuba's object elements: they take a ``type`` (the scene: a ``version``), an ``id`` and a ``name``."""
+TRANSFORM_OPERATIONS = ("translate", "rotate", "scale", "lookat", "matrix")
+ATTRIBUTES = {
+    **{tag: ("!name", "!value") for tag in ("float", "integer", "boolean", "string", "rgb")},
+    "point": ("!name", "x", "y", "z", "value"),
+    "vector": ("!name", "x", "y", "z", "value"),
+    "spectrum": ("!name", "value", "filename"),
+    "transform": ("!name",),
+    "translate": ("x", "y", "z", "value"),
+    "scale": ("x", "y", "z", "value"),
+    "rotate": ("!angle", "x", "y", "z", "value"),
+    "lookat": ("!origin", "!target", "up"),
+    "matrix": ("!value",),
+    "ref": ("!id", "name"),
+    "include": ("!filename", "name"),
+    "alias": ("!id", "!as"),
+    "default": ("!name", "!value"),
+    "path": ("!value",),
+}
+"""The attributes each element of Mitsuba 3's scene format takes (its parser, ``src/core/parser.cpp``),
+``!`` marking the required ones; object elements (``OBJECT_TAGS``) take ``!type``, ``id`` and ``name``.
+A ``value`` of a point, vector, translation, scale or rotation stands for its ``x``, ``y`` and ``z``
+(a point and a vector need all three): it is given without them."""
+_XYZ_TAGS = ("point", "vector", "translate", "scale", "rotate")
 HARMLESS = {
     "hdrfilm": ("file_format", "pixel_format", "component_format", "compensate"),
     "path": ("rr_depth",),
@@ -54,11 +89,18 @@ MAX_NESTING = 100
 MAX_INCLUDES = 32
 """Deepest chain of ``<include>``d files (a loop is refused before it gets there)."""
 
+MAX_ELEMENTS = 1_000_000
+"""Most elements a scene holds, its included files expanded. Real scenes hold tens to
+thousands (the largest example and Mitsuba-suite scene here, 71); a million is some 100,000
+shapes. More is refused, before the expansion is built: an include bomb (fragments that each
+include the next one ten times) would otherwise grow tenfold per fragment."""
+
 _REQUIRED = object()
 _PARAMETER = re.compile(r"\$([A-Za-z_][A-Za-z0-9_]*)")
 _SPLIT = re.compile(r"[\s,]+")
 _DECIMAL = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 _INTEGER = re.compile(r"[+-]?[0-9]+")
+_VERSION_PART = re.compile(r"\s*[+-]?[0-9]")
 _NON_FINITE = ("nan", "inf", "infinity")
 _SINGULAR = 1e-12
 """A 3x3 transform is singular when its smallest singular value is below this fraction of its largest."""
@@ -98,31 +140,49 @@ class Element:
     file: str = ""  # the file it was read from (an <include>d fragment, or the scene)
 
     def describe(self) -> str:
-        shown = " ".join(f'{k}="{self.attrs[k]}"' for k in ("type", "name", "id") if k in self.attrs)
-        return f"<{self.tag}{' ' + shown if shown else ''}>"
+        """``<tag type="..." name="..." id="...">`` as a message names it, each value cut by
+        ``wrt.errors.shorten`` (they are the file's)."""
+        shown = " ".join(f'{k}="{shorten(self.attrs[k])}"' for k in ("type", "name", "id") if k in self.attrs)
+        return f"<{shorten(self.tag)}{' ' + shown if shown else ''}>"
+
+    def copy(self) -> Element:
+        """A copy of the element and of everything inside it, each a new object (an included
+        fragment's elements are shared by every place it is included until copied)."""
+        top = Element(self.tag, self.attrs, self.line, list(self.children), self.file)
+        pending = [top]
+        while pending:
+            element = pending.pop()
+            element.children = [Element(c.tag, c.attrs, c.line, list(c.children), c.file) for c in element.children]
+            pending.extend(element.children)
+        return top
 
 
 def read_xml(path: str) -> Element:
     """The root element of the XML file ``path`` (``WrtError`` naming the file, line and column).
 
-    Elements nested more than ``MAX_NESTING`` deep are refused (every later step may then recurse
-    safely). Expat expands no external entity and refuses entity expansion that amplifies the input
-    beyond its limits ("billion laughs"), both as malformed XML.
+    The file is read by ``wrt.files.read_bytes``: a regular file (no FIFO, device or folder) of at
+    most ``MAX_TEXT_BYTES``. Elements nested more than ``MAX_NESTING`` deep, and more than
+    ``MAX_ELEMENTS`` elements, are refused (every later step may then recurse safely), and so is
+    what Mitsuba's parser refuses (`check_elements`). Expat expands no external entity and
+    refuses entity expansion that amplifies the input beyond its limits ("billion laughs"), both
+    as malformed XML.
     """
-    try:
-        with open(path, "rb") as f:
-            data = f.read()
-    except OSError as e:
-        raise WrtError(f"{path}: cannot read Mitsuba scene ({e.strerror})") from None
+    if not os.path.lexists(path):
+        raise WrtError(f"{path}: cannot read Mitsuba scene (no such file)")
+    data = read_bytes(path, "Mitsuba scene", limit=MAX_TEXT_BYTES)
     parser = expat.ParserCreate()
     stack: list[Element] = []
     roots: list[Element] = []
+    count = 0
 
     def start(tag, attrs):
+        nonlocal count
+        count += 1
+        where = f"{path}:{parser.CurrentLineNumber}: <{shorten(tag)}>"
         if len(stack) >= MAX_NESTING:
-            raise WrtError(
-                f"{path}:{parser.CurrentLineNumber}: <{tag}> is nested more than {MAX_NESTING} elements deep"
-            )
+            raise WrtError(f"{where} is nested more than {MAX_NESTING} elements deep")
+        if count > MAX_ELEMENTS:
+            raise WrtError(f"{where}: the file holds more than the {MAX_ELEMENTS} elements wrt reads")
         element = Element(tag, attrs, parser.CurrentLineNumber, file=path)
         (stack[-1].children if stack else roots).append(element)
         stack.append(element)
@@ -133,7 +193,82 @@ def read_xml(path: str) -> Element:
         parser.Parse(data, True)
     except expat.ExpatError as e:
         raise WrtError(f"{path}:{e.lineno}:{e.offset + 1}: malformed XML: {expat.ErrorString(e.code)}") from None
+    check_elements(roots[0])
     return roots[0]
+
+
+def check_elements(root: Element) -> None:
+    """Refuse, as Mitsuba's parser does, an element of the file ``root`` is the root of that
+    Mitsuba does not know, an attribute it does not take or a required one it lacks
+    (``ATTRIBUTES``), ``value`` with ``x``, ``y`` or ``z``, a transform operation outside a
+    ``<transform>`` or anything else inside one, an element inside a property (``<float>``,
+    ``<ref>``, ``<include>``, ...), and a ``<path>`` that is not a child of the root. The root
+    needs a version of three numbers (``3.0.0``)."""
+    pending = [(root, None)]
+    while pending:
+        element, parent = pending.pop()
+        tag, attrs = element.tag, element.attrs
+
+        def refuse(problem):
+            return WrtError(f"{element.file}:{element.line}: {element.describe()}: {problem}")
+
+        is_object = tag in OBJECT_TAGS or (tag == "spectrum" and "type" in attrs)
+        if not is_object and tag not in ATTRIBUTES:
+            raise refuse("not an element of Mitsuba's scene format")
+        if parent is None:
+            if not is_object:
+                raise refuse("the root element must be a Mitsuba object (a <scene>)")
+            expected = ("!version", "type", "id", "name")
+        else:
+            expected = ("!type", "id", "name") if is_object else ATTRIBUTES[tag]
+        allowed = [name.lstrip("!") for name in expected]
+        for name in attrs:
+            if name not in allowed:
+                takes = ", ".join(allowed) or "no attribute"
+                raise refuse(f"unexpected attribute {token(name)} (a <{shorten(tag)}> takes {takes})")
+        xyz = tag in _XYZ_TAGS and "value" in attrs
+        for name in expected:
+            if name.startswith("!") and name[1:] not in attrs:
+                raise refuse(f"the attribute '{name[1:]}' is required")
+        if xyz and any(axis in attrs for axis in "xyz"):
+            raise refuse("'value' is given with 'x', 'y' or 'z' (Mitsuba takes one or the other)")
+        if tag in ("point", "vector") and not xyz:
+            missing = [axis for axis in "xyz" if axis not in attrs]
+            if missing:
+                raise refuse(f"the attribute '{missing[0]}' is required (or a 'value')")
+        if parent is None:
+            parts = [part for part in re.split("[ .]", attrs.get("version", "")) if part]
+            if len(parts) != 3 or not all(_VERSION_PART.match(part) for part in parts):
+                raise refuse(f"version {token(attrs['version'])} is not a version number (major.minor.patch)")
+        if tag == "path" and (parent is None or parent is not root):
+            raise refuse("a <path> must be a child of its file's root element")
+        if parent is not None and (tag in TRANSFORM_OPERATIONS) != (parent.tag == "transform"):
+            where = f"inside {parent.describe()}"
+            raise refuse(
+                f"a transform operation {where}"
+                if tag in TRANSFORM_OPERATIONS
+                else f"{where}, not a transform operation"
+            )
+        if not is_object and tag != "transform" and element.children:
+            child = element.children[0]
+            raise WrtError(
+                f"{child.file}:{child.line}: {child.describe()}: inside {element.describe()}, which is a property "
+                "(only objects and transforms hold elements)"
+            )
+        pending.extend((child, element) for child in reversed(element.children))
+
+
+@dataclass
+class _Expansion:
+    """One ``<include>``d file expanded: its elements (shared by every place it is included, until
+    ``Document.expand`` copies them), how many elements that is in all, the ``<path>`` folders
+    after it, the files it included (itself too) and how deep its includes nest."""
+
+    children: list
+    size: int
+    search: tuple
+    files: frozenset
+    depth: int
 
 
 class Document:
@@ -145,6 +280,9 @@ class Document:
         self.approximations: dict[tuple[str, str, str], list[int]] = {}  # (file, element, what) -> lines
         self.ids: dict[str, Element] = {}
         self.search: list[str] = []  # <path> folders, the latest first (as Mitsuba's resolver prepends them)
+        self._parsed: dict[str, Element] = {}  # each included file, read once
+        self._expanded: dict[tuple, _Expansion] = {}  # (file, self.search) -> its expansion
+        self._read = 0  # elements read and walked by expansions, for the bound
 
     # --- reporting ----------------------------------------------------------------------------
     def error(self, element: Element, message: str) -> WrtError:
@@ -170,69 +308,163 @@ class Document:
         return lines
 
     # --- files: <include> and <path> ----------------------------------------------------------
-    def expand(self, root: Element, chain: tuple[str, ...] = ()) -> None:
+    def expand(self, root: Element) -> None:
         """Splice every ``<include filename=...>`` in ``root`` into its place (the included
-        ``<scene>``'s children, themselves expanded), as Mitsuba does, and record the ``<path>``
-        folders in document order. A file that includes itself, directly or not, is refused."""
-        chain = chain or (os.path.abspath(root.file or self.path),)
-        for element in [root, *_descendants(root)]:  # the elements before splicing
-            if not any(child.tag in ("include", "path") for child in element.children):
+        ``<scene>``'s objects, themselves expanded; its properties and references Mitsuba ignores,
+        and so does wrt), as Mitsuba does, and record the ``<path>`` folders in document order. A
+        file that includes itself, directly or not, is refused, and so is an expansion of more
+        than ``MAX_ELEMENTS`` elements.
+
+        Each file is read once and expanded once for each set of ``<path>`` folders it is met
+        with; the places it is included share its elements while their number is counted, and
+        get their own copies only once the whole scene is known to hold at most ``MAX_ELEMENTS``."""
+        size = self._expand_tree(root, (os.path.abspath(root.file or self.path),))[0]
+        if size > MAX_ELEMENTS:
+            raise WrtError(
+                f"{root.file or self.path}: its <include>d files expand it to {size} elements, more than the "
+                f"{MAX_ELEMENTS} wrt reads"
+            )
+        seen: set[int] = set()
+        pending = [root]
+        while pending:
+            element = pending.pop()
+            for i, child in enumerate(element.children):
+                if id(child) in seen:  # a second place an included fragment's element is spliced into
+                    child = element.children[i] = child.copy()
+                seen.add(id(child))
+                pending.append(child)
+
+    def _expand_tree(self, root: Element, chain: tuple[str, ...]) -> tuple[int, frozenset, int]:
+        """Splice the includes of the file whose root is ``root`` (read from the last file of
+        ``chain``, which the others included), in document order, without recursing inside the
+        file. Returns the elements ``root`` holds (itself not counted), the files it includes
+        and how deep they nest."""
+        size, files, depth = 0, frozenset(), 0
+        stack = [(root, iter(root.children), [])]
+        while stack:
+            element, pending, kept = stack[-1]
+            child = next(pending, None)
+            if child is None:
+                element.children = kept
+                stack.pop()
                 continue
-            children = []
-            for child in element.children:
-                if child.tag == "path":
-                    folder = os.path.join(os.path.dirname(child.file or self.path), self.attr(child, "value"))
-                    self.search.insert(0, folder)
-                    children.append(child)
-                elif child.tag == "include":
-                    target = self.find_file(child, self.attr(child, "filename"))
-                    if target is None:
-                        raise self.error(child, f"no such file {self.attr(child, 'filename')!r} {self.searched(child)}")
-                    target = os.path.abspath(target)
-                    if target in chain:
-                        loop = " > ".join(os.path.basename(f) for f in (*chain, target))
-                        raise self.error(child, f"include loop: {loop}")
-                    if len(chain) >= MAX_INCLUDES:
-                        raise self.error(child, f"includes nested more than {MAX_INCLUDES} files deep")
-                    included = read_xml(target)
-                    if included.tag != "scene":
-                        raise WrtError(f"{target}:{included.line}: an included file's root must be <scene>")
-                    self.expand(included, (*chain, target))
-                    children.extend(included.children)
-                else:
-                    children.append(child)
-            element.children = children
+            if child.tag == "include":
+                expansion = self._include(child, chain)
+                kept.extend(expansion.children)
+                size += expansion.size
+                files, depth = files | expansion.files, max(depth, expansion.depth + 1)
+                continue
+            if child.tag == "path":
+                folder = os.path.join(os.path.dirname(child.file or self.path), self.attr(child, "value"))
+                if not os.path.exists(folder):
+                    raise self.error(child, f"no such folder {token(self.attr(child, 'value'))}")
+                if folder in self.search:
+                    self.search.remove(folder)
+                self.search.insert(0, folder)
+            kept.append(child)
+            size += 1
+            stack.append((child, iter(child.children), []))
+        return size, files, depth
+
+    def _include(self, element: Element, chain: tuple[str, ...]) -> _Expansion:
+        """The expansion of the file an ``<include>`` names (read and expanded once for the
+        ``<path>`` folders in force), after refusing an include loop, includes nested more than
+        ``MAX_INCLUDES`` deep and an expansion of more than ``MAX_ELEMENTS`` elements."""
+        name = self.attr(element, "filename")
+        target = self.find_file(element, name)
+        if target is None:
+            raise self.error(element, f"no such file {token(name)} {self.searched(element)}")
+        target = os.path.abspath(target)
+        key = (target, tuple(self.search))
+        expansion = self._expanded.get(key)
+        if expansion is None:
+            if target in chain:
+                loop = " > ".join(shorten(os.path.basename(f)) for f in (*chain, target))
+                raise self.error(element, f"include loop: {loop}")
+            if len(chain) >= MAX_INCLUDES:
+                raise self.error(element, f"includes nested more than {MAX_INCLUDES} files deep")
+            if target not in self._parsed:
+                included = read_xml(target)
+                if included.tag != "scene":
+                    raise WrtError(f"{target}:{included.line}: an included file's root must be <scene>")
+                self._parsed[target] = included
+            fragment = self._parsed[target].copy()  # the copy is expanded in place
+            self._read += sum(1 for _ in _descendants(fragment))
+            if self._read > MAX_ELEMENTS:
+                raise self.error(element, f"the included files hold more than the {MAX_ELEMENTS} elements wrt reads")
+            fragment.children = [child for child in fragment.children if child.tag not in (*VALUE_TAGS, "ref")]
+            size, files, depth = self._expand_tree(fragment, (*chain, target))
+            expansion = _Expansion(fragment.children, size, tuple(self.search), files | {target}, depth)
+            self._expanded[key] = expansion
+        elif any(f in expansion.files for f in chain):
+            loop = " > ".join(shorten(os.path.basename(f)) for f in (*chain, target))
+            raise self.error(element, f"include loop: {loop}")
+        elif len(chain) + expansion.depth >= MAX_INCLUDES:
+            raise self.error(element, f"includes nested more than {MAX_INCLUDES} files deep")
+        self.search[:] = expansion.search
+        if expansion.size > MAX_ELEMENTS:
+            raise self.error(
+                element,
+                f"{token(name)} expands to {expansion.size} elements, more than the {MAX_ELEMENTS} wrt reads",
+            )
+        return expansion
 
     def find_file(self, element: Element, name: str) -> str | None:
         """The file ``name`` refers to, as Mitsuba's resolver finds it: as given when absolute,
         else in the ``<path>`` folders (the latest first), then beside the file ``element`` is in,
-        then beside the scene file; None when it is nowhere."""
+        then beside the scene file; None when it is nowhere. What exists there is found, as by
+        Mitsuba (a folder or a FIFO too: the reader then refuses it)."""
         if os.path.isabs(name):
-            return name if os.path.isfile(name) else None
+            return name if os.path.exists(name) else None
         folders = [*self.search, os.path.dirname(element.file or self.path), os.path.dirname(self.path)]
-        return next((os.path.join(f, name) for f in folders if os.path.isfile(os.path.join(f, name))), None)
+        return next((os.path.join(f, name) for f in folders if os.path.exists(os.path.join(f, name))), None)
 
     def searched(self, element: Element) -> str:
         """Where ``find_file`` looked, for a message."""
-        folders = dict.fromkeys([*self.search, os.path.dirname(element.file or self.path), os.path.dirname(self.path)])
-        return "(searched: " + ", ".join(repr(f or ".") for f in folders) + ")"
+        folders = list(
+            dict.fromkeys([*self.search, os.path.dirname(element.file or self.path), os.path.dirname(self.path)])
+        )
+        more = ", ..." if len(folders) > MAX_LISTED else ""
+        return "(searched: " + ", ".join(repr(f or ".") for f in folders[:MAX_LISTED]) + more + ")"
 
     # --- the file's ids and defaults ----------------------------------------------------------
     def index(self, root: Element) -> None:
         """Record every element's ``id`` (each once) and the root's ``<default>`` parameters (the
-        caller's ``params`` take precedence), then refuse reference loops."""
+        caller's ``params`` take precedence), then refuse reference loops and parameters given
+        twice."""
         for element in _descendants(root):
             if "id" in element.attrs and element.tag != "ref":
                 first = self.ids.setdefault(element.attrs["id"], element)
                 if first is not element:
                     raise self.error(
                         element,
-                        f"id {element.attrs['id']!r} is already the id of {first.describe()} on line {first.line}",
+                        f"id {token(element.attrs['id'])} is already the id of {first.describe()} on line {first.line}",
                     )
         for child in root.children:
             if child.tag == "default":
                 self.params.setdefault(self.attr(child, "name"), self.attr(child, "value"))
         self._check_references(root)
+        self._check_parameters(root)
+
+    def _check_parameters(self, root: Element) -> None:
+        """Refuse, as Mitsuba does ("property ... was specified multiple times"), a parameter (a
+        ``<float>``, ``<rgb>``, ``<transform>``, ... or a named ``<ref>``) of an element given
+        again under a name it already has. A named nested object replaces what had its name
+        (`Plugin` keeps only the last), as in Mitsuba."""
+        for element in [root, *_descendants(root)]:
+            given: dict[str, Element] = {}
+            for child in element.children:
+                if "name" not in child.attrs or child.tag not in (*VALUE_TAGS, "ref", *OBJECT_TAGS):
+                    continue
+                name = self.attr(child, "name")
+                if (child.tag in VALUE_TAGS or child.tag == "ref") and name in given:
+                    first = given[name]
+                    raise self.error(
+                        child,
+                        f"parameter {token(name)} of {element.describe()} is given twice (first as"
+                        f" {first.describe()} on line {first.line}): Mitsuba refuses a property given more than once",
+                    )
+                given[name] = child
 
     def _check_references(self, root: Element) -> None:
         """Refuse an element that contains itself through ``<ref>`` elements (a reference to itself,
@@ -271,7 +503,10 @@ class Document:
 
         def substitute(match):
             if match.group(1) not in self.params:
-                raise self.error(element, f'${match.group(1)} is not defined (no <default name="{match.group(1)}">)')
+                raise self.error(
+                    element,
+                    f'${shorten(match.group(1))} is not defined (no <default name="{shorten(match.group(1))}">)',
+                )
             return self.params[match.group(1)]
 
         return _PARAMETER.sub(substitute, element.attrs[name])
@@ -285,12 +520,12 @@ class Document:
             try:
                 values.append(parse_number(word))
             except ValueError as e:
-                shown = f"{word!r} " if len(words) > 1 else ""
-                problem = f"'{name}' = {text!r}: {shown}{e}" if shown else f"'{name}' = {text!r} {e}"
+                shown = f"{token(word)} " if len(words) > 1 else ""
+                problem = f"'{name}' = {token(text)}: {shown}{e}" if shown else f"'{name}' = {token(text)} {e}"
                 raise self.error(element, problem) from None
         if counts is not None and len(values) not in counts:
             wanted = " or ".join("one" if n == 1 else str(n) for n in counts)
-            raise self.error(element, f"'{name}' = {text!r} must be {wanted} number{'s' * (counts != (1,))}")
+            raise self.error(element, f"'{name}' = {token(text)} must be {wanted} number{'s' * (counts != (1,))}")
         return values
 
     def number(self, element: Element, name: str, text: str, integer: bool = False):
@@ -300,7 +535,7 @@ class Document:
         try:
             return parse_number(text, integer=True)
         except ValueError as e:
-            raise self.error(element, f"'{name}' = {text!r} {e}") from None
+            raise self.error(element, f"'{name}' = {token(text)} {e}") from None
 
     def xyz(self, element: Element, default: float) -> np.ndarray:
         """``x``, ``y``, ``z`` attributes, or ``value`` with one or three numbers."""
@@ -312,7 +547,7 @@ class Document:
     def resolve(self, ref: Element) -> Element:
         target = self.ids.get(self.attr(ref, "id"))
         if target is None:
-            raise self.error(ref, f"reference to unknown id '{ref.attrs['id']}'")
+            raise self.error(ref, f"reference to unknown id {token(self.attr(ref, 'id'))}")
         return target
 
     def transform(self, element: Element) -> tuple[np.ndarray, tuple | None]:
@@ -377,7 +612,7 @@ def _descendants(root: Element):
 
 def _shown(element: Element) -> str:
     """An element's attributes as a message shows values: ``'x' = '1', 'y' = '0'``."""
-    return ", ".join(f"'{k}' = {v!r}" for k, v in element.attrs.items())
+    return ", ".join(f"'{shorten(k)}' = {token(v)}" for k, v in element.attrs.items())
 
 
 def _singular(matrix: np.ndarray) -> bool:
@@ -401,11 +636,15 @@ class Plugin:
         self.used_nested: set[int] = set()  # ids of nested elements read
         for child in element.children:
             if child.tag in VALUE_TAGS:
-                self.params[doc.attr(child, "name")] = child
+                self.params[doc.attr(child, "name")] = child  # given once (Document.index)
             elif child.tag == "ref":
                 self.nested.append((child.attrs.get("name"), doc.resolve(child)))
             elif child.tag in PLUGIN_TAGS:
-                self.nested.append((child.attrs.get("name"), child))
+                name = doc.attr(child, "name", None)
+                if name is not None:  # as in Mitsuba, a named object replaces what was given its name before
+                    self.params.pop(name, None)
+                    self.nested = [(key, other) for key, other in self.nested if key != name]
+                self.nested.append((name, child))
             else:
                 doc.warn(child, f"unsupported element inside {element.describe()}: ignored")
 
@@ -415,7 +654,7 @@ class Plugin:
         self.used.add(name)
         element = self.params.get(name)
         if element is not None and element.tag not in tags:
-            shown = f" = {element.attrs['value']!r}" if "value" in element.attrs else ""
+            shown = f" = {token(element.attrs['value'])}" if "value" in element.attrs else ""
             raise self.doc.error(
                 element, f"parameter '{name}'{shown} of {self.element.describe()} must be a <{tags[0]}>"
             )
@@ -444,7 +683,7 @@ class Plugin:
                 wanted = f"in ({above:g}, {below:g})"
             else:
                 wanted = f"> {above:g}" if above is not None else f"< {below:g}"
-            raise self.doc.error(element, f"'{name}' = {text!r} must be {wanted}")
+            raise self.doc.error(element, f"'{name}' = {token(text)} must be {wanted}")
         return value
 
     def boolean(self, name: str, default: bool) -> bool:
@@ -453,7 +692,7 @@ class Plugin:
             return default
         text = self.doc.attr(element, "value").strip().lower()
         if text not in ("true", "false"):
-            raise self.doc.error(element, f"'{name}' = {text!r} is not true or false")
+            raise self.doc.error(element, f"'{name}' = {token(text)} is not true or false")
         return text == "true"
 
     def string(self, name: str, default: str | None) -> str | None:
@@ -470,7 +709,7 @@ class Plugin:
             raise self.doc.error(self.element, f"{subject} needs a filename")
         found = self.doc.find_file(self.element, filename)
         if found is None:
-            raise self.doc.error(self.element, f"no such {kind} {filename!r} {self.doc.searched(self.element)}")
+            raise self.doc.error(self.element, f"no such {kind} {token(filename)} {self.doc.searched(self.element)}")
         return os.path.relpath(found, os.path.dirname(self.doc.path) or ".")
 
     def color(self, name: str, default: float, *, emission: bool = False, unbounded: bool = False) -> list[float]:
@@ -486,7 +725,7 @@ class Plugin:
         text = self.doc.attr(element, "value")
         values = self.doc.numbers(element, name, text)
         if len(values) not in (1, 3) or (element.tag != "rgb" and len(values) != 1):
-            raise self.doc.error(element, f"'{name}' = {text!r} must be one or three numbers")
+            raise self.doc.error(element, f"'{name}' = {token(text)} must be one or three numbers")
         return values * 3 if len(values) == 1 else values
 
     def _spectrum(self, element: Element, name: str, emission: bool, unbounded: bool) -> np.ndarray:
@@ -502,24 +741,25 @@ class Plugin:
         if text and ":" not in text:
             return spectra.uniform_to_srgb(doc.number(element, name, text), emission=emission)
         if text:
-            shown = f"'{name}' = {text!r}"
+            shown = f"'{name}' = {token(text)}"
             tokens = _SPLIT.split(text.strip())
             # split at ':' as Mitsuba's tokenizer does, empty parts dropped ("400::1" is 400:1)
             pairs = [[part for part in token.split(":") if part] for token in tokens]
             bad = next((token for token, pair in zip(tokens, pairs) if len(pair) != 2), None)
             if bad is not None:
-                raise doc.error(element, f"{shown}: {bad!r} is not a wavelength:value pair")
+                raise doc.error(element, f"{shown}: {token(bad)} is not a wavelength:value pair")
             lines = [("", *pair) for pair in pairs]
         else:
-            shown = f"'{name}' file {filename!r}"
+            shown = f"'{name}' file {token(filename)}"
             path = doc.find_file(element, filename)
             if path is None:
                 raise doc.error(element, f"{shown}: no such file {doc.searched(element)}")
             try:
-                with open(path, encoding="utf-8", errors="replace") as f:
-                    lines = [(f"line {n}: ", *pair) for n, *pair in spectra.spd_lines(f.read())]
-            except OSError as e:
-                raise doc.error(element, f"{shown}: cannot read it ({e.strerror})") from None
+                text = read_bytes(path, "spectrum").decode("utf-8", errors="replace")
+            except WrtError as e:  # not a regular file, or too large: "PATH: why"
+                raise doc.error(element, f"{shown}: {str(e).removeprefix(path + ': ')}") from None
+            try:
+                lines = [(f"line {n}: ", *pair) for n, *pair in spectra.spd_lines(text)]
             except ValueError as e:
                 raise doc.error(element, f"{shown}: {e}") from None
         numbers = []
@@ -528,7 +768,7 @@ class Plugin:
                 try:
                     numbers.append(parse_number(word))
                 except ValueError as e:
-                    raise doc.error(element, f"{shown}: {where}{word!r} {e}") from None
+                    raise doc.error(element, f"{shown}: {where}{token(word)} {e}") from None
         try:
             return spectra.spectrum_to_srgb(
                 numbers[0::2], numbers[1::2], bounded=not (emission or unbounded), d65=not emission
@@ -561,7 +801,9 @@ class Plugin:
         harmless = HARMLESS.get(self.type, ())
         for name, element in self.params.items():
             if name not in self.used and name not in harmless:
-                self.doc.warn(element, f"parameter '{name}' of {self.element.describe()} is not supported: ignored")
+                self.doc.warn(
+                    element, f"parameter '{shorten(name)}' of {self.element.describe()} is not supported: ignored"
+                )
         for _, child in self.nested:
             if id(child) not in self.used_nested:
                 self.doc.warn(child, f"{child.describe()} inside {self.element.describe()} is not supported: ignored")
