@@ -87,12 +87,28 @@ def _reason(error: OSError) -> str:
     return error.strerror or str(error)
 
 
+def _target(path: str, shown: str) -> str:
+    """The file a write to ``path`` replaces: ``path`` itself, or the file a symbolic link there
+    points to (the link stays a link). ``WrtError`` naming ``shown`` when that exists and is not a
+    regular file or a folder: renaming over a device (``/dev/null``, ``/dev/stdout``), a FIFO or a
+    socket would replace it with a plain file."""
+    target = os.path.realpath(path) if os.path.islink(path) else path
+    try:
+        mode = os.stat(path).st_mode  # through the links: /dev/stdout may end in a pipe
+    except OSError:
+        return target  # absent (it is made), or the write says why
+    if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+        raise WrtError(f"{shown}: is {_kind(mode)}, not a file wrt may replace")
+    return target
+
+
 def check_writable(path: str | os.PathLike, *, protect: tuple = (), option: str | None = None) -> None:
     """Raise ``WrtError`` naming ``path`` (after ``option``, when given) when it cannot be written:
-    its folder is missing or not writable, it is a folder, its name is longer than ``NAME_MAX``
-    bytes, or it is one of the files in ``protect`` (the input being read)."""
-    path = os.fspath(path)
-    shown = f"{option} {path}" if option else path
+    its folder is missing or not writable, it is a folder, a device, a FIFO or a socket, its name
+    is longer than ``NAME_MAX`` bytes, or it is one of the files in ``protect`` (the input being
+    read). A symbolic link is judged by the file it points to, which a write replaces."""
+    shown = f"{option} {os.fspath(path)}" if option else os.fspath(path)
+    path = _target(os.fspath(path), shown)
     folder, name = os.path.split(os.path.abspath(path))
     if not name or os.path.isdir(path):
         raise WrtError(f"{shown}: is a folder, not a file name")
@@ -132,15 +148,17 @@ def atomic_path(
     meant to be written), and renamed over ``path``; when anything raises (Ctrl-C included) it is
     removed and ``path`` is left as it was. Errors of the file system (a full disk, a read-only
     folder) are ``WrtError`` naming ``path``. Stale temporary files of dead writers to ``path``
-    are removed first."""
-    path = os.fspath(path)
+    are removed first. A symbolic link ``path`` stays: the file it points to is replaced; a
+    device, FIFO or socket there is refused (``_target``)."""
+    shown = os.fspath(path)
+    path = _target(shown, shown)
     folder, name = os.path.split(os.path.abspath(path))
     stem = _temp_stem(name, suffix)
     _remove_stale(folder, stem, suffix)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f"{stem}{os.getpid()}.", suffix=suffix, dir=folder)
     except OSError as e:
-        raise WrtError(f"{path}: cannot write ({_reason(e)})") from None
+        raise WrtError(f"{shown}: cannot write ({_reason(e)})") from None
     os.close(fd)
     try:
         yield tmp
@@ -155,7 +173,7 @@ def atomic_path(
             os.chmod(tmp, mode)
             os.replace(tmp, path)
         except OSError as e:
-            raise WrtError(f"{path}: cannot write ({_reason(e)}); the file was left as it was") from None
+            raise WrtError(f"{shown}: cannot write ({_reason(e)}); the file was left as it was") from None
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)

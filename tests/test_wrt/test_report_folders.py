@@ -170,3 +170,41 @@ def test_a_report_never_deletes_a_file_its_mark_does_not_list(tmp_path_factory, 
     lost = {name for name, data in before.items() if data is not None and name != REPORT_MARK}
     assert not lost or (listed is not None and lost <= set(listed)), (before, listed)
     assert (folder / "index.html").read_text() == "new"
+
+
+# --- what a write may replace ---------------------------------------------------------------------
+
+
+def test_a_write_never_replaces_a_device_or_a_fifo(tmp_path):
+    """Renaming a temporary file over /dev/null (as root, --json /dev/null would have) or a FIFO
+    replaces it with a plain file: refused, and the special file stays what it was (a FIFO here,
+    so that a lost check cannot break the machine)."""
+    from wrt.files import check_writable, write_json
+
+    special = str(tmp_path / "pipe")
+    os.mkfifo(special)
+    mode = os.stat(special).st_mode
+    with pytest.raises(WrtError, match="not a file wrt may replace"):
+        check_writable(special, option="--json")
+    with pytest.raises(WrtError, match="not a file wrt may replace"):
+        write_json(special, {"x": 1})
+    assert os.stat(special).st_mode == mode
+
+
+def test_a_symbolic_link_stays_and_its_file_is_replaced(tmp_path):
+    from wrt.files import write_json
+
+    (tmp_path / "real.json").write_text("old")
+    (tmp_path / "link.json").symlink_to(tmp_path / "real.json")
+    write_json(tmp_path / "link.json", {"new": 1})
+    assert (tmp_path / "link.json").is_symlink()
+    assert json.loads((tmp_path / "real.json").read_text()) == {"new": 1}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link.json", "real.json"]
+
+
+def test_matrix_json_refuses_a_fifo_before_the_work(tmp_path, capsys):
+    """(A FIFO, not /dev/null itself: were the check ever lost, the test must not break the machine.)"""
+    pipe = tmp_path / "pipe"
+    os.mkfifo(pipe)
+    refused(capsys, ["matrix", "raycast_sphere", "--json", str(pipe)], "is a FIFO")
+    assert not pipe.is_file() and pipe.exists()
