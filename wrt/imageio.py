@@ -294,7 +294,13 @@ def read_pixels(
                 )
             if max_pixels is not None and spec.width * spec.height > max_pixels:
                 raise error(f"{path}: {what} of {spec.width} x {spec.height} pixels, more than {max_pixels}")
-            pixels = inp.read_image(0, 0, 0, spec.nchannels, format)
+            try:
+                pixels = inp.read_image(0, 0, 0, spec.nchannels, format)
+            except MemoryError:
+                raise error(
+                    f"{path}: {what} of {spec.width} x {spec.height} pixels, {spec.nchannels} channels: not enough "
+                    "memory to read it"
+                ) from None
             if pixels is None:
                 raise error(f"{path}: cannot read {what}: {_oiio_error(inp.geterror())}")
         finally:
