@@ -49,14 +49,13 @@ from importlib import resources
 
 import numpy as np
 from wrt_harness import mitsuba_peer
-from wrt_harness.commands import check_output_folder
 from wrt_harness.references import REFERENCE_SEED
 from wrt_harness.score import convergence_slope, rmse, ssim
 
 import wrt
 from wrt.device import resolve_device
 from wrt.errors import WrtError
-from wrt.files import write_atomic, write_json
+from wrt.files import check_output_folder, write_atomic, write_json
 from wrt.host import machine_info
 from wrt.imageio import read_image, write_image
 from wrt.loader import load_scene, override_render, parse_scene

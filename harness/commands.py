@@ -87,30 +87,6 @@ def matrix_json(results, wrong: bool = False) -> dict:
     return {"wrong": wrong, "features": features}
 
 
-def check_output_folder(folder: str, names=(), *, option: str, protect: tuple = ()) -> None:
-    """``WrtError`` (naming ``option`` and the path) unless a command can write the files ``names``
-    into ``folder``, before its work: ``folder`` is absent, and the nearest folder above it that
-    exists is writable (it is made), or it is a writable folder in which none of ``names`` is a
-    folder or one of the inputs ``protect``. Only those files are written; nothing else in the
-    folder is touched."""
-    shown = f"{option} {folder}"
-    if os.path.lexists(folder) and not os.path.isdir(folder):
-        raise WrtError(f"{shown}: is a file, not a folder")
-    if not os.path.isdir(folder):
-        parent = os.path.dirname(os.path.abspath(folder))
-        while not os.path.isdir(parent):
-            if os.path.lexists(parent):
-                raise WrtError(f"{shown}: {parent} is a file, not a folder")
-            parent = os.path.dirname(parent)
-        if not os.access(parent, os.W_OK | os.X_OK):
-            raise WrtError(f"{shown}: folder {parent} is not writable")
-        return
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise WrtError(f"{shown}: folder is not writable")
-    for name in names:
-        check_writable(os.path.join(folder, name), option=option, protect=protect)
-
-
 def _features(names: list[str], features_file: str | None, refs: str | None, made: bool = True) -> list[Feature]:
     """The features called ``names`` (all when empty) of ``features_file``; ``WrtError`` when a
     features file comes without ``refs``, or (``made``) when the folder ``refs`` does not exist."""

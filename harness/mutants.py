@@ -28,9 +28,8 @@ import time
 from dataclasses import asdict, dataclass
 
 from wrt.errors import WrtError
-from wrt.files import read_bytes, read_json, read_toml, write_json
+from wrt.files import check_output_folder, read_bytes, read_json, read_toml, write_json
 
-from .commands import check_output_folder
 from .matrix import FEATURES_FILE, load_features
 from .references import json_kind
 from .run import CHECKS

@@ -227,3 +227,16 @@ def read_only_folder(tmp_path):
     finally:
         for folder in mounted:
             _unmount(folder)
+
+
+@pytest.fixture(scope="module")
+def own_project(tmp_path_factory):
+    """A copy of the example project ``examples/own_matrix`` with the references of its ``balls``
+    feature (raycast, 48 x 36, deterministic) made by ``wrt refs regenerate``."""
+    from wrt.cli import main
+
+    folder = tmp_path_factory.mktemp("own") / "own"
+    shutil.copytree(EXAMPLES / "own_matrix", folder, ignore=shutil.ignore_patterns("refs", "report"))
+    options = ["--features", str(folder / "features.toml"), "--refs", str(folder / "refs")]
+    assert main(["refs", "regenerate", "balls", *options]) == 0
+    return folder

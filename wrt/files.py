@@ -389,15 +389,35 @@ def check_report_folder(folder: str | os.PathLike, option: str = "--report") -> 
                 f"{shown}: holds files wrt did not write there ({shown_files}); wrt replaces only a folder it wrote "
                 "itself: name a new or empty folder"
             )
-        parent = os.path.dirname(os.path.abspath(folder))
-    else:
-        parent = os.path.dirname(os.path.abspath(folder))
-        while not os.path.isdir(parent):
-            if os.path.lexists(parent):
-                raise WrtError(f"{shown}: {parent} is a file, not a folder")
-            parent = os.path.dirname(parent)
+    _check_makeable(folder, shown)
+
+
+def _check_makeable(folder: str, shown: str) -> None:
+    """``WrtError`` naming ``shown`` unless ``folder`` (a folder, or to be made) can be written in:
+    the nearest folder at or above it that exists must be writable, and nothing on the way a file."""
+    parent = os.path.abspath(folder)
+    while not os.path.isdir(parent):
+        if os.path.lexists(parent):
+            raise WrtError(f"{shown}: {parent} is a file, not a folder")
+        parent = os.path.dirname(parent)
     if not os.access(parent, os.W_OK | os.X_OK):
         raise WrtError(f"{shown}: folder {parent} is not writable")
+
+
+def check_output_folder(folder: str | os.PathLike, names=(), *, option: str, protect: tuple = ()) -> None:
+    """``WrtError`` (naming ``option`` and the path) unless a command can write the files ``names``
+    into ``folder``, before its work: ``folder`` is absent and can be made (``_check_makeable``),
+    or it is a writable folder in which each of ``names`` can be written (``check_writable``: not
+    a folder, a device or one of the inputs ``protect``). Only those files are written; nothing
+    else in the folder is touched."""
+    folder = os.fspath(folder)
+    shown = f"{option} {folder}"
+    if os.path.lexists(folder) and not os.path.isdir(folder):
+        raise WrtError(f"{shown}: is a file, not a folder")
+    _check_makeable(folder, shown)
+    if os.path.isdir(folder):
+        for name in names:
+            check_writable(os.path.join(folder, name), option=option, protect=protect)
 
 
 @contextlib.contextmanager

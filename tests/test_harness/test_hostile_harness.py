@@ -277,19 +277,26 @@ def test_false_alarms_json_is_checked_before_the_work(tmp_path, monkeypatch, cap
     assert f"--json {target}" in err and "not writable" in err, err
 
 
+def output_folder(tmp_path, read_only_folder, where: str, results: str):
+    """An output folder a command must refuse, by ``where``: a file (the user's own, ``a_file``),
+    a folder under it, a read-only folder or one under it, or a folder whose ``results`` file is a
+    folder."""
+    (tmp_path / "a_file").write_text("the user's own file")
+    if where == "results_a_folder":
+        (tmp_path / "out" / results).mkdir(parents=True)
+    if where in ("read_only", "under_read_only"):
+        return read_only_folder() / ("out" if where == "under_read_only" else "")
+    return {
+        "a_file": tmp_path / "a_file",
+        "under_a_file": tmp_path / "a_file" / "out",
+        "results_a_folder": tmp_path / "out",
+    }[where]
+
+
 @pytest.mark.parametrize("where", ["a_file", "under_a_file", "read_only", "under_read_only", "results_a_folder"])
 def test_mutants_report_is_checked_before_the_work(tmp_path, monkeypatch, capsys, read_only_folder, where):
     path = write_faults(tmp_path / "faults.toml", [fault_entry(expect=["raycast_sphere"])])
-    (tmp_path / "a_file").write_text("the user's own file")
-    if where == "results_a_folder":
-        (tmp_path / "out" / "mutants.json").mkdir(parents=True)
-    report = {
-        "a_file": tmp_path / "a_file",
-        "under_a_file": tmp_path / "a_file" / "out",
-        "read_only": read_only_folder() if where == "read_only" else None,
-        "under_read_only": read_only_folder() / "out" if where == "under_read_only" else None,
-        "results_a_folder": tmp_path / "out",
-    }[where]
+    report = output_folder(tmp_path, read_only_folder, where, "mutants.json")
     monkeypatch.setattr(mutants, "copy_packages", not_called("copying the packages"))
     assert main(["mutants", "--faults", path, "--expected", "--report", str(report)]) == 2
     assert "--report" in one_error_line(capsys)
@@ -309,16 +316,7 @@ def test_mutants_kernel_cache_is_checked_before_the_work(tmp_path, monkeypatch, 
 @pytest.mark.parametrize("where", ["a_file", "under_a_file", "read_only", "under_read_only", "results_a_folder"])
 def test_bench_output_folder_is_checked_before_the_work(tmp_path, monkeypatch, capsys, read_only_folder, where):
     """``wrt bench -o FILE`` ended in a NotADirectoryError traceback after the warm-up renders."""
-    (tmp_path / "a_file").write_text("the user's own file")
-    if where == "results_a_folder":
-        (tmp_path / "out" / "results.json").mkdir(parents=True)
-    out = {
-        "a_file": tmp_path / "a_file",
-        "under_a_file": tmp_path / "a_file" / "out",
-        "read_only": read_only_folder() if where == "read_only" else None,
-        "under_read_only": read_only_folder() / "out" if where == "under_read_only" else None,
-        "results_a_folder": tmp_path / "out",
-    }[where]
+    out = output_folder(tmp_path, read_only_folder, where, "results.json")
     monkeypatch.setattr(bench, "run", not_called("the benchmark"))
     scene = str(EXAMPLES / "path" / "soft_shadows.toml")
     assert main(["bench", scene, "--quick", "--triangles", "0", "-o", str(out)]) == 2

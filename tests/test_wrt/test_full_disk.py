@@ -9,7 +9,6 @@ references, the stress report, the ray view's PNG and its VTK multiblock.
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -83,20 +82,6 @@ def test_ray_view_and_multiblock_keep_the_old_files(full_disk, capsys):
     refused_on_full_disk(capsys, full_disk, [*args, "-o", str(full_disk.path / "view.png")])
     full_disk.free()
     refused_on_full_disk(capsys, full_disk, [*args, "--export", str(full_disk.path / "rays.vtm")])
-
-
-@pytest.fixture(scope="module")
-def own_project(tmp_path_factory):
-    """The example project with the references of its ``balls`` feature (raycast, 48 x 36)."""
-    folder = tmp_path_factory.mktemp("own") / "own"
-    shutil.copytree(OWN, folder, ignore=shutil.ignore_patterns("refs", "report"))
-    assert (
-        main(
-            ["refs", "regenerate", "balls", "--features", str(folder / "features.toml"), "--refs", str(folder / "refs")]
-        )
-        == 0
-    )
-    return folder
 
 
 def own_options(project: Path, refs: Path | None = None) -> list[str]:

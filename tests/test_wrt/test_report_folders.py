@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 from pathlib import Path
 
 import pytest
@@ -39,63 +38,49 @@ def refused(capsys, args, *fragments) -> str:
     return err
 
 
-@pytest.fixture(scope="module")
-def project(tmp_path_factory):
-    """The example project with the references of its ``balls`` feature (raycast, 48 x 36)."""
-    folder = tmp_path_factory.mktemp("own") / "own"
-    shutil.copytree(OWN, folder, ignore=shutil.ignore_patterns("refs", "report"))
-    assert (
-        main(
-            ["refs", "regenerate", "balls", "--features", str(folder / "features.toml"), "--refs", str(folder / "refs")]
-        )
-        == 0
-    )
-    return folder
-
-
-def matrix(project: Path, report: Path) -> list[str]:
+def matrix(own_project: Path, report: Path) -> list[str]:
     return [
         "matrix",
         "balls",
         "--features",
-        str(project / "features.toml"),
+        str(own_project / "features.toml"),
         "--refs",
-        str(project / "refs"),
+        str(own_project / "refs"),
         "--report",
         str(report),
     ]
 
 
-def test_matrix_report_replaces_its_own_report_and_nothing_else(project, tmp_path, capsys):
+def test_matrix_report_replaces_its_own_report_and_nothing_else(own_project, tmp_path, capsys):
     report = tmp_path / "report"
-    assert main(matrix(project, report)) == 0  # a new folder
+    assert main(matrix(own_project, report)) == 0  # a new folder
     first = tree(report)
     assert "index.html" in first and REPORT_MARK in first
-    assert main(matrix(project, report)) == 0  # an earlier report: replaced
+    assert main(matrix(own_project, report)) == 0  # an earlier report: replaced
     assert set(tree(report)) == set(first)
     capsys.readouterr()
 
     (report / "my notes.txt").write_text("mine")  # a report the user added to is no longer wrt's alone
-    refused(capsys, matrix(project, report), "my notes.txt", "name a new or empty folder")
+    refused(capsys, matrix(own_project, report), "my notes.txt", "name a new or empty folder")
     assert (report / "my notes.txt").read_text() == "mine"
 
     empty = tmp_path / "empty"
     empty.mkdir()
-    assert main(matrix(project, empty)) == 0  # an empty folder
+    assert main(matrix(own_project, empty)) == 0  # an empty folder
     assert (empty / "index.html").is_file()
 
 
-def test_matrix_report_refuses_a_users_folder_and_a_file(project, tmp_path, monkeypatch, capsys):
+def test_matrix_report_refuses_a_users_folder_and_a_file(own_project, tmp_path, monkeypatch, capsys):
     notes = tmp_path / "notes"
     notes.mkdir()
     (notes / "todo.txt").write_text("keep me")
     before = tree(tmp_path)
-    refused(capsys, matrix(project, notes), "todo.txt")
-    refused(capsys, matrix(project, project / "features.toml"), "is a file, not a folder")
-    monkeypatch.chdir(project)
-    refused(capsys, matrix(project, Path(".")), "holds files wrt did not write")
+    refused(capsys, matrix(own_project, notes), "todo.txt")
+    refused(capsys, matrix(own_project, own_project / "features.toml"), "is a file, not a folder")
+    monkeypatch.chdir(own_project)
+    refused(capsys, matrix(own_project, Path(".")), "holds files wrt did not write")
     assert tree(tmp_path) == before
-    assert (project / "features.toml").is_file() and (project / "README.md").is_file()
+    assert (own_project / "features.toml").is_file() and (own_project / "README.md").is_file()
 
 
 def test_stress_report_refuses_a_users_folder_before_the_work(tmp_path, capsys):
