@@ -18,7 +18,7 @@ from .references import load_reference
 from .run import check_geometry, score_against_reference
 
 SEED_BASE = 2_000_000  # apart from the references' (1,000,000 + i) and the calibration's seeds
-SEED_STRIDE = 10_000  # each run also draws seed + 1, seed + 2 and seed + 7919 (run.py)
+SEED_STRIDE = 10_000  # each run also draws seed + 1, seed + 2 and seed + RERENDER_SEED_OFFSET (7919)
 
 
 def seeds(count: int) -> list[int]:

@@ -7,7 +7,9 @@ a project's own: ``wrt matrix --refs DIR``; the functions below take it as ``ref
   (``var.R/G/B``), with metadata ``wrt:scene_hash``, ``wrt:spp``, ``wrt:seed``, ``wrt:version``,
   ``wrt:date``;
 - ``NAME.json``: the calibration: SSIM and FLIP (``flip.py``) of test-spp renders with several
-  seeds against the reference, their spread, and the thresholds set beyond it;
+  seeds against the reference, their spread, and the thresholds set beyond it; for a stochastic
+  feature the same of those renders pooled with a 4x re-render (``rerender_*``), what the matrix
+  scores after a miss;
 - ``NAME.png``: a preview.
 
 A reference is rendered in ``BATCHES`` independent batches (seeds ``REFERENCE_SEED + i``); the
@@ -19,7 +21,8 @@ not belong to its reference (hash mismatch) is reported, never used.
 Corrupt numbers are refused, never scored: a reference with NaN or Inf values or a negative
 variance, a ``wrt:spp`` that is not a whole number >= 1, a calibration that is not JSON (or is
 nested too deeply to read, or is not a regular file: ``wrt.files.read_json``), not a JSON object,
-lacks ``reference_sha256``, ``ssim_threshold`` or ``flip_threshold``, whose SSIM threshold is not
+lacks ``reference_sha256``, ``ssim_threshold`` or ``flip_threshold`` (for a stochastic feature
+also ``rerender_ssim_threshold`` and ``rerender_flip_threshold``), whose SSIM threshold is not
 a finite number in [-1, 1] (``score.check_threshold``) or whose FLIP threshold is not a finite
 number >= 0 (``flip.check_flip_threshold``) is a ``ReferenceError`` naming the file, the key and
 the value.
@@ -44,7 +47,7 @@ from wrt.imageio import read_image, write_image
 
 from .flip import FLIP_CRITERION, check_flip_threshold, flip
 from .matrix import FEATURES_FILE, Feature, load_feature_scene, scene_hash
-from .score import check_spp, check_threshold, image_problem, ssim, z_test
+from .score import check_spp, check_threshold, image_problem, pooled, ssim, z_test
 
 REFERENCE_DIR = str(
     resources.files("wrt_harness.reference_images")
@@ -56,6 +59,8 @@ HALF_MAX = float(np.finfo(np.float16).max)  # the largest RGB value a reference 
 CALIBRATION_MARGIN = 0.002  # threshold = min(SSIM) - max(CALIBRATION_MARGIN, 3 std(SSIM))
 FLIP_CALIBRATION_MARGIN = 0.002  # flip_threshold = max(FLIP) + max(FLIP_CALIBRATION_MARGIN, 3 std(FLIP))
 CALIBRATION_LIMIT = 1 << 20  # bytes of a calibration file read (wrt writes about 2 KB)
+RERENDER_SPP = 4  # a stochastic feature that misses is rendered again at this many times its spp
+RERENDER_SEED_OFFSET = 7919  # with samples independent of the first render's (and of calibration's)
 
 
 def refs_command(action: str, features_file: str | None, refs: str | None, *names: str) -> str:
@@ -217,12 +222,18 @@ def _checked_calibration(feature: Feature, stored, path: str, exr: str, refs: st
             "its calibration belongs to another reference image (run wrt refs calibrate, or regenerate)",
             refs=refs,
         )
-    try:
-        threshold = check_threshold(stored["ssim_threshold"], f"{path}: ssim_threshold")
-        flip_threshold = check_flip_threshold(stored["flip_threshold"], f"{path}: flip_threshold")
-    except WrtError as e:
-        raise ReferenceError(feature, str(e), "calibrate", refs) from None
-    return {**stored, "ssim_threshold": threshold, "flip_threshold": flip_threshold}
+    prefixes = ("", "rerender_") if feature.stochastic else ("",)
+    checked = {}
+    for prefix in prefixes:
+        for key, check in (("ssim_threshold", check_threshold), ("flip_threshold", check_flip_threshold)):
+            name = prefix + key
+            if name not in stored:  # a calibration made before the re-render had its own thresholds
+                raise ReferenceError(feature, f"{path}: missing key {name!r}", "calibrate", refs)
+            try:
+                checked[name] = check(stored[name], f"{path}: {name}")
+            except WrtError as e:
+                raise ReferenceError(feature, str(e), "calibrate", refs) from None
+    return {**stored, **checked}
 
 
 def render_reference(
@@ -278,16 +289,13 @@ def render_reference(
     )
 
 
-def calibrate(
-    feature: Feature, reference: Reference, device: str = "cpu", threads: int | None = None, cluster=None
-) -> dict:
-    """Render the feature at its test spp with ``CALIBRATION_SEEDS`` (on ``cluster``: one task
-    each) and set its SSIM threshold under the spread, ``min - max(CALIBRATION_MARGIN, 3 std)``,
-    and its FLIP threshold (of ``FLIP_CRITERION``, an error) above it,
-    ``max + max(FLIP_CALIBRATION_MARGIN, 3 std)``; HDR- and LDR-FLIP are both recorded."""
-    seeds = CALIBRATION_SEEDS if feature.stochastic else CALIBRATION_SEEDS[:1]
+def _thresholds(feature: Feature, reference: Reference, images: list[np.ndarray], seeds, prefix: str = "") -> dict:
+    """SSIM and FLIP of ``images`` (one per seed) against the reference, their spread, and the
+    thresholds set beyond it: SSIM ``min - max(CALIBRATION_MARGIN, 3 std)``, FLIP (of
+    ``FLIP_CRITERION``, an error) ``max + max(FLIP_CALIBRATION_MARGIN, 3 std)``; every key prefixed
+    with ``prefix``."""
     scores, flips = [], []
-    for seed, rgb in zip(seeds, render_images(feature, seeds, device=device, threads=threads, cluster=cluster)):
+    for seed, rgb in zip(seeds, images):
         problem = image_problem(rgb)
         if problem:
             raise WrtError(
@@ -300,24 +308,56 @@ def calibrate(
     criterion = [f.criterion for f in flips]
     flip_spread = statistics.stdev(criterion) if len(criterion) > 1 else 0.0
     flip_margin = max(FLIP_CALIBRATION_MARGIN, 3.0 * flip_spread)
-    return {
-        "feature": feature.name,
-        "test_spp": feature.spp,
-        "seeds": list(seeds),
+    found = {
         "ssim": scores,
         "ssim_mean": statistics.fmean(scores),
         "ssim_std": spread,
         "margin": margin,
         "ssim_threshold": min(scores) - margin,
-        "rule": "threshold = min(ssim) - max(0.002, 3 * std(ssim))",
         "hdr_flip": [f.hdr for f in flips],
         "ldr_flip": [f.ldr for f in flips],
-        "flip_criterion": FLIP_CRITERION,
         "flip_std": flip_spread,
         "flip_margin": flip_margin,
         "flip_threshold": max(criterion) + flip_margin,
+    }
+    return {prefix + key: value for key, value in found.items()}
+
+
+def calibrate(
+    feature: Feature, reference: Reference, device: str = "cpu", threads: int | None = None, cluster=None
+) -> dict:
+    """Render the feature at its test spp with ``CALIBRATION_SEEDS`` (on ``cluster``: one task
+    each) and set its SSIM and FLIP thresholds beyond the spread of their scores (``_thresholds``;
+    HDR- and LDR-FLIP are both recorded). A stochastic feature is also calibrated for what the
+    matrix scores after a miss, the test render pooled with a re-render at ``RERENDER_SPP`` times
+    its spp (seed + ``RERENDER_SEED_OFFSET``): ``rerender_ssim_threshold`` and
+    ``rerender_flip_threshold``, tighter than the 1x ones, which a 5x pooled render would meet
+    more easily than the render it stands in for."""
+    seeds = CALIBRATION_SEEDS if feature.stochastic else CALIBRATION_SEEDS[:1]
+    images = render_images(feature, seeds, device=device, threads=threads, cluster=cluster)
+    calibration = {
+        "feature": feature.name,
+        "test_spp": feature.spp,
+        "seeds": list(seeds),
+        **_thresholds(feature, reference, images, seeds),
+        "rule": "threshold = min(ssim) - max(0.002, 3 * std(ssim))",
+        "flip_criterion": FLIP_CRITERION,
         "flip_rule": f"flip_threshold = max({FLIP_CRITERION}_flip) + max(0.002, 3 * std({FLIP_CRITERION}_flip))",
     }
+    if feature.stochastic:
+        spps = [feature.spp, RERENDER_SPP * feature.spp]
+        again = render_images(
+            feature,
+            [seed + RERENDER_SEED_OFFSET for seed in seeds],
+            spp=spps[1],
+            device=device,
+            threads=threads,
+            cluster=cluster,
+        )
+        both = [pooled([first, second], spps) for first, second in zip(images, again)]
+        calibration["rerender_spp"] = sum(spps)
+        calibration.update(_thresholds(feature, reference, both, seeds, prefix="rerender_"))
+    return calibration
 
 
 def store(feature: Feature, reference: Reference, refs: str | None = None) -> None:

@@ -36,7 +36,7 @@ from .closed_form import closed_form_failure
 from .flip import FLIP_CRITERION, Flip, flip
 from .matrix import Feature, load_feature_scene
 from .oracle import palette, rasterize_ids
-from .references import ReferenceError, load_reference, render_feature
+from .references import RERENDER_SEED_OFFSET, RERENDER_SPP, ReferenceError, load_reference, render_feature
 from .score import (
     BiasTest,
     ZTest,
@@ -45,6 +45,7 @@ from .score import (
     convergence_slope,
     image_problem,
     max_error,
+    pooled,
     rmse,
     ssim,
     z_test,
@@ -52,7 +53,6 @@ from .score import (
 
 # the checks a feature can fail, by the names reports and `wrt mutants` count them under
 CHECKS = ("finite", "ssim", "flip", "z", "bias", "closed_form", "geometry", "convergence", "crash")
-RERENDER_SEED_OFFSET = 7919  # the 4x re-render draws samples independent of the first render's
 
 
 @dataclass
@@ -144,8 +144,7 @@ def score_against_reference(
     """The part of ``evaluate`` that renders: render ``scene`` (the feature's, or its wrong
     variant's), score it against ``reference``, re-render a stochastic miss at 4x spp, check
     convergence. ``images["ids"]``: the first render's ``object_id`` AOV, for the geometry oracle."""
-    threshold = float(reference.calibration["ssim_threshold"])
-    flip_threshold = float(reference.calibration["flip_threshold"])
+    threshold, flip_threshold = reference.calibration["ssim_threshold"], reference.calibration["flip_threshold"]
     start = time.perf_counter()
     result = render_feature(feature, device=device, threads=threads, scene=scene)
     elapsed = time.perf_counter() - start
@@ -158,18 +157,23 @@ def score_against_reference(
     if not ok and feature.stochastic:
         again = render_feature(
             feature,
-            spp=4 * result.spp,
+            spp=RERENDER_SPP * result.spp,
             seed=feature.seed + RERENDER_SEED_OFFSET,
             device=device,
             threads=threads,
             scene=scene,
         )
         out.rerendered = True
-        # both renders pooled (5N spp); the Z-test's noise per pixel is the larger of the
-        # reference's and theirs (two batches): a rare bright path one of them drew is noise
+        # both renders pooled (5N spp), scored against the thresholds calibrated on such pooled
+        # renders (a 5N-spp render at the 1x thresholds would pass more easily than the render it
+        # stands in for); the Z-test's noise per pixel is the larger of the reference's and theirs
+        # (two batches): a rare bright path one of them drew is noise
         both = [result.spp, again.spp]
-        rgb = (result.spp * result.rgb.astype(np.float64) + again.spp * again.rgb) / sum(both)
+        rgb = pooled([result.rgb, again.rgb], both)
         noise = np.maximum(reference.variance, batch_variance([result.rgb, again.rgb], both))
+        threshold = reference.calibration["rerender_ssim_threshold"]
+        flip_threshold = reference.calibration["rerender_flip_threshold"]
+        out.ssim_threshold, out.flip_threshold = threshold, flip_threshold
         out.ssim, out.flip, out.z, ok = score_render(
             feature, rgb, sum(both), reference, threshold, flip_threshold, noise
         )
@@ -192,10 +196,10 @@ def score_against_reference(
         errors = [rmse(r, reference.rgb) for r in renders]
         # the three renders are independent: together, one estimate of sum(spps) samples per pixel
         pooled_spp = sum(spps)
-        pooled = sum(n * np.asarray(r, np.float64) for n, r in zip(spps, renders)) / pooled_spp
+        pool = pooled(renders, spps)
         # noise: per pixel the larger of the reference's per-sample variance and this render's own
         variance = np.maximum(reference.variance, batch_variance(renders, spps))
-        converged = z_test(pooled, pooled_spp, reference.rgb, variance, reference.spp)
+        converged = z_test(pool, pooled_spp, reference.rgb, variance, reference.spp)
         out.convergence = {"spp": spps, "rmse": errors, "slope": convergence_slope(spps, errors), "z": converged}
         if not converged.passed:
             out.fail(
@@ -203,7 +207,7 @@ def score_against_reference(
                 f"does not converge to the reference: the {pooled_spp}-spp pooled render's Z-test rejects "
                 f"{converged.rejected} pixel channels (min p {converged.min_p:.2e})",
             )
-        out.bias = bias_test(pooled, pooled_spp, reference.rgb, variance, reference.spp)
+        out.bias = bias_test(pool, pooled_spp, reference.rgb, variance, reference.spp)
         if not out.bias.passed:
             b = out.bias.image_bias
             out.fail(
@@ -212,10 +216,10 @@ def score_against_reference(
                 f"({pooled_spp} spp pooled; image mean {b[0]:+.2%} {b[1]:+.2%} {b[2]:+.2%})",
             )
     if feature.closed_form_mean is not None:
-        pool = list(zip(renders, spps)) if feature.stochastic and not wrong else [(result.rgb, result.spp)]
+        made = list(zip(renders, spps)) if feature.stochastic and not wrong else [(result.rgb, result.spp)]
         if out.rerendered:  # independent of the others: its own seed
-            pool.append((again.rgb, again.spp))
-        miss = closed_form_failure(feature.closed_form_mean, pool, reference.variance)
+            made.append((again.rgb, again.spp))
+        miss = closed_form_failure(feature.closed_form_mean, made, reference.variance)
         if miss:
             out.fail("closed_form", miss)
     out.images = {"render": rgb, "reference": reference.rgb, "ids": result.aovs["object_id"]}

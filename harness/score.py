@@ -167,6 +167,12 @@ def z_test(image: np.ndarray, spp: int, reference: np.ndarray, ref_variance: np.
     return ZTest(passed=rejected == 0, min_p=float(p.min()), threshold=threshold, rejected=rejected)
 
 
+def pooled(images: list[np.ndarray], spps: list[int]) -> np.ndarray:
+    """Independent renders of ``spps`` samples per pixel as one estimate of ``sum(spps)`` samples:
+    their spp-weighted mean, float64."""
+    return sum(n * np.asarray(image, np.float64) for n, image in zip(spps, images)) / sum(spps)
+
+
 def batch_variance(images: list[np.ndarray], spps: list[int]) -> np.ndarray:
     """Per-sample variance of each pixel estimated from independent renders (batches) of ``spps``
     samples: the between-batch sum of squares ``sum n_i (x_i - x)^2 / (k - 1)`` around the pooled

@@ -106,7 +106,9 @@ def test_calibration_sets_the_flip_threshold_above_the_spread(monkeypatch):
     feature = select(FEATURES, ["cornell_box_path"])[0]
     reference = references.load_reference(feature)
     gains = dict(zip(references.CALIBRATION_SEEDS, (1.00, 1.01, 1.02, 1.03, 1.05, 1.08)))
-    monkeypatch.setattr(references, "render_images", lambda f, seeds, **kw: [reference.rgb * gains[s] for s in seeds])
+    # the test renders' gains by seed; the re-renders the calibration pools them with are exact
+    fake = lambda f, seeds, **kw: [reference.rgb * gains.get(s, 1.0) for s in seeds]  # noqa: E731
+    monkeypatch.setattr(references, "render_images", fake)
     cal = references.calibrate(feature, reference)
     hdr = [flip(reference.rgb * g, reference.rgb).hdr for g in gains.values()]
     assert cal["hdr_flip"] == pytest.approx(hdr) and cal["flip_criterion"] == "hdr"
@@ -145,15 +147,15 @@ def test_a_perturbed_render_fails_by_flip(tmp_path, monkeypatch, capsys):
 
 
 def test_a_flip_miss_is_rerendered_at_4x_spp(tmp_path, monkeypatch):
-    """A stochastic feature whose FLIP misses (here: its threshold set to 0) is re-rendered like an
-    SSIM miss, and scored by the re-render."""
+    """A stochastic feature whose FLIP misses (here: its thresholds set to 0) is re-rendered like an
+    SSIM miss, and scored by the re-render against the re-render's own threshold."""
     name = "antialiasing"
     feature = select(FEATURES, [name])[0]
     folder = copy_references(tmp_path, monkeypatch, [name])
     reference = references.load_reference(feature)
     ok = run.score_render(feature, reference.rgb, feature.spp, reference, -1.0, 0.0)[-1]
     assert ok  # the reference scores FLIP 0 against itself: a threshold of 0 is met
-    edit_calibration(folder, name, lambda d: d.update(flip_threshold=0.0))
+    edit_calibration(folder, name, lambda d: d.update(flip_threshold=0.0, rerender_flip_threshold=0.0))
     spps = []
     real = run.render_feature
 
@@ -237,3 +239,46 @@ def test_compare_metric_flip_refuses_bad_input(tmp_path, capsys):
     small = str(tmp_path / "small.exr")  # FLIP has no window: a 5x5 image is scored
     write_image(small, np.full((5, 5, 3), 0.5, np.float32))
     assert main(["compare", small, small, "--metric", "flip"]) == 0
+
+
+def test_a_rerender_is_scored_against_thresholds_calibrated_for_it(tmp_path, monkeypatch):
+    """A 5x pooled re-render is less noisy than the render it stands in for: at the 1x thresholds
+    a fault often scored better than sound code at baseline. The re-render's own thresholds
+    (calibrated on pooled renders) are tighter, and they are the ones it is held to."""
+    name = "soft_shadows"
+    feature = select(FEATURES, [name])[0]
+    reference = references.load_reference(feature)
+    cal = reference.calibration
+    assert cal["rerender_ssim_threshold"] > cal["ssim_threshold"] + 0.05
+    assert cal["rerender_flip_threshold"] < cal["flip_threshold"]
+    assert cal["rerender_spp"] == 5 * feature.spp
+    folder = copy_references(tmp_path, monkeypatch, [name])
+    edit_calibration(folder, name, lambda d: d.update(ssim_threshold=1.0))  # the 1x render misses
+    result = run.evaluate(feature)
+    assert result.rerendered and result.passed, result.failures
+    assert result.ssim_threshold == cal["rerender_ssim_threshold"]  # the re-render's, not 1.0
+    edit_calibration(folder, name, lambda d: d.update(rerender_ssim_threshold=1.0))
+    result = run.evaluate(feature)
+    assert result.rerendered and result.failed_checks == ["ssim"], result.failures
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (lambda d: d.pop("rerender_ssim_threshold"), "missing key 'rerender_ssim_threshold'"),
+        (lambda d: d.pop("rerender_flip_threshold"), "missing key 'rerender_flip_threshold'"),
+        (lambda d: d.update(rerender_flip_threshold=-1), "rerender_flip_threshold = -1: must be a finite number >= 0"),
+    ],
+    ids=["no-ssim", "no-flip", "negative"],
+)
+def test_a_stochastic_calibration_without_its_rerender_thresholds_names_the_fix(
+    tmp_path, monkeypatch, capsys, change, message
+):
+    """A calibration made before the re-render had thresholds of its own is refused, naming the fix."""
+    name = "antialiasing"
+    folder = copy_references(tmp_path, monkeypatch, [name])
+    path = edit_calibration(folder, name, change)
+    assert main(["matrix", name]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(path) in err and message in err, err
+    assert err.rstrip().endswith(f"run: wrt refs calibrate {name}"), err
