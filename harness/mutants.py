@@ -16,11 +16,13 @@ its matrix run plus the compilation of the modules it changes.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib.util
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -236,16 +238,63 @@ def check_imports(scratch: str, env: dict[str, str]) -> None:
             raise WrtError(f"mutant runs import {name} from {path}, not from the scratch copy {scratch}")
 
 
+INTERRUPTIONS = {
+    -signal.SIGINT,
+    -signal.SIGTERM,
+    -signal.SIGHUP,
+    -signal.SIGKILL,
+    128 + signal.SIGINT,
+    128 + signal.SIGTERM,
+    128 + signal.SIGHUP,
+}
+"""Exit codes of a matrix run stopped from outside (a signal, or wrt's own exit code after one):
+no result of the fault, which is not recorded and is measured again when the run resumes."""
+STOP_GRACE_S = 10.0  # how long a stopped runner waits for its matrix run to end before killing it
+
+
+def _run_to_end(command: list[str], scratch: str, env: dict[str, str]) -> tuple[int, str]:
+    """``(exit code, stdout + stderr)`` of ``command`` run in ``scratch``, in a session of its own,
+    so that a Ctrl-C at the terminal reaches this runner only. When the runner is stopped (Ctrl-C,
+    SIGTERM) while it waits, the run is stopped too (SIGTERM to its process group, then SIGKILL
+    after ``STOP_GRACE_S``) and waited for before the interruption goes on: no matrix process is
+    left behind, and the scratch folder can be removed."""
+    with tempfile.TemporaryFile(mode="w+") as output:
+        proc = subprocess.Popen(
+            command, cwd=scratch, env=env, stdout=output, stderr=subprocess.STDOUT, start_new_session=True
+        )
+        try:
+            code = proc.wait()
+        except BaseException:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(proc.pid, signal.SIGTERM)
+            try:
+                proc.wait(timeout=STOP_GRACE_S)
+            except subprocess.TimeoutExpired:
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+            raise
+        output.seek(0)
+        return code, output.read()
+
+
 def run_matrix_copy(scratch: str, env: dict[str, str], names, args: list[str]) -> dict:
     """``wrt matrix NAMES ARGS --json`` on the scratch copy: the JSON's ``features``, or for a run
-    that crashed (no JSON: an exit code other than 0 or 1) ``{"crashed": message}``."""
+    that crashed (no JSON: an exit code other than 0 or 1) ``{"crashed": message}``. A run stopped
+    from outside (``INTERRUPTIONS``) is no result: ``WrtError``, and nothing is recorded."""
     path = os.path.join(scratch, "matrix.json")
     if os.path.exists(path):
         os.unlink(path)
     command = [sys.executable, "-m", "wrt.cli", "matrix", *names, *args, "--json", path]
-    out = subprocess.run(command, cwd=scratch, env=env, capture_output=True, text=True)
-    if out.returncode not in (0, 1) or not os.path.exists(path):
-        return {"crashed": f"exit code {out.returncode}: {(out.stdout + out.stderr).strip()[-TAIL:]}"}
+    code, output = _run_to_end(command, scratch, env)
+    if code in INTERRUPTIONS:
+        how = f"killed by signal {-code}" if code < 0 else f"stopped by a signal (exit code {code})"
+        raise WrtError(
+            f"the matrix run was {how} from outside: that is no result of the fault, which is not recorded; run "
+            "wrt mutants again to resume"
+        )
+    if code not in (0, 1) or not os.path.exists(path):
+        return {"crashed": f"exit code {code}: {output.strip()[-TAIL:]}"}
     try:
         doc = read_json(path, "matrix results", limit=RESULTS_LIMIT)
         features = _field(doc, "features", dict, "an object", "")

@@ -114,3 +114,71 @@ def test_results_that_are_not_mutants_json_are_refused(tmp_path, capsys):
     (tmp_path / "out" / "mutants.json").write_text("[1, 2")
     assert main(["mutants", "--faults", path, "--report", str(tmp_path / "out")]) == 2
     assert "mutants.json: not the results of wrt mutants" in one_error_line(capsys)
+
+
+# --- an interruption is not a catch -------------------------------------------------------------
+
+
+def test_a_matrix_run_killed_by_a_signal_is_not_a_catch(tmp_path, capsys):
+    """A run stopped from outside used to be recorded as "caught (crashed, exit -15)", and a
+    resumed run then skipped the fault. Here the mutated wrt sends itself SIGTERM: no result,
+    nothing recorded, exit code 2 naming the resumption."""
+    fault = fault_entry(expect=["raycast_sphere"])
+    fault.update(id="killed_from_outside", new=fault["old"] + "; import os, signal; os.kill(os.getpid(), 15)")
+    path = write_faults(tmp_path / "faults.toml", [fault])
+    report = tmp_path / "out"
+    assert main(["mutants", "--faults", path, "--expected", "--report", str(report)]) == 2
+    err = one_error_line(capsys)
+    assert "from outside" in err and "not recorded" in err, err
+    recorded = json.loads((report / "mutants.json").read_text())["faults"] if (report / "mutants.json").exists() else {}
+    assert "killed_from_outside" not in recorded
+
+
+def _processes_in(folder, word: bytes = b"") -> list[int]:
+    """Processes whose working folder is under ``folder`` (the mutant runs work in their scratch
+    copy) and whose command line holds ``word``."""
+    import os
+
+    found = []
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            if os.readlink(f"/proc/{pid}/cwd").startswith(str(folder)):
+                with open(f"/proc/{pid}/cmdline", "rb") as f:
+                    if word in f.read():
+                        found.append(int(pid))
+        except OSError:
+            continue
+    return found
+
+
+def test_stopping_the_runner_stops_its_matrix_run_and_removes_its_scratch_copy(tmp_path):
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    path = write_faults(tmp_path / "faults.toml", [fault_entry(expect=["raycast_sphere"])])
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    report = tmp_path / "out"
+    runner = subprocess.Popen(
+        [sys.executable, "-m", "wrt.cli", "mutants", "--faults", path, "--expected", "--report", str(report)],
+        env={**os.environ, "TMPDIR": str(scratch)},
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 120
+    while not _processes_in(scratch, b"matrix") and runner.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert runner.poll() is None, runner.communicate()
+    runner.send_signal(signal.SIGTERM)
+    out, err = runner.communicate(timeout=60)
+    assert runner.returncode == 143 and "Traceback" not in err, (runner.returncode, err)
+    assert _processes_in(scratch) == [], "a matrix run outlived its runner"
+    assert not any(p.name.startswith("wrt-mutant-") for p in scratch.iterdir()), list(scratch.iterdir())
+    assert (
+        not (report / "mutants.json").exists()
+        or SMOKE not in json.loads((report / "mutants.json").read_text())["faults"]
+    )
