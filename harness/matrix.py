@@ -12,6 +12,12 @@ patched in memory with ``set`` tables whose keys are paths into the scene docume
 - ``shape[2].center``, ``light[0].position``: a key of the i-th entry of an array of tables;
 - ``material[glass].ior``: a key of the array entry whose ``name`` is ``glass``;
 - ``light``: a whole table or array (``light = []`` removes every light).
+
+Two keys test how a render is run rather than what it shows: ``passes = K`` renders the feature
+in K progressive passes of equal size, and the matrix also requires the image to be bit-identical
+to a one-pass render (the ``progressive`` check); ``target_error = E`` renders it with adaptive
+sampling (``wrt.render(..., target_error=E)``, up to its spp), scored with each pixel's own sample
+count. References are always plain one-pass renders.
 """
 
 from __future__ import annotations
@@ -28,6 +34,7 @@ from dataclasses import dataclass, field
 from wrt.errors import WrtError
 from wrt.files import read_toml
 from wrt.loader import override_render, parse_scene
+from wrt.renderer import ADAPTIVE_FIRST_PASS
 from wrt.scene import INTEGRATORS, EnvironmentLight, Mesh, Scene
 
 from .score import SSIM_WINDOW, check_threshold
@@ -44,7 +51,10 @@ _NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
 # PACKAGE:PATH scenes: files of wrt's own packages only, found without running any module's code
 OWN_PACKAGES = ("wrt", "wrt_harness", "wrt_benchmarks")
 _PACKAGE = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*")
-_KEYS = "name scene integrator width height spp seed reference_spp geometry_threshold closed_form_mean wrong".split()
+_KEYS = (
+    "name scene integrator width height spp seed reference_spp geometry_threshold closed_form_mean passes "
+    "target_error wrong"
+).split()
 
 
 @dataclass(frozen=True)
@@ -63,6 +73,8 @@ class Feature:
     wrong: dict = field(default_factory=dict)  # {"description": str, "set": {path: value}}
     features_file: str = FEATURES_FILE  # the features file that lists it, as given to load_features
     closed_form_mean: tuple[float, float, float] | None = None  # the exact image mean (linear RGB), if known
+    passes: int = 1  # renders in this many progressive passes (``render_feature``); > 1: checked against one pass
+    target_error: float | None = None  # adaptive sampling at this target (relative standard error) at test spp
 
     @property
     def stochastic(self) -> bool:
@@ -199,7 +211,16 @@ def load_features(path: str = FEATURES_FILE) -> list[Feature]:
                 wrong=_wrong_variant(entry.get("wrong", {}), f"{where}.wrong"),
                 features_file=path,
                 closed_form_mean=_closed_form_mean(entry.get("closed_form_mean"), f"{where}.closed_form_mean"),
+                passes=integer("passes", 1),
+                target_error=_target_error(entry.get("target_error"), f"{where}.target_error"),
             )
+            if spp % feature.passes:
+                raise WrtError(f"{where}.passes = {feature.passes}: must divide spp = {spp} (passes of equal size)")
+            if feature.target_error is not None and spp < 2 * ADAPTIVE_FIRST_PASS:
+                raise WrtError(
+                    f"{where}.target_error: needs spp >= {2 * ADAPTIVE_FIRST_PASS} (adaptive sampling first takes "
+                    f"{ADAPTIVE_FIRST_PASS} samples everywhere), not {spp}"
+                )
         except KeyError as e:
             raise WrtError(f"{where}: missing key {e.args[0]!r}") from None
         features.append(feature)
@@ -208,6 +229,15 @@ def load_features(path: str = FEATURES_FILE) -> list[Feature]:
     if duplicates:
         raise WrtError(f"{path}: duplicate feature names: {', '.join(sorted(duplicates))}")
     return features
+
+
+def _target_error(value, where: str) -> float | None:
+    """A feature's ``target_error``: None (not given), or a finite number in (0, 1)."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 < value < 1.0:
+        raise WrtError(f"{where} = {value!r}: must be a number in (0, 1) (a relative standard error)")
+    return float(value)
 
 
 def _closed_form_mean(value, where: str) -> tuple[float, float, float] | None:

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import datetime
 import hashlib
+import math
 import os
 import shlex
 import statistics
@@ -125,21 +126,52 @@ def render_feature(
     device: str = "cpu",
     threads: int | None = None,
     scene=None,
+    as_tested: bool = True,
 ):
     """Render a feature's scene (or its wrong variant) at its test spp and seed unless overridden;
-    ``scene``: that scene already loaded (on a cluster worker, which has no scene files)."""
+    ``scene``: that scene already loaded (on a cluster worker, which has no scene files).
+
+    ``as_tested``: the way the feature says it is rendered: in ``passes`` progressive passes of
+    equal size, or adaptively at ``target_error`` (scaled by ``sqrt(feature.spp / spp)`` at other
+    spp, so that a render of 4x the samples aims at half the error); else one plain pass, as
+    references are rendered. Samples per pixel: ``samples``."""
     scene = load_feature_scene(feature, wrong) if scene is None else scene
-    return wrt.render(scene, spp=spp, seed=seed, device=device, threads=threads)
+    options = {}
+    if as_tested:
+        total = spp or feature.spp
+        if feature.passes > 1:
+            options.update(progress=lambda *args: True, progress_every=total // feature.passes)
+        if feature.target_error is not None:
+            options.update(target_error=feature.target_error * math.sqrt(feature.spp / total))
+    return wrt.render(scene, spp=spp, seed=seed, device=device, threads=threads, **options)
+
+
+def samples(result):
+    """Samples per pixel of a render: its ``spp``, or, adaptive, the (H, W) counts of its ``spp``
+    AOV (``score.per_pixel`` takes either)."""
+    return result.aovs["spp"] if "spp" in result.aovs else result.spp
 
 
 def render_images(
-    feature: Feature, seeds, spp: int | None = None, device: str = "cpu", threads: int | None = None, cluster=None
+    feature: Feature,
+    seeds,
+    spp: int | None = None,
+    device: str = "cpu",
+    threads: int | None = None,
+    cluster=None,
+    as_tested: bool = True,
 ) -> list[np.ndarray]:
-    """The RGB render of ``feature`` (at ``spp``, default its test spp) for each of ``seeds``: here,
-    or on ``cluster`` (a ``wrt.distributed.Cluster``: one task each, the same images bit for bit)."""
-    if cluster is not None:
+    """The RGB render of ``feature`` (at ``spp``, default its test spp; ``as_tested``: see
+    ``render_feature``) for each of ``seeds``: here, or on ``cluster`` (a
+    ``wrt.distributed.Cluster``: one task each, the same images bit for bit) where the render is a
+    plain one (the cluster renders whole images in one pass)."""
+    plain = not as_tested or (feature.passes == 1 and feature.target_error is None)
+    if cluster is not None and plain:
         return cluster.images(load_feature_scene(feature), list(seeds), spp=spp, device=device)
-    return [render_feature(feature, spp=spp, seed=seed, device=device, threads=threads).rgb for seed in seeds]
+    return [
+        render_feature(feature, spp=spp, seed=seed, device=device, threads=threads, as_tested=as_tested).rgb
+        for seed in seeds
+    ]
 
 
 def load_reference(feature: Feature, refs: str | None = None, calibration: bool = True) -> Reference:
@@ -248,7 +280,9 @@ def render_reference(
     batches = min(BATCHES, spp) if feature.stochastic else 1
     per_batch = max(1, spp // batches)
     seeds = [REFERENCE_SEED + i for i in range(batches)]
-    means = np.stack(render_images(feature, seeds, per_batch, device, threads, cluster)).astype(np.float64)
+    means = np.stack(render_images(feature, seeds, per_batch, device, threads, cluster, as_tested=False)).astype(
+        np.float64
+    )
     mean = means.mean(axis=0)
     total = per_batch * batches
     variance = np.zeros_like(mean)

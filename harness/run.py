@@ -16,7 +16,10 @@ A feature passes when all hold:
   hides in per-pixel noise, not in a mean of millions of samples;
 - features with a ``closed_form_mean``: the image mean of every render made (pooled) is that
   exact value within its noise (``closed_form.py``), wrong variants included;
-- the render is finite: a NaN or Inf pixel fails the feature (it is never scored as black).
+- the render is finite: a NaN or Inf pixel fails the feature (it is never scored as black);
+- features rendered in several passes (``passes``): the image is bit-identical to the one-pass
+  render of the same spp and seed. Adaptive features (``target_error``) are scored with each
+  pixel's own sample count.
 Every comparison is written so that a NaN score fails.
 """
 
@@ -36,7 +39,14 @@ from .closed_form import closed_form_failure
 from .flip import FLIP_CRITERION, Flip, flip
 from .matrix import Feature, load_feature_scene
 from .oracle import palette, rasterize_ids
-from .references import RERENDER_SEED_OFFSET, RERENDER_SPP, ReferenceError, load_reference, render_feature
+from .references import (
+    RERENDER_SEED_OFFSET,
+    RERENDER_SPP,
+    ReferenceError,
+    load_reference,
+    render_feature,
+    samples,
+)
 from .score import (
     BiasTest,
     ZTest,
@@ -52,7 +62,7 @@ from .score import (
 )
 
 # the checks a feature can fail, by the names reports and `wrt mutants` count them under
-CHECKS = ("finite", "ssim", "flip", "z", "bias", "closed_form", "geometry", "convergence", "crash")
+CHECKS = ("finite", "ssim", "flip", "z", "bias", "closed_form", "geometry", "convergence", "progressive", "crash")
 
 
 @dataclass
@@ -151,7 +161,17 @@ def score_against_reference(
     out = FeatureResult(
         feature=feature, passed=False, ssim_threshold=threshold, flip_threshold=flip_threshold, time_s=elapsed
     )
-    out.ssim, out.flip, out.z, ok = score_render(feature, result.rgb, result.spp, reference, threshold, flip_threshold)
+    out.ssim, out.flip, out.z, ok = score_render(
+        feature, result.rgb, samples(result), reference, threshold, flip_threshold
+    )
+    if feature.passes > 1:  # passes do not change the image: bit for bit the one-pass render
+        one = render_feature(feature, device=device, threads=threads, scene=scene, as_tested=False)
+        if not np.array_equal(result.rgb, one.rgb):
+            differ = int(np.count_nonzero(np.any(result.rgb != one.rgb, axis=-1)))
+            out.fail(
+                "progressive",
+                f"the render in {feature.passes} passes differs from the one-pass render in {differ} pixels",
+            )
     out.rmse, out.max_error = rmse(result.rgb, reference.rgb), max_error(result.rgb, reference.rgb)
     rgb = result.rgb
     if not ok and feature.stochastic:
@@ -168,7 +188,7 @@ def score_against_reference(
         # renders (a 5N-spp render at the 1x thresholds would pass more easily than the render it
         # stands in for); the Z-test's noise per pixel is the larger of the reference's and theirs
         # (two batches): a rare bright path one of them drew is noise
-        both = [result.spp, again.spp]
+        both = [samples(result), samples(again)]
         rgb = pooled([result.rgb, again.rgb], both)
         noise = np.maximum(reference.variance, batch_variance([result.rgb, again.rgb], both))
         threshold = reference.calibration["rerender_ssim_threshold"]
@@ -189,17 +209,19 @@ def score_against_reference(
             out.fail("z", f"Z-test: {out.z.rejected} pixel channels rejected (min p {out.z.min_p:.2e})")
     if feature.stochastic and not wrong:
         spps = [feature.spp, 4 * feature.spp, 16 * feature.spp]
-        renders = [result.rgb] + [
-            render_feature(feature, spp=n, seed=feature.seed + k, device=device, threads=threads, scene=scene).rgb
+        results = [result] + [
+            render_feature(feature, spp=n, seed=feature.seed + k, device=device, threads=threads, scene=scene)
             for k, n in enumerate(spps[1:], 1)
         ]
+        renders, counts = [r.rgb for r in results], [samples(r) for r in results]
         errors = [rmse(r, reference.rgb) for r in renders]
         # the three renders are independent: together, one estimate of sum(spps) samples per pixel
         pooled_spp = sum(spps)
-        pool = pooled(renders, spps)
+        pooled_counts = sum(counts)
+        pool = pooled(renders, counts)
         # noise: per pixel the larger of the reference's per-sample variance and this render's own
-        variance = np.maximum(reference.variance, batch_variance(renders, spps))
-        converged = z_test(pool, pooled_spp, reference.rgb, variance, reference.spp)
+        variance = np.maximum(reference.variance, batch_variance(renders, counts))
+        converged = z_test(pool, pooled_counts, reference.rgb, variance, reference.spp)
         out.convergence = {"spp": spps, "rmse": errors, "slope": convergence_slope(spps, errors), "z": converged}
         if not converged.passed:
             out.fail(
@@ -207,7 +229,7 @@ def score_against_reference(
                 f"does not converge to the reference: the {pooled_spp}-spp pooled render's Z-test rejects "
                 f"{converged.rejected} pixel channels (min p {converged.min_p:.2e})",
             )
-        out.bias = bias_test(pool, pooled_spp, reference.rgb, variance, reference.spp)
+        out.bias = bias_test(pool, pooled_counts, reference.rgb, variance, reference.spp)
         if not out.bias.passed:
             b = out.bias.image_bias
             out.fail(

@@ -140,26 +140,36 @@ def bin2x2(image: np.ndarray) -> np.ndarray:
     return 0.25 * (a[0::2, 0::2] + a[1::2, 0::2] + a[0::2, 1::2] + a[1::2, 1::2])
 
 
-def z_test(image: np.ndarray, spp: int, reference: np.ndarray, ref_variance: np.ndarray, ref_spp: int) -> ZTest:
-    """Is ``image`` (a mean of ``spp`` samples per pixel) an unbiased estimate of ``reference``?
+def per_pixel(spp, shape: tuple) -> np.ndarray:
+    """Samples per pixel as an (H, W, 1) float64 array: ``spp`` is one count for every pixel, or
+    an (H, W) array of counts (an adaptive render's ``spp`` AOV)."""
+    counts = np.asarray(spp, np.float64)
+    return np.broadcast_to(counts[..., None] if counts.ndim == 2 else counts, (*shape[:2], 1))
+
+
+def z_test(image: np.ndarray, spp, reference: np.ndarray, ref_variance: np.ndarray, ref_spp: int) -> ZTest:
+    """Is ``image`` (a mean of ``spp`` samples per pixel: one count, or an (H, W) array of them,
+    ``per_pixel``) an unbiased estimate of ``reference``?
 
     The test runs on 2 x 2 pixel blocks: each block mean averages 4 spp samples, which tames the
     skewed per-pixel distributions of edges and small highlights at low spp (a bias does not
     average away). ``ref_variance`` is the per-sample variance of each pixel (stored with the
     reference); a block's variance is the largest over its ``VARIANCE_NEIGHBOURHOOD``-wide
     neighbourhood of blocks (rare events the reference under-sampled sit beside edges whose
-    variance shows), and its standard error ``sqrt(var/4 (1/spp + 1/ref_spp))``, floored by
+    variance shows), and its standard error ``sqrt(var/4 (mean(1/spp) + 1/ref_spp))`` (the mean
+    over the block's pixels), floored by
     ``Z_FLOOR_ABS + Z_FLOOR_REL |reference|``. Every block and channel is a two-sided test; the
     family is controlled by Bonferroni (level ``Z_TEST_ALPHA / n``), so noise alone fails the
     whole image with probability under 1%, while a shifted mean fails it. A block whose p-value is
     NaN (a NaN or Inf in the image, the reference or its variance) counts as rejected: corrupt
     numbers never pass.
     """
+    inverse_spp = bin2x2(1.0 / per_pixel(spp, image.shape))
     image, reference = bin2x2(image), bin2x2(reference)
     diff = image - reference
     block_var = np.maximum(bin2x2(ref_variance), 0.0) / 4.0
     block_var = maximum_filter(block_var, size=(VARIANCE_NEIGHBOURHOOD, VARIANCE_NEIGHBOURHOOD, 1), mode="nearest")
-    var = block_var * (1.0 / spp + 1.0 / ref_spp)
+    var = block_var * (inverse_spp + 1.0 / ref_spp)
     sigma = np.sqrt(var + (Z_FLOOR_ABS + Z_FLOOR_REL * np.abs(reference)) ** 2)
     p = erfc(np.abs(diff / sigma) / np.sqrt(2.0))
     threshold = Z_TEST_ALPHA / p.size
@@ -167,10 +177,11 @@ def z_test(image: np.ndarray, spp: int, reference: np.ndarray, ref_variance: np.
     return ZTest(passed=rejected == 0, min_p=float(p.min()), threshold=threshold, rejected=rejected)
 
 
-def pooled(images: list[np.ndarray], spps: list[int]) -> np.ndarray:
-    """Independent renders of ``spps`` samples per pixel as one estimate of ``sum(spps)`` samples:
-    their spp-weighted mean, float64."""
-    return sum(n * np.asarray(image, np.float64) for n, image in zip(spps, images)) / sum(spps)
+def pooled(images: list[np.ndarray], spps: list) -> np.ndarray:
+    """Independent renders of ``spps`` samples per pixel (counts, or (H, W) arrays of them) as one
+    estimate of ``sum(spps)`` samples: their spp-weighted mean, float64."""
+    counts = [per_pixel(n, images[0].shape) for n in spps]
+    return sum(n * np.asarray(image, np.float64) for n, image in zip(counts, images)) / sum(counts)
 
 
 def batch_variance(images: list[np.ndarray], spps: list[int]) -> np.ndarray:
@@ -179,9 +190,9 @@ def batch_variance(images: list[np.ndarray], spps: list[int]) -> np.ndarray:
     mean ``x``, unbiased for any batch sizes (one-way analysis of variance). With k = 3 it has 2
     degrees of freedom: too noisy alone, but it sees this render's own rare events (a firefly in
     one batch), which the reference's batches may have missed in that pixel."""
-    n = np.asarray(spps, np.float64).reshape(-1, *([1] * images[0].ndim))
+    n = np.stack([per_pixel(spp, images[0].shape) for spp in spps])
     x = np.stack([np.asarray(i, np.float64) for i in images])
-    mean = (n * x).sum(axis=0) / n.sum()
+    mean = (n * x).sum(axis=0) / n.sum(axis=0)
     return (n * (x - mean) ** 2).sum(axis=0) / (len(images) - 1)
 
 
@@ -208,13 +219,14 @@ def region_sums(image: np.ndarray, grid: int = BIAS_GRID) -> tuple[np.ndarray, n
     return sums, counts
 
 
-def bias_test(image: np.ndarray, spp: int, reference: np.ndarray, ref_variance: np.ndarray, ref_spp: int) -> BiasTest:
-    """Is the mean of ``image`` (``spp`` samples per pixel) over the whole image and over large
-    regions the reference's? A global or regional bias of 1% hides in per-pixel noise, but not in
-    a mean over thousands of pixels and samples.
+def bias_test(image: np.ndarray, spp, reference: np.ndarray, ref_variance: np.ndarray, ref_spp: int) -> BiasTest:
+    """Is the mean of ``image`` (``spp`` samples per pixel: one count or an (H, W) array,
+    ``per_pixel``) over the whole image and over large regions the reference's? A global or
+    regional bias of 1% hides in per-pixel noise, but not in a mean over thousands of pixels and
+    samples.
 
     With independent samples per pixel, a region mean of ``n`` pixels has the variance
-    ``sum(per-sample variance) / n^2 * (1/spp + 1/ref_spp)``, from the reference's per-sample
+    ``sum(per-sample variance (1/spp + 1/ref_spp)) / n^2``, from the reference's per-sample
     variance (its own batches: the estimate is unbiased pixel by pixel, and its error averages out
     over a region), floored by ``BIAS_FLOOR_ABS + BIAS_FLOOR_REL |mean|``. Each region and channel
     is a two-sided test, Bonferroni-corrected to ``BIAS_ALPHA`` over all of them. Pass the mean of
@@ -224,9 +236,10 @@ def bias_test(image: np.ndarray, spp: int, reference: np.ndarray, ref_variance: 
     """
     sums, counts = region_sums(image)
     ref_sums, _ = region_sums(reference)
-    var_sums, _ = region_sums(np.maximum(ref_variance, 0.0))
+    variance = np.maximum(ref_variance, 0.0)
+    var_sums, _ = region_sums(variance * (1.0 / per_pixel(spp, image.shape) + 1.0 / ref_spp))
     mean, ref_mean = sums / counts[:, None], ref_sums / counts[:, None]
-    var = var_sums / counts[:, None] ** 2 * (1.0 / spp + 1.0 / ref_spp)
+    var = var_sums / counts[:, None] ** 2
     z = (mean - ref_mean) / np.sqrt(var + (BIAS_FLOOR_ABS + BIAS_FLOOR_REL * np.abs(ref_mean)) ** 2)
     threshold = float(-ndtri(0.5 * BIAS_ALPHA / z.size))
     abs_z = np.where(np.isfinite(z), np.abs(z), np.inf)

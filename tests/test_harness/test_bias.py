@@ -81,3 +81,28 @@ def test_false_alarms_counts_failing_seeds(monkeypatch):
     monkeypatch.setattr(run, "render_feature", brighter)
     broken = false_alarms(feature, 2)
     assert broken["failing_seeds"] == 2 and broken["by_check"]["bias"] == 2 and broken["rate"] == 1.0
+
+
+def test_per_pixel_sample_counts_weigh_each_pixel_by_its_own():
+    """An adaptive render's pixels hold different sample counts (its ``spp`` AOV): the Z-test, the
+    bias test, pooling and the batch variance take them pixel by pixel. Uniform counts give the
+    scalar results exactly; a render whose busy half took 16x the samples is scored by them: at
+    the scalar (smallest) count its noise is overestimated and a 1% bias hides, at its own it shows."""
+    from wrt_harness.score import batch_variance, pooled, z_test
+
+    rng = np.random.default_rng(7)
+    mean = rng.uniform(0.05, 1.0, SHAPE)
+    variance = (rng.uniform(0.5, 3.0, SHAPE) * mean) ** 2
+    counts = np.full(SHAPE[:2], 64)
+    image = noisy(rng, mean, variance, 64)
+    reference = noisy(rng, mean, variance, 4096)
+    assert z_test(image, counts, reference, variance, 4096) == z_test(image, 64, reference, variance, 4096)
+    assert bias_test(image, counts, reference, variance, 4096) == bias_test(image, 64, reference, variance, 4096)
+    a, b = noisy(rng, mean, variance, 16), noisy(rng, mean, variance, 48)
+    assert np.array_equal(pooled([a, b], [np.full(SHAPE[:2], 16), np.full(SHAPE[:2], 48)]), pooled([a, b], [16, 48]))
+    assert np.allclose(batch_variance([a, b], [np.full(SHAPE[:2], 16), 48]), batch_variance([a, b], [16, 48]))
+
+    counts = np.where(np.arange(SHAPE[1]) < SHAPE[1] // 2, 64, 1024)[None, :].repeat(SHAPE[0], axis=0)
+    biased = 0.99 * (mean + rng.normal(size=SHAPE) * np.sqrt(variance / counts[..., None]))
+    assert bias_test(biased, 64, reference, variance, 4096).passed
+    assert not bias_test(biased, counts, reference, variance, 4096).passed
