@@ -50,7 +50,8 @@ def _cluster(scheduler: str | None):
 
 
 def matrix_verb(verbs) -> Run:
-    """``wrt matrix [FEATURE...] [--device] [--jobs N] [--report DIR] [--wrong] [--features FILE --refs DIR]``."""
+    """``wrt matrix [FEATURE...] [--device] [--jobs N] [--report DIR] [--wrong] [--features FILE --refs DIR]``,
+    ``wrt matrix --coverage [FEATURE...] [--features FILE]``."""
     m = verbs.add_parser(
         "matrix",
         help="run the feature test matrix (visual regression harness)",
@@ -70,10 +71,29 @@ def matrix_verb(verbs) -> Run:
         metavar="FILE",
         help="also write the results to FILE (atomically): per feature, passed, failed_checks and scores",
     )
+    m.add_argument(
+        "--coverage",
+        action="store_true",
+        help="render nothing: list every kind of the scene format (camera types, shapes, materials, lights, "
+        "samplers...) with the features that exercise it; exit 1 when a kind has none",
+    )
     add_matrix_options(m)
     add_scheduler_option(m, "feature")
 
     def run(args: argparse.Namespace) -> int:
+        if args.coverage:
+            options = {
+                "--wrong": args.wrong,
+                "--report": args.report,
+                "--json": args.json,
+                "--scheduler": args.scheduler,
+            }
+            given = [option for option, value in options.items() if value]
+            if given:
+                raise WrtError(f"{given[0]}: not with --coverage (it renders nothing)")
+            from .commands import coverage_table
+
+            return coverage_table(args.features, args.features_file)
         if args.jobs < 1:
             raise WrtError(f"--jobs {args.jobs}: must be >= 1")
         if args.jobs > 1 and args.scheduler is not None:

@@ -13,6 +13,7 @@ import dataclasses
 import math
 import os
 import sys
+import time
 
 from tqdm import tqdm
 
@@ -99,6 +100,17 @@ def _features(names: list[str], features_file: str | None, refs: str | None, mad
     return features
 
 
+def coverage_table(names: list[str], features_file: str | None = None) -> int:
+    """Print which of the features called ``names`` (all when empty) of ``features_file`` (None:
+    wrt's own) exercise each kind of the scene format (``coverage.coverage``), rendering nothing;
+    exit 1 when a kind has no feature."""
+    from .coverage import coverage, empty, format_table
+
+    rows = coverage(select(load_features(features_file or FEATURES_FILE), names))
+    print(format_table(rows))
+    return 1 if empty(rows) else 0
+
+
 def matrix(
     names: list[str],
     device: str,
@@ -122,6 +134,7 @@ def matrix(
         missing = [f for f in features if not f.wrong]
         if missing:
             raise WrtError(f"{missing[0].features_file}: feature {missing[0].name!r} has no wrong variant (key wrong)")
+    start = time.perf_counter()
     with tqdm(total=len(features), desc="wrt matrix", unit="feature", file=sys.stderr, disable=None) as bar:
 
         def progress(result):
@@ -131,6 +144,7 @@ def matrix(
         results = run_matrix(
             features, device=device, jobs=jobs, progress=progress, refs=refs, wrong=wrong, cluster=cluster
         )
+    elapsed = time.perf_counter() - start
     if wrong:
         print("wrong variants: each must FAIL")
     print(_table(results))
@@ -141,7 +155,7 @@ def matrix(
     if report:
         from .report import write_report
 
-        print(f"report: {write_report(results, report, device)}")
+        print(f"report: {write_report(results, report, device, total_s=elapsed)}")
     if wrong:
         missed = [r.feature.name for r in results if r.passed]
         print(

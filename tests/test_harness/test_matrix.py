@@ -1,6 +1,6 @@
 """The visual regression harness (harness/): the feature matrix collected by pytest, its
-sensitivity (every deliberately wrong variant fails), reference handling, `wrt compare`, and the
-HTML report in a real headless browser."""
+sensitivity (every deliberately wrong variant fails), reference handling and `wrt compare` (the
+HTML report in a real headless browser: test_report.py)."""
 
 import json
 import os
@@ -156,55 +156,6 @@ def test_the_harness_has_a_command_of_its_own(tmp_path):
         [sys.executable, "-m", "wrt_harness", "matrix", "no_such_feature"], capture_output=True, text=True
     )
     assert bad.returncode == 2 and bad.stderr.startswith("wrt-harness: error:") and "no_such_feature" in bad.stderr
-
-
-def find_chromium():
-    for name in ("chromium", "chromium-browser", "google-chrome"):
-        path = shutil.which(name)
-        if path:
-            return path
-    pytest.fail("headless Chromium is needed for the report test: apt-get install chromium (.ci/run installs it)")
-
-
-def test_report_renders_in_headless_chromium(tmp_path):
-    """The report page loads in a real browser, shows one row per feature, marks failed rows."""
-    good = evaluate(select(FEATURES, ["raycast_triangle"])[0])
-    bad = evaluate(select(FEATURES, ["refraction"])[0], wrong=True)
-    page = write_report([good, bad], str(tmp_path / "report"), "cpu")
-    chromium = find_chromium()
-    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--allow-file-access-from-files"]
-    dom = subprocess.run(
-        [chromium, *flags, "--dump-dom", f"file://{page}"], capture_output=True, text=True, timeout=120
-    ).stdout
-    assert "wrt feature matrix: 1 of 2 pass" in dom
-    rows = re.findall(r'<tr class="(pass|fail)" id="([a-z_]+)"', dom)
-    assert rows == [("pass", "raycast_triangle"), ("fail", "refraction")]
-    # each row's FLIP error map is on the page, and the browser decodes it (at the render's size)
-    assert re.findall(r'<img src="([a-z_]+)\.flip\.png" alt="flip">', dom) == ["raycast_triangle", "refraction"]
-    assert "HDR-FLIP " in dom and "FLIP</th>" in dom
-    probe = tmp_path / "flip_maps.html"
-    probe.write_text(
-        '<!DOCTYPE html><body><iframe id="report" src="report/index.html"></iframe><p id="sizes"></p><script>'
-        "window.addEventListener('load', () => { const maps = document.getElementById('report')"
-        ".contentDocument.querySelectorAll('img[alt=flip]'); document.getElementById('sizes').textContent = "
-        "[...maps].map(i => i.complete ? `${i.naturalWidth}x${i.naturalHeight}` : 'pending').join(' '); });"
-        "</script></body>"
-    )
-    sizes = subprocess.run(
-        [chromium, *flags, "--dump-dom", f"file://{probe}"], capture_output=True, text=True, timeout=120
-    ).stdout
-    expected = " ".join(f"{r.feature.width}x{r.feature.height}" for r in (good, bad))
-    assert f'<p id="sizes">{expected}</p>' in sizes, sizes
-    shot = tmp_path / "shot.png"
-    subprocess.run(
-        [chromium, *flags, f"--screenshot={shot}", "--window-size=1400,900", f"file://{page}"],
-        capture_output=True,
-        timeout=120,
-    )
-    from wrt.imageio import read_image
-
-    pixels = read_image(str(shot)).rgb
-    assert len(np.unique(pixels.reshape(-1, 3), axis=0)) > 50  # the images and colours are drawn
 
 
 def test_regenerate_failed_only_touches_broken_references(tmp_path, monkeypatch, capsys):
