@@ -72,11 +72,11 @@ def step_commands(device: str, quick: bool, work: str) -> dict[str, list[str]]:
     throughput = ["--triangles", "20000", "--rays", "65536", "--repeats", "1"] if quick else []
     bench = ["--quick"] if quick else ["--budget", "2"]
     return {
-        "matrix": [python, "-m", "wrt.cli", "matrix", *features, "--device", device],
+        "matrix": [python, "-m", "wrt", "matrix", *features, "--device", device],
         "agreement": [python, "-m", "wrt_benchmarks.gpu_check", *agreement],
         "throughput": [python, "-m", "wrt_benchmarks.throughput", "--device", device, *throughput]
         + ["-o", os.path.join(work, "throughput.json")],
-        "path": [python, "-m", "wrt.cli", "bench", "--device", device, "--triangles", "0", *bench]
+        "path": [python, "-m", "wrt", "bench", "--device", device, "--triangles", "0", *bench]
         + ["-o", os.path.join(work, "bench")],
     }
 

@@ -117,9 +117,9 @@ def mitsuba_command(variant: str) -> list[str] | None:
 
 
 def wrt_command() -> list[str]:
-    """``wrt`` as installed beside this Python (its console script), else ``python -m wrt.cli``."""
+    """``wrt`` as installed beside this Python (its console script), else ``python -m wrt``."""
     exe = os.path.join(os.path.dirname(sys.executable), "wrt")
-    return [exe] if os.path.exists(exe) else [sys.executable, "-m", "wrt.cli"]
+    return [exe] if os.path.exists(exe) else [sys.executable, "-m", "wrt"]
 
 
 _ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}  # see the module docstring

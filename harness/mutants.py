@@ -3,7 +3,7 @@
 Each fault of ``faults.toml`` is a small, physically wrong code change (``old`` snippet replaced by
 ``new`` in one file of the installed packages). For each, the installed ``wrt`` and ``wrt_harness``
 are copied to a scratch folder, the change is made there (never in the working tree), and the matrix
-runs on the copy in a subprocess (``python -m wrt.cli matrix --json``, ``PYTHONPATH`` the scratch
+runs on the copy in a subprocess (``python -m wrt matrix --json``, ``PYTHONPATH`` the scratch
 folder, which must win over an editable install: checked). A fault is caught when a feature fails
 (by any check of ``run.CHECKS``), or when the matrix run itself crashes.
 
@@ -285,7 +285,7 @@ def run_matrix_copy(scratch: str, env: dict[str, str], names, args: list[str]) -
     path = os.path.join(scratch, "matrix.json")
     if os.path.exists(path):
         os.unlink(path)
-    command = [sys.executable, "-m", "wrt.cli", "matrix", *names, *args, "--json", path]
+    command = [sys.executable, "-m", "wrt", "matrix", *names, *args, "--json", path]
     code, output = _run_to_end(command, scratch, env)
     if code in INTERRUPTIONS:
         how = f"killed by signal {-code}" if code < 0 else f"stopped by a signal (exit code {code})"

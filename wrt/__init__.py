@@ -5,15 +5,14 @@
 >>> result = wrt.render(scene, spp=4, device="cpu")
 >>> result.rgb.shape, sorted(result.aovs)
 
-The public names and the submodules are imported on first use (PEP 562), so ``import wrt`` is
-light: the ``wrt`` command sets up its handling of Ctrl-C and SIGTERM before Warp and the kernels
-load, and a signal during start-up is one line, not a traceback.
+The public names, the submodules and ``__version__`` are looked up on first use (PEP 562), so
+``import wrt`` is light: the ``wrt`` command (``wrt.console``) sets up its handling of Ctrl-C and
+SIGTERM before Warp and the kernels load, and a signal during start-up is one line, not a traceback.
 """
 
 import gc as _gc
 import importlib as _importlib
 import importlib.util as _importlib_util
-from importlib import metadata as _metadata
 
 _PUBLIC = {
     "load_scene": "loader",
@@ -25,10 +24,6 @@ _PUBLIC = {
 }
 """Each public name and the submodule that defines it."""
 
-try:
-    __version__ = _metadata.version("wrt")
-except _metadata.PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "0+unknown"
 __all__ = ["load_scene", "parse_scene", "render", "RenderResult", "SceneError", "WrtError", "__version__"]
 
 
@@ -46,8 +41,20 @@ def _import(name: str):
             _gc.enable()
 
 
+def _version() -> str:
+    """The installed distribution's version (``importlib.metadata``: 25 ms, so looked up on first use)."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("wrt")
+    except metadata.PackageNotFoundError:  # running from a source tree that is not installed
+        return "0+unknown"
+
+
 def __getattr__(name: str):
-    if name in _PUBLIC:
+    if name == "__version__":
+        value = _version()
+    elif name in _PUBLIC:
         value = getattr(_import(_PUBLIC[name]), name)
     elif not name.startswith("_") and _importlib_util.find_spec(f"{__name__}.{name}") is not None:
         value = _import(name)
@@ -58,4 +65,4 @@ def __getattr__(name: str):
 
 
 def __dir__():
-    return sorted(set(globals()) | set(_PUBLIC))
+    return sorted(set(globals()) | set(_PUBLIC) | {"__version__"})

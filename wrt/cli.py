@@ -21,6 +21,7 @@ import sys
 import threading
 import time
 
+from .console import Terminated, terminate
 from .errors import SceneError, WrtError
 from .limits import MAX_DEPTH, MAX_IMAGE_SIDE, MAX_SEED, MAX_SPP
 
@@ -208,7 +209,8 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
         help="show the rays traced for chosen pixels in 3D",
         description="Trace chosen pixels with the scene's integrator, recording every ray the render kernels trace "
         "(camera, shadow, reflected, refracted, totally internally reflected), and draw the ray trees with pyvista "
-        "over the scene geometry, or export them as a VTK multiblock. See docs/rays.md.",
+        "over the scene geometry, write them as an interactive web page, or export them as a VTK multiblock. See "
+        "docs/rays.md.",
     )
     rays.add_argument("scene", help="scene file (.toml)")
     rays.add_argument(
@@ -244,6 +246,10 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
     shown.add_argument("-o", "--output", help="render the view off screen to this .png")
     shown.add_argument("--interactive", action="store_true", help="open a window (needs a display)")
     shown.add_argument("--export", help="write a VTK multiblock (.vtm) for ParaView or pyvista.read")
+    shown.add_argument(
+        "--html",
+        help="write one self-contained interactive page (.html): turn and zoom the view in any browser, offline",
+    )
     rays.add_argument(
         "--view",
         nargs=2,
@@ -286,18 +292,8 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
     return parser, runs
 
 
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised in the main thread as Ctrl-C raises ``KeyboardInterrupt``, so that the same
-    clean-up runs (a file being written is left as it was, its temporary file removed); exit code
-    143 where Ctrl-C's is 130."""
-
-
 def _interruption(signum: int) -> KeyboardInterrupt:
     return Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
-
-
-def _terminate(signum, frame):
-    raise Terminated()
 
 
 SIGNAL_GRACE_S = 1.0
@@ -492,6 +488,7 @@ def _rays(args) -> int:
         output=args.output,
         interactive=args.interactive,
         export_path=args.export,
+        html_path=args.html,
         view=args.view,
         device=args.device,
         capacity=args.capacity,
@@ -603,7 +600,7 @@ def console() -> int:
       full passes, each of which would otherwise scan it again (about 50 ms of a one-second
       render). It is unfrozen at exit, so that shutdown frees it as usual.
     """
-    signal.signal(signal.SIGTERM, _terminate)
+    signal.signal(signal.SIGTERM, terminate)
     stdout = sys.stdout = GuardedStdout(sys.stdout)
     try:
         import wrt
@@ -621,5 +618,7 @@ def console() -> int:
     return code
 
 
-if __name__ == "__main__":
-    sys.exit(console())
+if __name__ == "__main__":  # python -m wrt.cli: as python -m wrt, through the entry point that handles signals first
+    from .console import main as _main
+
+    sys.exit(_main())

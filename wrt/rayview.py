@@ -11,8 +11,8 @@ segments    one line per segment that ends (on a surface or at a light), cell da
             segment's row in the tree), ``kind``, ``pixel_x``, ``pixel_y``, ``sample``, ``depth``,
             ``parent``, ``shape``, ``entering``, ``throughput`` (3), ``color`` (RGB, 0-255);
             field data ``kind_names``
-misses      one line per escaped segment, drawn to ``miss_length``, point data ``rgba`` fading from
-            the kind's colour to transparent; cell data as ``segments``
+misses      one line per escaped segment, ``MISS_FRACTION`` of the drawing's size long, point data
+            ``rgba`` fading from the kind's colour to transparent; cell data as ``segments``
 hits        the hit points, point data ``normal`` (unit geometric normal), ``facing_normal`` (flipped
             to the side the ray came from), ``kind``, ``shape``, ``entering``, ``row``
 lights      one piece per light that has a place, named ``light[k] TYPE`` (k: its index in
@@ -32,16 +32,25 @@ legend, hit points as small spheres, normals as short arrows on the side the ray
 normal reflection and refraction use), misses fading out, visited BVH boxes as thin lines, light
 surfaces opaque and unlit in a light colour (an area light's back, which emits nothing, darker). ``save_view``
 renders off screen to a PNG (EGL when there is no display), ``show`` opens a window, ``export``
-writes the blocks to a ``.vtm`` that ParaView and ``pyvista.read`` open.
+writes the blocks to a ``.vtm`` that ParaView and ``pyvista.read`` open, ``save_html`` writes the
+same drawing as one self-contained web page with a small WebGL viewer of its own (turn, move,
+zoom; no network, no other file).
+
+The view all of them start from is ``view_camera``: it frames the tree's vertices
+(``framed_vertices``: not the lights, not the far hits) and looks at the plane the tree lies in
+(``_plane_normal``), from above, the scene's up vertical on screen. See docs/rays.md.
 """
 
 from __future__ import annotations
 
 import os
 import sys
+from dataclasses import dataclass
 
 import numpy as np
 import pyvista as pv
+
+from wrt.kernels.record import CAMERA
 
 from .errors import WrtError
 from .files import atomic_path, check_report_folder, check_writable, report_folder
@@ -70,12 +79,17 @@ NORMAL_COLOR = "#404040"
 LIGHT_COLOR = "#ffd000"
 LIGHT_BACK_COLOR = "#8c7a3a"  # the back of an area light, which emits nothing
 BVH_COLOR = "#7f8c9a"
-MISS_FRACTION = 0.25  # misses are drawn this fraction of the scene's size long
+MISS_FRACTION = 0.25  # misses are drawn this fraction of the drawing's size long (_drawing_box)
 HIT_FRACTION = 0.006  # radius of the hit spheres
 QUADRIC_SIDES = 96  # vertices of the rims of disks and tubes
 NORMAL_FRACTION = 0.06  # length of the normal arrows
 EMITTING_FRACTION = 0.15  # length of the arrows on the emitting side of area lights
 MAX_ELEVATION = 60.0  # degrees above the scene's horizon the automatic view may look down from
+VIEW_FOV = 30.0  # vertical field of view of the view, degrees (VTK's default)
+VIEW_ASPECT = 4 / 3  # width / height the view is framed for: the PNG's 1280 x 960
+FRAME_FILL = 0.9  # the framed vertices fill this share of the picture's width or height (centred)
+FAR_FACTOR = 2.0  # hits further from the camera than this many times the median hit are not framed
+DIRECTION_WEIGHT = 0.1  # of the segments' directions against the vertices' spread, in choosing the view (_plane_normal)
 BACKGROUND = "white"
 
 
@@ -93,13 +107,61 @@ def _material_color(scene, shape) -> np.ndarray:
     return (np.clip(mat.albedo, 0, 1) * 255).astype(np.uint8)
 
 
+def tree_vertices(tree: RayTree) -> np.ndarray:
+    """The vertices of the ray trees, (n, 3) float64, each once: where the camera rays start and
+    where a segment ends on a surface (hit points, the blockers of shadow rays). Not the lights
+    a shadow ray reaches, nor where an escaped ray is drawn to."""
+    points = np.concatenate([tree.origin[tree.kind == CAMERA], tree.end[tree.hit]]).astype(np.float64)
+    return np.unique(points, axis=0)
+
+
+def _camera_distance(tree: RayTree, rows: np.ndarray) -> np.ndarray:
+    """Distance of the ends of segments ``rows`` from the start of their path's camera ray."""
+    key = (tree.pixel[:, 1].astype(np.int64) * tree.scene.render.width + tree.pixel[:, 0]) * tree.samples + tree.sample
+    cameras = np.flatnonzero(tree.kind == CAMERA)
+    order = np.argsort(key[cameras], kind="stable")
+    found = cameras[order][np.searchsorted(key[cameras][order], key[rows]).clip(0, max(len(cameras) - 1, 0))]
+    return np.linalg.norm(tree.end[rows].astype(np.float64) - tree.origin[found], axis=1)
+
+
+def framed_vertices(tree: RayTree) -> np.ndarray:
+    """The vertices of ``tree_vertices`` that the automatic view frames: the camera rays' starts,
+    and every hit point but the far ones, those more than ``FAR_FACTOR`` times as far from their
+    camera ray's start as the median hit (a ray that grazes the floor and meets it hundreds of
+    units away, a wall at the horizon). Their segments are still drawn, running out of the
+    picture."""
+    rows = np.flatnonzero(tree.hit)
+    if len(rows) and (tree.kind == CAMERA).any():
+        distance = _camera_distance(tree, rows)
+        rows = rows[distance <= FAR_FACTOR * np.median(distance)]
+    points = np.concatenate([tree.origin[tree.kind == CAMERA], tree.end[rows]]).astype(np.float64)
+    return np.unique(points, axis=0)
+
+
+def _box_size(points: np.ndarray) -> float:
+    return float(np.linalg.norm(points.max(axis=0) - points.min(axis=0))) if len(points) else 0.0
+
+
 def _bounds(tree: RayTree) -> tuple[np.ndarray, np.ndarray]:
     """World-space box around the camera, every segment end that is not a miss, the bounded shapes
-    and the light surfaces."""
+    and the light surfaces: what the plane patches must cover."""
     points = [np.asarray(tree.scene.camera.origin, dtype=np.float64)[None], tree.origin, tree.end[~tree.escaped]]
     points.append(tree.scene.surface_points(QUADRIC_SIDES))
     points = np.concatenate([np.asarray(p, dtype=np.float64).reshape(-1, 3) for p in points])
     return points.min(axis=0), points.max(axis=0)
+
+
+def _drawing_box(tree: RayTree) -> tuple[np.ndarray, float]:
+    """``(centre, size)`` of the drawing: the box of the framed vertices (``framed_vertices``), or of
+    the whole scene (``_bounds``) when they are one point (every ray escaped). Glyphs (hit balls,
+    normals, the camera's pyramid, misses) are drawn in proportion to ``size``, directional lights
+    at its edge."""
+    framed = framed_vertices(tree)
+    size = _box_size(framed)
+    if size > 0:
+        return (framed.min(axis=0) + framed.max(axis=0)) / 2, size
+    lo, hi = _bounds(tree)
+    return (lo + hi) / 2, float(np.linalg.norm(hi - lo)) or 1.0
 
 
 def _shape_mesh(shape, centre: np.ndarray, size: float, scene) -> pv.PolyData:
@@ -185,13 +247,13 @@ def _segment_data(mesh: pv.PolyData, tree: RayTree, rows: np.ndarray) -> None:
 
 def ray_blocks(tree: RayTree) -> pv.MultiBlock:
     """The recording and its scene as named pyvista blocks (see the module docstring)."""
-    lo, hi = _bounds(tree)
-    centre, size = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) or 1.0
+    lo, hi = _bounds(tree)  # plane patches cover every segment end
     scene = tree.scene
+    centre, size = _drawing_box(tree)
 
     geometry = pv.MultiBlock()
     for i, shape in enumerate(scene.shapes):
-        mesh = _shape_mesh(shape, centre, 1.2 * size, tree.scene)
+        mesh = _shape_mesh(shape, (lo + hi) / 2, 1.2 * float(np.linalg.norm(hi - lo)) or 1.0, tree.scene)
         mesh.cell_data["color"] = np.tile(_material_color(scene, shape), (mesh.n_cells, 1))
         geometry[f"shape[{i}] {type(shape).__name__.lower()}"] = mesh
 
@@ -249,20 +311,40 @@ def _box_edges(tree: RayTree) -> pv.PolyData:
     return boxes
 
 
+def _plane_normal(tree: RayTree) -> np.ndarray | None:
+    """Unit normal of the plane the ray tree lies closest to, or None when it lies on one line.
+
+    The spread of the framed vertices (``framed_vertices``: the camera, the hit points but the far
+    ones) and, at ``DIRECTION_WEIGHT`` of its weight, that of the segments' unit directions (each
+    segment counted once whatever its length: shadow rays toward lights, misses) are added, each
+    scaled to a total of 1. The normal is the axis along which the sum is least: the view along it
+    spreads the vertices most, and where they lie on a line (a camera ray and its shadow rays) it
+    turns about that line to foreshorten the other segments least."""
+    vertices = framed_vertices(tree)
+    directions = tree.direction.astype(np.float64)
+    spread = np.zeros((3, 3))
+    for points, weight in ((vertices - vertices.mean(axis=0), 1.0), (directions, DIRECTION_WEIGHT)):
+        scatter = points.T @ points
+        if np.trace(scatter) > 0:
+            spread += weight * scatter / np.trace(scatter)
+    size, axes = np.linalg.eigh(spread)  # ascending
+    if size[1] < 1e-6 * size[2]:
+        return None
+    return axes[:, 0]
+
+
 def _auto_view(tree: RayTree, forward: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unit direction toward the eye and view-up that show the ray trees flattest on screen with the
-    scene's ``up`` (unit) vertical: the normal of the plane the segments lie closest to (least
-    principal axis of their points), from above, lowered to at most ``MAX_ELEVATION`` above the
-    horizon (looking straight down: from behind the scene camera, ``forward``); a side view when
-    they lie on one line. The view-up is ``up`` projected on the view plane."""
-    points = np.concatenate([tree.origin, tree.end[~tree.escaped], tree.origin + tree.direction]).astype(np.float64)
-    _, spread, axes = np.linalg.svd(points - points.mean(axis=0), full_matrices=False)
-    if len(spread) < 3 or spread[1] < 1e-3 * spread[0]:  # one line: look from its side, level with it
-        line = axes[0]
+    scene's ``up`` (unit) vertical: the normal of the plane the tree lies closest to (``_plane_normal``),
+    from above, lowered to at most ``MAX_ELEVATION`` above the horizon (looking straight down: from
+    behind the scene camera, ``forward``); a side view when they lie on one line. The view is never
+    less than 90 - ``MAX_ELEVATION`` degrees from edge-on to that plane. The view-up is ``up``
+    projected on the view plane."""
+    normal = _plane_normal(tree)
+    if normal is None:  # one line: look from its side, level with it
+        line = tree.direction[0].astype(np.float64)
         normal = np.cross(line, up)
         normal = normal if np.linalg.norm(normal) > 1e-6 else np.cross(line, forward)
-    else:
-        normal = axes[2]
     normal /= np.linalg.norm(normal)
     if np.dot(normal, up) < -1e-6 or (abs(np.dot(normal, up)) <= 1e-6 and np.dot(normal, forward) > 0):
         normal = -normal
@@ -276,16 +358,131 @@ def _auto_view(tree: RayTree, forward: np.ndarray, up: np.ndarray) -> tuple[np.n
     return normal, view_up / np.linalg.norm(view_up)
 
 
+@dataclass(frozen=True)
+class ViewCamera:
+    """A perspective view of the drawing (world space, float64).
+
+    Attributes
+    ----------
+    eye, focus : (3,)
+        Where the view looks from, and the point it looks at (what a browser turns the view about).
+    up : (3,)
+        Unit vector that is vertical on screen, perpendicular to ``focus - eye``.
+    fov : float
+        Vertical field of view, degrees.
+    aspect : float
+        Width / height of the picture the view was framed for.
+    """
+
+    eye: np.ndarray
+    focus: np.ndarray
+    up: np.ndarray
+    fov: float
+    aspect: float
+
+    def project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(xy, in_front)``: ``points`` (n, 3) in picture coordinates (n, 2), (0, 0) the top left
+        corner and (1, 1) the bottom right one (in the picture: both in [0, 1]), and whether each
+        is in front of the eye."""
+        back = self.eye - self.focus
+        back = back / np.linalg.norm(back)
+        right = np.cross(self.up, back)
+        rel = np.asarray(points, dtype=np.float64) - self.eye
+        depth = -rel @ back
+        t = np.tan(np.radians(self.fov) / 2)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = (rel @ right) / (depth * t * self.aspect)
+            y = (rel @ self.up) / (depth * t)
+        return np.column_stack([(1 + x) / 2, (1 - y) / 2]), depth > 0
+
+
+def _frame(points: np.ndarray, towards_eye: np.ndarray, up: np.ndarray, aspect: float) -> ViewCamera:
+    """The view along ``-towards_eye`` (unit) with ``up`` vertical in which ``points`` are centred
+    and fill ``FRAME_FILL`` of the picture's width or height, none nearer the edge."""
+    right = np.cross(up, towards_eye)
+    t_y = np.tan(np.radians(VIEW_FOV) / 2)
+    t_x = aspect * t_y
+    extent = _box_size(points) or 1.0
+
+    def fit(centre):  # the points about ``centre`` along right, up and toward the eye; the eye's distance
+        a, b, z = ((points - centre) @ axis for axis in (right, up, towards_eye))
+        a_fit, b_fit = np.abs(a) / (FRAME_FILL * t_x), np.abs(b) / (FRAME_FILL * t_y)
+        return a, b, z, max(np.max(z + a_fit), np.max(z + b_fit), np.max(z) + 1e-3 * extent)
+
+    centre = (points.min(axis=0) + points.max(axis=0)) / 2
+    for _ in range(4):  # perspective: centring moves the picture a little; it settles in a few steps
+        a, b, z, distance = fit(centre)
+        x, y = a / ((distance - z) * t_x), b / ((distance - z) * t_y)
+        centre = centre + ((x.max() + x.min()) * t_x * right + (y.max() + y.min()) * t_y * up) * distance / 2
+    a, b, z, distance = fit(centre)
+    eye = centre + distance * towards_eye
+    middle = (np.max(z) + np.min(z)) / 2  # turn about the middle of the points' depth
+    return ViewCamera(eye=eye, focus=centre + middle * towards_eye, up=up, fov=VIEW_FOV, aspect=aspect)
+
+
+def view_camera(tree: RayTree, view: tuple[float, float] | None = None, *, aspect: float = VIEW_ASPECT) -> ViewCamera:
+    """The view ``draw`` and ``save_html`` start from, framed for a picture of ``aspect`` (width /
+    height) around the framed vertices (``framed_vertices``; plus where the misses are drawn to
+    when those are a single point).
+
+    ``view``: ``(azimuth, elevation)`` in degrees relative to the scene camera: azimuth around its
+    up axis (0 = from behind it, 90 = from its right), elevation above its horizon. Default: the
+    view that shows the ray tree flattest (``_auto_view``).
+    """
+    forward, right, up = tree.scene.camera.basis()
+    if view is None:
+        scene_up = np.asarray(tree.scene.camera.up, dtype=np.float64)
+        towards_eye, view_up = _auto_view(tree, forward, scene_up / np.linalg.norm(scene_up))
+    else:
+        az, el = np.radians(view[0]), np.radians(view[1])
+        towards_eye = np.cos(el) * (-np.cos(az) * forward + np.sin(az) * right) + np.sin(el) * up
+        view_up = up - np.dot(up, towards_eye) * towards_eye
+        if np.linalg.norm(view_up) < 1e-6:  # straight down or up: the scene camera's forward up the picture
+            view_up = forward * np.sign(el)
+        view_up /= np.linalg.norm(view_up)
+    points = framed_vertices(tree)
+    if _box_size(points) == 0:
+        _, size = _drawing_box(tree)
+        points = np.concatenate([points, tree.origin + MISS_FRACTION * size * tree.direction])
+    return _frame(points.astype(np.float64), towards_eye, view_up, aspect)
+
+
+def _legend(tree: RayTree, blocks: pv.MultiBlock) -> list[list[str]]:
+    """``[label, colour]`` of each thing drawn: the ray kinds present, normals, lights, BVH boxes."""
+    legend = [[RayTree.KIND_NAMES[k], KIND_COLORS[k]] for k in sorted(set(tree.kind.tolist()))]
+    if tree.hit.any():
+        legend.append(["surface normal", NORMAL_COLOR])
+    if len(blocks["lights"]):
+        legend.append(["light", LIGHT_COLOR])
+    if any(isinstance(light, AreaLight) for light in tree.scene.lights):
+        legend.append(["back of an area light", LIGHT_BACK_COLOR])
+    if blocks["bvh"].n_cells:
+        legend.append([f"BVH nodes visited ({len(np.unique(tree.visit_node))})", BVH_COLOR])
+    return legend
+
+
+def _title(tree: RayTree) -> str:
+    px = ", ".join(f"({x}, {y})" for x, y in tree.pixels[:4]) + (
+        f" and {len(tree.pixels) - 4} more" if len(tree.pixels) > 4 else ""
+    )
+    title = (
+        f"{os.path.basename(tree.scene.path)}: pixel{'s' if len(tree.pixels) > 1 else ''} {px}, {tree.samples} "
+        f"sample{'s' if tree.samples > 1 else ''}, max_depth {tree.scene.render.max_depth}"
+    )
+    if tree.truncated:
+        title += f"\n(truncated: {len(tree)} of {tree.recorded} segments recorded)"
+    return title
+
+
 def draw(plotter: pv.Plotter, tree: RayTree, view: tuple[float, float] | None = None) -> None:
     """Add the recording to ``plotter`` and aim its camera at the rays.
 
     ``view``: ``(azimuth, elevation)`` in degrees relative to the scene camera: azimuth around its
     up axis (0 = from behind it, 90 = from its right), elevation above its horizon. Default: the
-    view that shows the ray tree flattest (see ``_auto_view``).
+    view that shows the ray tree flattest, framing its vertices (see ``view_camera``).
     """
     blocks = ray_blocks(tree)
-    lo, hi = _bounds(tree)
-    size = float(np.linalg.norm(hi - lo)) or 1.0
+    _, size = _drawing_box(tree)
     plotter.set_background(BACKGROUND)
     for name, mesh in zip(blocks["geometry"].keys(), blocks["geometry"]):
         opacity = PLANE_OPACITY if name.endswith("plane") else GEOMETRY_OPACITY
@@ -338,44 +535,19 @@ def draw(plotter: pv.Plotter, tree: RayTree, view: tuple[float, float] | None = 
             backface_params={"color": LIGHT_BACK_COLOR},
         )
     plotter.add_mesh(blocks["camera"], color="#303030", line_width=2)
-    legend = [[RayTree.KIND_NAMES[k], KIND_COLORS[k]] for k in sorted(set(tree.kind.tolist()))]
-    if tree.hit.any():
-        legend.append(["surface normal", NORMAL_COLOR])
-    if len(lights):
-        legend.append(["light", LIGHT_COLOR])
-    if any(isinstance(light, AreaLight) for light in tree.scene.lights):
-        legend.append(["back of an area light", LIGHT_BACK_COLOR])
-    if boxes.n_cells:
-        legend.append([f"BVH nodes visited ({len(np.unique(tree.visit_node))})", BVH_COLOR])
+    legend = _legend(tree, blocks)
     width, height = 0.011 * max(len(label) for label, _ in legend) + 0.04, 0.032 * len(legend)
     box = plotter.add_legend(legend, bcolor="white", border=True, size=(width, height), face="rectangle")
     box.SetPosition(0.99 - width, 0.95 - height)  # upper right (pyvista's loc offsets x by the height)
-    px = ", ".join(f"({x}, {y})" for x, y in tree.pixels[:4]) + (
-        f" and {len(tree.pixels) - 4} more" if len(tree.pixels) > 4 else ""
-    )
-    title = (
-        f"{os.path.basename(tree.scene.path)}: pixel{'s' if len(tree.pixels) > 1 else ''} {px}, {tree.samples} "
-        f"sample{'s' if tree.samples > 1 else ''}, max_depth {tree.scene.render.max_depth}"
-    )
-    if tree.truncated:
-        title += f"\n(truncated: {len(tree)} of {tree.recorded} segments recorded)"
+    title = _title(tree)
     plotter.add_text(title, position="upper_left", font_size=10, color="black")
 
-    forward, right, up = tree.scene.camera.basis()
-    if view is None:
-        scene_up = np.asarray(tree.scene.camera.up, dtype=np.float64)
-        towards_eye, view_up = _auto_view(tree, forward, scene_up / np.linalg.norm(scene_up))
-    else:
-        az, el = np.radians(view[0]), np.radians(view[1])
-        towards_eye, view_up = np.cos(el) * (-np.cos(az) * forward + np.sin(az) * right) + np.sin(el) * up, up
-    finite = np.concatenate([tree.origin, tree.end[~tree.escaped]])
-    ray_lo, ray_hi = finite.min(axis=0), finite.max(axis=0)
-    focus = (ray_lo + ray_hi) / 2
-    plotter.camera.focal_point = focus
-    plotter.camera.position = focus + towards_eye * size
-    plotter.camera.up = view_up
-    plotter.reset_camera(bounds=np.column_stack([ray_lo, ray_hi]).ravel())
-    plotter.camera.zoom(1.1)
+    camera = view_camera(tree, view, aspect=plotter.window_size[0] / plotter.window_size[1])
+    plotter.camera.position = camera.eye
+    plotter.camera.focal_point = camera.focus
+    plotter.camera.up = camera.up
+    plotter.camera.view_angle = camera.fov
+    plotter.reset_camera_clipping_range()
 
 
 def _folder_of(path: str) -> tuple[str, str]:
@@ -488,12 +660,14 @@ def run(
     output: str | None = None,
     interactive: bool = False,
     export_path: str | None = None,
+    html_path: str | None = None,
     view: tuple[float, float] | None = None,
     device: str = "cpu",
     capacity: int = DEFAULT_CAPACITY,
     show_bvh: bool = False,
 ) -> int:
-    """``wrt rays``: trace the pixels (and a grid of pixels) of a scene file, then draw, show or export."""
+    """``wrt rays``: trace the pixels (and a grid of pixels) of a scene file, then draw, show, export
+    or write the interactive page."""
     if output is not None:
         if os.path.splitext(output)[1].lower() != ".png":
             raise WrtError(f"{output}: -o writes a picture, use a .png name")
@@ -503,6 +677,10 @@ def run(
             raise WrtError(f"{export_path}: --export writes a VTK multiblock, use a .vtm name")
         check_writable(export_path, option="--export", protect=(scene_file,))
         check_report_folder(pieces_folder(export_path), "--export")
+    if html_path is not None:
+        if os.path.splitext(html_path)[1].lower() not in (".html", ".htm"):
+            raise WrtError(f"{html_path}: --html writes a web page, use a .html name")
+        check_writable(html_path, option="--html", protect=(scene_file,))
     if interactive:
         _require_display()
     scene = load_scene(scene_file)
@@ -530,6 +708,11 @@ def run(
     if output is not None:
         save_view(tree, output, view=view)
         print(f"wrote {output}")
+    if html_path is not None:
+        from .rayhtml import save_html
+
+        save_html(tree, html_path, view=view)
+        print(f"wrote {html_path}")
     if interactive:
         show(tree, view=view)
     return 0

@@ -163,7 +163,7 @@ def test_stopping_the_runner_stops_its_matrix_run_and_removes_its_scratch_copy(t
     scratch.mkdir()
     report = tmp_path / "out"
     runner = subprocess.Popen(
-        [sys.executable, "-m", "wrt.cli", "mutants", "--faults", path, "--expected", "--report", str(report)],
+        [sys.executable, "-m", "wrt", "mutants", "--faults", path, "--expected", "--report", str(report)],
         env={**os.environ, "TMPDIR": str(scratch)},
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,

@@ -305,7 +305,7 @@ def test_a_transport_that_cannot_work_here_is_one_error_line(tmp_path, capsys, m
 def test_a_connection_that_failed_leaves_nothing_to_wait_for_at_exit(tmp_path):
     """As a user runs it: a Dask client that failed to connect, left half made, used to wait
     2 timeouts (20 s) when the interpreter collected it, and print a traceback."""
-    command = [sys.executable, "-m", "wrt.cli", "render", str(SCENE), "--width", "8", "--height", "8"]
+    command = [sys.executable, "-m", "wrt", "render", str(SCENE), "--width", "8", "--height", "8"]
     command += ["-o", str(tmp_path / "out.exr"), "--scheduler", "inproc://127.0.0.1/1/1"]  # another process's
     t0 = time.perf_counter()
     done = subprocess.run(command, capture_output=True, text=True, timeout=60)

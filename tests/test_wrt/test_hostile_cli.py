@@ -27,7 +27,7 @@ from wrt.imageio import read_image
 ROOT = Path(__file__).resolve().parents[2]
 SCENE = ROOT / "examples" / "raycast" / "raycast_sphere.toml"
 SPHERES = ROOT / "examples" / "spheres.toml"
-WRT = [sys.executable, "-m", "wrt.cli"]
+WRT = [sys.executable, "-m", "wrt"]
 
 
 def one_error_line(capsys) -> str:
@@ -96,14 +96,14 @@ def test_sigterm_during_any_write_removes_its_temporary_file(tmp_path):
     target.parent.mkdir()
     target.write_text("old\n")
     patch = f"""
-    import wrt.cli, wrt.files
+    import wrt.cli, wrt.console, wrt.files
     real = wrt.files._fsync
     def fsync(path):
         os.kill(os.getpid(), signal.SIGTERM)
         time.sleep(0.05)
         real(path)
     wrt.files._fsync = fsync
-    signal.signal(signal.SIGTERM, wrt.cli._terminate)
+    signal.signal(signal.SIGTERM, wrt.console.terminate)
     try:
         wrt.files.write_json({str(target)!r}, {{"new": 1}})
     except wrt.cli.Terminated:

@@ -424,7 +424,7 @@ def test_console_script_prints_no_traceback(tmp_path):
     """The installed entry point, as a user runs it."""
     scene = write(tmp_path, GOOD.replace("radius = 1.0", "radius = -1.0"))
     proc = subprocess.run(
-        [sys.executable, "-m", "wrt.cli", "render", str(scene), "-o", str(tmp_path / "o.png")],
+        [sys.executable, "-m", "wrt", "render", str(scene), "-o", str(tmp_path / "o.png")],
         capture_output=True,
         text=True,
     )

@@ -149,7 +149,7 @@ def test_a_signal_writes_the_samples_done_and_exits_128_plus_it(tmp_path, sig, c
     cmd = [
         sys.executable,
         "-m",
-        "wrt.cli",
+        "wrt",
         "render",
         str(ROOT / "examples/spheres.toml"),
         "-o",

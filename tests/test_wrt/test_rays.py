@@ -1,5 +1,6 @@
 """Ray recording (kernels/record.py, wrt/rays.py) against closed forms, and `wrt rays` (wrt/rayview.py)."""
 
+import dataclasses
 import subprocess
 import sys
 
@@ -267,7 +268,7 @@ def test_view_png_off_screen_is_not_blank(tmp_path):
     out = tmp_path / "view.png"
     scene = str(EXAMPLES / "spheres.toml")
     proc = subprocess.run(
-        [sys.executable, "-m", "wrt.cli", "rays", scene, "--grid", "3", "2", "--depth", "3", "-o", str(out)],
+        [sys.executable, "-m", "wrt", "rays", scene, "--grid", "3", "2", "--depth", "3", "-o", str(out)],
         capture_output=True,
         text=True,
         timeout=300,
@@ -476,3 +477,100 @@ def test_automatic_view_of_a_level_fan_looks_from_behind_the_camera(up):
     elevation = np.radians(rayview.MAX_ELEVATION)  # the camera looks down -z (+y up): behind it is +z
     np.testing.assert_allclose(eye / np.linalg.norm(eye), turn @ [0, np.sin(elevation), np.cos(elevation)], atol=1e-6)
     np.testing.assert_allclose(view_up, turn @ [0, np.cos(elevation), -np.sin(elevation)], atol=1e-6)
+
+
+EXAMPLE_SCENES = [
+    *sorted((EXAMPLES / "whitted").glob("*.toml")),
+    *sorted((EXAMPLES / "path").glob("*.toml")),
+    *sorted((EXAMPLES / "raycast").glob("*.toml")),
+    EXAMPLES / "showcase.toml",
+]
+VIEW_GRID = (6, 4)  # pixels of each example, each traced alone and all together
+MIN_COVERAGE = 0.5  # share of the picture's width or height the tree must span
+MIN_SHOWN = 0.6  # share of the tree's vertices that must be in the picture
+MIN_EDGE_ANGLE = 25.0  # degrees between the view and the plane the tree lies in
+
+
+SEGMENT_FIELDS = ("pixel", "sample", "kind", "depth", "parent", "shape", "origin", "end", "direction", "normal")
+SEGMENT_FIELDS += ("throughput", "hit", "entering", "escaped", "time")
+
+
+def pixel_tree(tree, x, y):
+    """The rows of pixel (x, y) as a tree of their own (``parent`` rows are not renumbered)."""
+    rows = tree.select(x, y)
+    rows_of = {name: getattr(tree, name)[rows] for name in SEGMENT_FIELDS}
+    return dataclasses.replace(tree, pixels=np.array([[x, y]]), recorded=len(rows), **rows_of)
+
+
+def view_numbers(tree) -> dict:
+    """How the automatic view (``rayview.view_camera``, 4:3) shows ``tree``, computed by projecting
+    through its camera: ``coverage``, the share of the picture's width or height spanned by the
+    tree's vertices in it (camera-ray starts and hit points: not the lights, not the misses),
+    without the tenth of them farthest from the camera (the distant walls; the misses as drawn
+    when the tree has one vertex); ``shown``, the share of the vertices in the picture; and the
+    angles in degrees between the view and the plane the framed vertices lie in, and the plane
+    most segment directions lie in (90 where they lie in no plane)."""
+    camera = rayview.view_camera(tree)
+    vertices = rayview.tree_vertices(tree)
+    if len(vertices) < 2:
+        vertices = np.concatenate([vertices, rayview.ray_blocks(tree)["misses"].points])
+    xy, in_front = camera.project(vertices)
+    inside = in_front & np.all((xy >= 0) & (xy <= 1), axis=1)
+    starts = tree.origin[tree.kind == CAMERA].astype(np.float64)
+    from_camera = np.min(np.linalg.norm(vertices[:, None] - starts[None], axis=2), axis=1)
+    near = inside & (from_camera <= np.sort(from_camera)[len(vertices) - 1 - len(vertices) // 10])
+    coverage = float(np.ptp(xy[near], axis=0).max()) if near.any() else 0.0
+    look = unit(camera.focus - camera.eye)
+    vertex_angle = direction_angle = 90.0
+    framed = rayview.framed_vertices(tree)
+    if len(framed) >= 3:
+        _, spread, axes = np.linalg.svd(framed - framed.mean(axis=0), full_matrices=False)
+        if len(spread) == 3 and spread[2] <= 0.1 * spread[1] and spread[1] >= 0.05 * spread[0]:  # a plane
+            vertex_angle = np.degrees(np.arcsin(min(1.0, abs(look @ axes[2]))))
+    d = tree.direction.astype(np.float64)
+    size, axes = np.linalg.eigh(d.T @ d)  # squared spreads, ascending
+    if size[0] <= 0.01 * size[1] and size[1] >= 0.0025 * size[2]:
+        direction_angle = np.degrees(np.arcsin(min(1.0, abs(look @ axes[:, 0]))))
+    return {
+        "coverage": coverage,
+        "shown": inside.mean(),
+        "vertex_angle": vertex_angle,
+        "direction_angle": direction_angle,
+    }
+
+
+def unit(v):
+    return v / np.linalg.norm(v)
+
+
+@pytest.mark.parametrize("path", EXAMPLE_SCENES, ids=lambda p: str(p.relative_to(EXAMPLES)))
+def test_automatic_view_frames_the_tree_of_every_example(path):
+    """On a 6 x 4 grid of pixels of every example, each pixel's tree alone and the grid's together:
+    the automatic view spans at least half the picture's width or height with the tree (the lights
+    and the far walls do not shrink it to a knot: before, the two pixels (150, 200) and (300, 150)
+    of the refraction example spanned 0.9 % of it), keeps most vertices in the picture, and is
+    at least 25 degrees from edge-on to the plane the vertices or the segments lie in."""
+    scene = wrt.load_scene(path)
+    grid = trace_rays(scene, grid_pixels(scene.render.width, scene.render.height, *VIEW_GRID))
+    trees = {"grid": grid} | {f"pixel ({x}, {y})": pixel_tree(grid, x, y) for x, y in grid.pixels}
+    for name, tree in trees.items():
+        numbers = view_numbers(tree)
+        assert numbers["coverage"] >= MIN_COVERAGE, (name, numbers)
+        assert numbers["shown"] >= MIN_SHOWN, (name, numbers)
+        assert min(numbers["vertex_angle"], numbers["direction_angle"]) >= MIN_EDGE_ANGLE, (name, numbers)
+
+
+def test_automatic_view_of_the_refraction_knot():
+    """The view the issue reported: two pixels of the refraction example, one of whose rays leaves
+    the slab grazing and meets the floor 800 units away. That hit is not framed (its segment runs
+    out of the picture), the tree fills the picture, and the glyphs keep the tree's scale."""
+    tree = trace_rays(wrt.load_scene(EXAMPLES / "whitted" / "refraction.toml"), [(150, 200), (300, 150)])
+    far = np.linalg.norm(tree.end, axis=1) > 100
+    assert far.sum() == 1 and tree.hit[far].all()  # the grazing ray's floor hit
+    framed = rayview.framed_vertices(tree)
+    assert np.linalg.norm(framed, axis=1).max() < 10
+    assert len(framed) == len(rayview.tree_vertices(tree)) - 1
+    numbers = view_numbers(tree)
+    assert numbers["coverage"] > 0.7 and numbers["shown"] > 0.9, numbers
+    camera = rayview.view_camera(tree)
+    assert np.linalg.norm(camera.eye - camera.focus) < 30  # not 1500 units off, as before

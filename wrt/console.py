@@ -1,0 +1,30 @@
+"""The ``wrt`` command's process entry point (``wrt``, ``python -m wrt``).
+
+It imports nothing but ``signal`` and ``sys`` before it takes Ctrl-C and SIGTERM in hand, so that
+a signal at any moment of start-up (while ``wrt.cli``, Warp and the kernels load) ends the process
+with one line and exit code 130 (SIGTERM: 143), never a traceback; ``wrt.cli.console`` does the rest.
+"""
+
+import signal
+import sys
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread as Ctrl-C raises ``KeyboardInterrupt``, so that the same
+    clean-up runs (a file being written is left as it was, its temporary file removed); exit code
+    143 where Ctrl-C's is 130."""
+
+
+def terminate(signum, frame):
+    raise Terminated()
+
+
+def main() -> int:
+    signal.signal(signal.SIGTERM, terminate)
+    try:
+        from wrt.cli import console
+    except KeyboardInterrupt as e:
+        terminated = isinstance(e, Terminated)
+        print(f"wrt: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
+        return 143 if terminated else 130
+    return console()
