@@ -19,7 +19,8 @@ A feature passes when all hold:
 - the render is finite: a NaN or Inf pixel fails the feature (it is never scored as black);
 - features rendered in several passes (``passes``): the image is bit-identical to the one-pass
   render of the same spp and seed. Adaptive features (``target_error``) are scored with each
-  pixel's own sample count.
+  pixel's own sample count, and each pixel is bit for bit the pixel of a plain render of the
+  samples its ``spp`` AOV says it took.
 Every comparison is written so that a NaN score fails.
 """
 
@@ -34,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from wrt.errors import WrtError
+from wrt.renderer import ADAPTIVE_FIRST_PASS
 
 from .closed_form import closed_form_failure
 from .flip import FLIP_CRITERION, Flip, flip
@@ -62,7 +64,19 @@ from .score import (
 )
 
 # the checks a feature can fail, by the names reports and `wrt mutants` count them under
-CHECKS = ("finite", "ssim", "flip", "z", "bias", "closed_form", "geometry", "convergence", "progressive", "crash")
+CHECKS = (
+    "finite",
+    "ssim",
+    "flip",
+    "z",
+    "bias",
+    "closed_form",
+    "geometry",
+    "convergence",
+    "progressive",
+    "adaptive",
+    "crash",
+)
 
 
 @dataclass
@@ -164,6 +178,8 @@ def score_against_reference(
     out.ssim, out.flip, out.z, ok = score_render(
         feature, result.rgb, samples(result), reference, threshold, flip_threshold
     )
+    if feature.target_error is not None:
+        adaptive_failure(out, feature, result, scene, device, threads)
     if feature.passes > 1:  # passes do not change the image: bit for bit the one-pass render
         one = render_feature(feature, device=device, threads=threads, scene=scene, as_tested=False)
         if not np.array_equal(result.rgb, one.rgb):
@@ -246,6 +262,32 @@ def score_against_reference(
             out.fail("closed_form", miss)
     out.images = {"render": rgb, "reference": reference.rgb, "ids": result.aovs["object_id"]}
     return out
+
+
+def adaptive_failure(out: FeatureResult, feature: Feature, result, scene, device: str, threads: int | None) -> None:
+    """Fail ``adaptive`` unless the adaptive render ``result`` is what its ``spp`` AOV says: every
+    count in [``ADAPTIVE_FIRST_PASS``, spp], and each pixel that took n samples bit for bit the
+    pixel of a plain render of n spp (a pixel's samples and their sum do not depend on how many
+    the others took). Not for the stratified sampler, whose strata depend on the render's spp."""
+    counts = result.aovs["spp"]
+    if scene.render.sampler == "stratified":
+        return
+    if counts.min() < ADAPTIVE_FIRST_PASS or counts.max() > result.spp:
+        out.fail(
+            "adaptive",
+            f"the spp AOV holds counts {counts.min()}..{counts.max()}, outside [{ADAPTIVE_FIRST_PASS}, {result.spp}]",
+        )
+        return
+    for n in np.unique(counts):
+        plain = render_feature(feature, spp=int(n), device=device, threads=threads, scene=scene, as_tested=False)
+        took = counts == n
+        differ = int(np.count_nonzero(np.any(result.rgb[took] != plain.rgb[took], axis=-1)))
+        if differ:
+            out.fail(
+                "adaptive",
+                f"{differ} of the {int(took.sum())} pixels whose spp AOV says {n} samples differ from a {n}-spp render",
+            )
+            return
 
 
 def run_matrix(

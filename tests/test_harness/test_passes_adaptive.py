@@ -62,3 +62,44 @@ def test_an_adaptive_feature_aims_at_a_smaller_error_with_more_samples(tmp_path,
     references.render_feature(feature, spp=512, as_tested=False)
     assert calls[0]["target_error"] == pytest.approx(0.2) and calls[1]["target_error"] == pytest.approx(0.1)
     assert "target_error" not in calls[2]  # references are plain renders
+
+
+def test_an_adaptive_render_is_held_to_its_sample_counts(monkeypatch):
+    """Each pixel of an adaptive render is bit for bit the pixel of a plain render of the samples
+    its spp AOV says it took: counts that lie (here: a pixel that took 32 said to have taken 16)
+    fail the adaptive check, with the image itself unchanged."""
+    import wrt_harness.run as run
+    from wrt_harness.matrix import select
+
+    feature = select(load_features(), ["adaptive_sampling"])[0]
+    assert run.evaluate(feature).passed
+    real = run.render_feature
+
+    def lying(*args, **kwargs):
+        result = real(*args, **kwargs)
+        if "spp" in result.aovs:
+            result.aovs["spp"] = np.where(result.aovs["spp"] == 32, 16, result.aovs["spp"])
+        return result
+
+    monkeypatch.setattr(run, "render_feature", lying)
+    result = run.evaluate(feature)
+    assert "adaptive" in result.failed_checks, result.failures
+    assert any("spp AOV says 16 samples" in f for f in result.failures), result.failures
+
+
+def test_a_render_in_passes_that_differs_from_one_pass_fails(monkeypatch):
+    import wrt_harness.run as run
+    from wrt_harness.matrix import select
+
+    feature = select(load_features(), ["progressive_passes"])[0]
+    real = run.render_feature
+
+    def drifting(*args, as_tested=True, **kwargs):
+        result = real(*args, as_tested=as_tested, **kwargs)
+        if as_tested:
+            result.rgb = np.nextafter(result.rgb, np.float32(np.inf))  # one float32 ulp: invisible, not exact
+        return result
+
+    monkeypatch.setattr(run, "render_feature", drifting)
+    result = run.evaluate(feature)
+    assert result.failed_checks == ["progressive"], result.failures
