@@ -43,7 +43,7 @@ import numpy as np
 
 import wrt
 from wrt.errors import WrtError
-from wrt.files import check_writable, read_json, write_json
+from wrt.files import check_writable, probe_folder, read_json, write_json
 from wrt.imageio import read_image, write_image
 
 from .flip import FLIP_CRITERION, check_flip_threshold, flip
@@ -105,9 +105,11 @@ def check_storable(features: list[Feature], refs: str | None, kinds=("exr", "jso
     into ``refs`` (which exists): the folder is writable and none of the files is a folder. Called
     before the renders that would fill them."""
     folder = refs or REFERENCE_DIR
-    if not os.access(folder, os.W_OK | os.X_OK):
-        shown = f"--refs {refs}" if refs is not None else f"the references folder {folder}"
-        raise WrtError(f"{shown}: not writable; nothing was rendered")
+    shown = f"--refs {refs}" if refs is not None else f"the references folder {folder}"
+    try:
+        probe_folder(folder, shown)
+    except WrtError as e:
+        raise WrtError(f"{e}; nothing was rendered") from None
     for feature in features:
         for kind in kinds:
             check_writable(paths(feature.name, refs)[kind])

@@ -116,11 +116,23 @@ def check_writable(path: str | os.PathLike, *, protect: tuple = (), option: str 
         raise WrtError(f"{shown}: file name longer than {NAME_MAX} bytes")
     if not os.path.isdir(folder):
         raise WrtError(f"{shown}: folder {folder} does not exist")
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise WrtError(f"{shown}: folder {folder} is not writable")
+    probe_folder(folder, shown)
     for other in protect:
         if os.path.exists(path) and os.path.exists(other) and os.path.samefile(path, other):
             raise WrtError(f"{shown}: is the input {os.fspath(other)}; refusing to overwrite it")
+
+
+def probe_folder(folder: str, shown: str) -> None:
+    """``WrtError`` naming ``shown`` unless a file can be made in ``folder``: tried, by making and
+    removing an empty temporary file (permission bits do not stop root, and a read-only or
+    pseudo file system such as ``/proc`` answers only to a real attempt)."""
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".wrt-probe.", dir=folder)
+    except OSError as e:
+        raise WrtError(f"{shown}: folder {folder} is not writable ({_reason(e)})") from None
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(probe)
 
 
 def _umask() -> int:
@@ -400,8 +412,7 @@ def _check_makeable(folder: str, shown: str) -> None:
         if os.path.lexists(parent):
             raise WrtError(f"{shown}: {parent} is a file, not a folder")
         parent = os.path.dirname(parent)
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise WrtError(f"{shown}: folder {parent} is not writable")
+    probe_folder(parent, shown)
 
 
 def check_output_folder(folder: str | os.PathLike, names=(), *, option: str, protect: tuple = ()) -> None:

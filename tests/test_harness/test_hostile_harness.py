@@ -231,12 +231,12 @@ def test_a_well_formed_mutants_json_is_resumed(tmp_path, monkeypatch, capsys):
 def test_a_matrix_json_of_the_wrong_shape_counts_as_a_crashed_run(tmp_path, monkeypatch):
     """The mutant run's own ``--json`` output is checked too: a malformed one is a crashed run."""
 
-    def fake_run(command, **kwargs):
+    def fake_run(command, scratch, env):
         with open(command[-1], "w") as f:
             f.write('{"features": [1, 2]}')
-        return mutants.subprocess.CompletedProcess(command, 0, "", "")
+        return 0, ""
 
-    monkeypatch.setattr(mutants.subprocess, "run", fake_run)
+    monkeypatch.setattr(mutants, "_run_to_end", fake_run)
     run = mutants.run_matrix_copy(str(tmp_path), {}, ["raycast_sphere"], [])
     assert "crashed" in run and "features" in run["crashed"], run
 
