@@ -33,6 +33,7 @@ def describe(r) -> str:
     return "\n".join(lines + r.failures)
 
 
+@pytest.mark.matrix
 @pytest.mark.parametrize("feature", FEATURES, ids=[f.name for f in FEATURES])
 def test_feature(feature, tmp_path):
     """One matrix entry, exactly as `wrt matrix NAME` scores it."""
@@ -42,6 +43,7 @@ def test_feature(feature, tmp_path):
         pytest.fail(f"{describe(result)}\nreport: {page}")
 
 
+@pytest.mark.matrix
 @pytest.mark.parametrize("feature", FEATURES, ids=[f.name for f in FEATURES])
 def test_wrong_variant_fails(feature):
     """The harness is sensitive: the feature's deliberately wrong variant scores below its thresholds."""
