@@ -162,12 +162,12 @@ def main() -> int:
         return 0
     from wrt.files import read_json, write_json
 
+    before = read_json(args.file, "fingerprints") if args.verb == "check" else None
     result = run_all(args.jobs)
     if args.verb == "record":
         write_json(args.file, result)
         print(f"{len(result)} cases recorded in {args.file}")
         return 0
-    before = read_json(args.file)
     differ = 0
     for case in sorted(set(before) | set(result)):
         if before.get(case) != result.get(case):
