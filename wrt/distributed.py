@@ -11,8 +11,9 @@ seed of ``images``) with one launch on its worker thread. A pixel's value depend
 (scene, seed, pixel, sample): random numbers are a counter-based hash of (seed, pixel, sample,
 dimension), and the kernel continues each pixel's float32 sum in sample order, so an image
 assembled from tiles is bit-identical to a local render, with any tiling, worker count or pass
-sizes. Passes work as in ``wrt.renderer.render``: a tile's running sums travel with its next
-task (5 values a pixel), so progress, checkpoints and a stop after a pass behave as locally.
+sizes. ``Cluster.render`` is ``wrt.renderer.render_passes`` (the one pass loop) with
+``ClusterTiles`` as its tile executor: a tile's running sums travel with its next task (5 values
+a pixel), so progress, checkpoints and a stop after a pass behave as locally.
 
 Per worker process, the device scene (BVH, uploads) of a scene is built once and kept for later
 tasks (``PREPARED_SCENES`` scenes, keyed by the SHA-256 of the pickled scene and the device),
@@ -42,17 +43,24 @@ import time
 from collections import OrderedDict, deque
 from collections.abc import Callable
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 import warp as wp
 
-from wrt.kernels.features import ALL
-from wrt.kernels.variants import render_kernel
-
 from .device import init_warp, resolve_device
 from .errors import WrtError, foreign
 from .loader import override_render
-from .renderer import SPECIALIZE_MIN_SAMPLES, RenderResult, check_memory, new_film, pass_size, prepare, scene_features
+from .renderer import (
+    PASS_STATE,
+    RenderResult,
+    check_memory,
+    new_film,
+    pass_outputs,
+    prepare,
+    render_kernel_for,
+    render_passes,
+)
 from .scene import Scene
 
 CONNECT_TIMEOUT_S = 10  # seconds the scheduler has to answer: the connection, and every request after it
@@ -64,8 +72,6 @@ TILES_PER_THREAD = 4  # tiles per worker thread and pass: enough to balance unev
 MIN_TILE_PIXELS = 256  # smaller tiles cost more in task overhead than they balance
 STOP_POLL_S = 0.05  # how often a wait for tasks checks its stop event and the watch
 PREPARED_SCENES = 2  # device scenes a worker keeps (the BVH and uploads of a large scene are big)
-STATE = ("rgb_sum", "luminance_sq_sum", "rejected")  # what a pass continues from the previous one
-AOVS = ("depth", "normal", "object_id", "position")  # written by the first pass
 
 
 def _dask():
@@ -419,19 +425,33 @@ class Cluster:
         asked at most every ``WATCH_EVERY_S`` (once for all the waits of the cluster at a time);
         a heartbeat is a change of the worker's ``last_seen``, timed by this machine's clock."""
         with self._watch_lock:
-            if time.monotonic() - self._watched_at >= WATCH_EVERY_S:
+            fresh = time.monotonic() - self._watched_at >= WATCH_EVERY_S
+            if fresh:
                 self._refresh()
+            silent = self._silent(futures)
+            if silent and not fresh:  # judged on the scheduler's present state, not one up to WATCH_EVERY_S old
+                self._refresh()
+                silent = self._silent(futures)
+            if silent:
+                worker, seconds = silent
+                raise self._error(
+                    f"worker {worker} stopped answering: no heartbeat for {seconds:.3g} s while it ran a task"
+                )
             now = time.monotonic()
-            for future in futures:
-                worker = self._running.get(future.key)
-                if worker is not None and not future.done():
-                    silent = now - self._heard.get(worker, (None, now))[1]
-                    if silent >= self.worker_timeout:
-                        raise self._error(
-                            f"worker {worker} stopped answering: no heartbeat for {silent:.3g} s while it ran a task"
-                        )
             if self._workerless_since is not None and now - self._workerless_since >= self.worker_timeout:
                 raise self._workerless(now - self._workerless_since)
+
+    def _silent(self, futures: list) -> tuple[str, float] | None:
+        """A worker running one of ``futures`` (not done) that has sent no heartbeat for
+        ``worker_timeout`` seconds, and for how long, by the state of the last ``_refresh``."""
+        now = time.monotonic()
+        for future in futures:
+            worker = self._running.get(future.key)
+            if worker is not None and not future.done():
+                seconds = now - self._heard.get(worker, (None, now))[1]
+                if seconds >= self.worker_timeout:
+                    return worker, seconds
+        return None
 
     def _refresh(self) -> None:
         """Ask the scheduler about its workers (when each last sent a heartbeat) and what each is
@@ -463,7 +483,6 @@ class Cluster:
         to ``wrt.render(scene, spp=spp, seed=seed, device=device).rgb``."""
         scene = override_render(scene, source="wrt.render", spp=spp)
         w, h, spp = scene.render.width, scene.render.height, scene.render.spp
-        specialize = _specialize(scene, specialize)
 
         def submit(shipped, key) -> list:
             return [
@@ -490,77 +509,8 @@ class Cluster:
         sampling, and no ``threads``: each worker thread runs one tile at a time) and a
         bit-identical ``RenderResult``. ``stop`` cancels the pass in flight; the result holds the
         passes done. ``threads`` in the result: the cluster's worker threads."""
-        scene = override_render(scene, source="wrt.render", spp=spp, seed=seed)
-        w, h, spp, seed = scene.render.width, scene.render.height, scene.render.spp, scene.render.seed
-        if progress_every is not None and progress_every < 1:
-            raise WrtError(f"progress_every must be >= 1, got {progress_every}")
-        check_memory(scene, resolve_device("cpu"))  # the image is assembled here
-        specialize = _specialize(scene, specialize)
-        threads = self.threads()
-        n = w * h
-        size = max(MIN_TILE_PIXELS, math.ceil(n / (TILES_PER_THREAD * max(1, threads))))
-        tiles = [(first, min(size, n - first)) for first in range(0, n, size)]
-        film = {
-            "rgb": np.zeros((n, 3), np.float32),
-            "rgb_sum": np.zeros((n, 3), np.float32),
-            "luminance_sq_sum": np.zeros(n, np.float32),
-            "rejected": np.zeros(n, np.int32),
-            "depth": np.zeros(n, np.float32),
-            "normal": np.zeros((n, 3), np.float32),
-            "object_id": np.zeros(n, np.int32),
-            "position": np.zeros((n, 3), np.float32),
-        }
-        shipment = list(self._scatter(scene))
-        times = {"build_time_s": 0.0, "compile_time_s": 0.0}
-
-        def run_pass(first_sample: int, pass_spp: int) -> bool:
-            def submit(shipped, key) -> list:
-                futures = []
-                for first, count in tiles:
-                    state = {k: film[k][first : first + count] for k in STATE} if first_sample else None
-                    task = (shipped, key, device, specialize, spp, seed, first, count, first_sample, pass_spp, state)
-                    futures.append(self._submit(render_tile, *task))
-                return futures
-
-            parts = self._scene_results(scene, shipment, submit, stop)  # all, before the film changes
-            if parts is None:
-                return False
-            for (first, count), part in zip(tiles, parts):
-                for name, values in part.items():
-                    if name in film:
-                        film[name][first : first + count] = values
-                for name in times:
-                    times[name] = max(times[name], part[name])
-            return True
-
-        def result(done: int, elapsed: float, copy: bool) -> RenderResult:
-            take = np.copy if copy else np.asarray
-            shapes = {"depth": (h, w), "normal": (h, w, 3), "object_id": (h, w), "position": (h, w, 3)}
-            return RenderResult(
-                rgb=take(film["rgb"].reshape(h, w, 3)),
-                aovs={name: take(film[name].reshape(shape)) for name, shape in shapes.items()},
-                spp=done,
-                seed=seed,
-                integrator=scene.render.integrator,
-                device=device,
-                threads=threads,
-                render_time_s=elapsed,
-                rejected_samples=int(film["rejected"].sum()),
-                **times,
-            )
-
-        done, busy = 0, 0.0
-        while done < spp:
-            count = spp - done if progress is None else pass_size(spp, done, busy, progress_every)
-            t0 = time.perf_counter()
-            finished = run_pass(done, count)
-            busy += time.perf_counter() - t0
-            if not finished:
-                break
-            done += count
-            if progress is not None and progress(done, spp, busy, lambda: result(done, busy, True)) is False:
-                break
-        return result(done, busy, copy=False)
+        start = partial(ClusterTiles, self, device=device, specialize=specialize, stop=stop)
+        return render_passes(scene, start, spp=spp, seed=seed, progress=progress, progress_every=progress_every)
 
 
 class Task:
@@ -575,11 +525,49 @@ class Task:
         return self.cluster._results([self.future])[0]
 
 
-def _specialize(scene: Scene, specialize: bool | None) -> bool:
-    """Whether a render of ``scene`` takes its specialised kernel: ``wrt.renderer.render``'s rule."""
-    if specialize is not None:
-        return specialize
-    return scene.render.width * scene.render.height * scene.render.spp >= SPECIALIZE_MIN_SAMPLES
+class ClusterTiles:
+    """The tile executor of ``Cluster.render`` (a ``wrt.renderer.TileExecutor``): ``scene`` shipped
+    to the workers of ``cluster``, a pass one task per tile of consecutive pixels (about
+    ``TILES_PER_THREAD`` per worker thread, at least ``MIN_TILE_PIXELS``), each continuing its
+    tile's running sums; the film is on this machine. ``stop`` cancels the pass in flight."""
+
+    def __init__(
+        self, cluster: Cluster, scene: Scene, *, device: str, specialize: bool | None, stop: threading.Event | None
+    ):
+        host = resolve_device("cpu")
+        check_memory(scene, host)  # the image is assembled here
+        self.cluster, self.scene, self.device, self.specialize, self.stop = cluster, scene, device, specialize, stop
+        self.threads = cluster.threads()
+        n = scene.render.width * scene.render.height
+        size = max(MIN_TILE_PIXELS, math.ceil(n / (TILES_PER_THREAD * max(1, self.threads))))
+        self.tiles = [(first, min(size, n - first)) for first in range(0, n, size)]
+        self.film = new_film(n, host)
+        self.shipment = list(cluster._scatter(scene))
+        self.build_time_s = self.compile_time_s = 0.0  # the most a task of a pass spent on them
+
+    def run_pass(self, first_sample: int, pass_spp: int, active: np.ndarray | None) -> bool:
+        """See ``wrt.renderer.TileExecutor.run_pass``; ``active`` is None (no adaptive sampling on a cluster)."""
+        spp, seed = self.scene.render.spp, self.scene.render.seed
+
+        def submit(shipped, key) -> list:
+            futures = []
+            for first, count in self.tiles:
+                tile = slice(first, first + count)
+                state = {name: getattr(self.film, name).numpy()[tile] for name in PASS_STATE} if first_sample else None
+                samples = (spp, seed, first, count, first_sample, pass_spp, state)
+                futures.append(self.cluster._submit(render_tile, shipped, key, self.device, self.specialize, *samples))
+            return futures
+
+        # all the tiles' results, before the film changes
+        parts = self.cluster._scene_results(self.scene, self.shipment, submit, self.stop)
+        if parts is None:
+            return False
+        for (first, count), part in zip(self.tiles, parts):
+            for name in pass_outputs(first_sample):
+                getattr(self.film, name).numpy()[first : first + count] = part[name]
+            self.build_time_s = max(self.build_time_s, part["build_time_s"])
+            self.compile_time_s = max(self.compile_time_s, part["compile_time_s"])
+        return True
 
 
 # ---- On the workers ------------------------------------------------------------------------
@@ -636,7 +624,7 @@ def render_tile(
     scene: Scene,
     key: str,
     device: str,
-    specialize: bool,
+    specialize: bool | None,
     spp: int,
     seed: int,
     first: int,
@@ -647,14 +635,15 @@ def render_tile(
 ) -> dict:
     """A task: samples ``first_sample .. first_sample + pass_spp - 1`` of pixels ``first .. first
     + count - 1`` of a render of ``scene`` with ``spp`` samples and ``seed``, continuing the
-    running sums ``state`` (``STATE`` arrays of the tile; None for the first pass).
+    running sums ``state`` (``wrt.renderer.PASS_STATE`` arrays of the tile; None for the first
+    pass), with ``wrt.renderer.render_kernel_for(scene, specialize, device)`` (on a worker, its own cache decides).
 
-    Returns the tile's ``rgb`` and ``STATE`` arrays (and ``AOVS`` after a first pass) as numpy,
+    Returns the tile's arrays a pass writes (``wrt.renderer.pass_outputs``) as numpy,
     and ``build_time_s``, ``compile_time_s``: what this task spent building the device scene and
     loading the kernel (0 once the worker has them).
     """
     dev = resolve_device(device)
-    kernel = render_kernel(scene.render.integrator, scene_features(scene) if specialize else ALL)
+    kernel = render_kernel_for(scene, specialize, dev)
     (device_scene, films), build_s, load_s = _device_scene(scene, key, dev, kernel)
     with _lock:
         film = films.pop() if films else new_film(device_scene.width * device_scene.height, dev)
@@ -664,7 +653,7 @@ def render_tile(
                 target = getattr(film, name)
                 wp.copy(target, wp.array(values, dtype=target.dtype, device=dev), dest_offset=first, count=count)
         replace(device_scene, film=film).launch(kernel, first, count, spp, seed, None, first_sample, pass_spp)
-        names = ("rgb", *STATE, *(AOVS if first_sample == 0 else ()))
+        names = pass_outputs(first_sample)
         out = {name: np.array(getattr(film, name)[first : first + count].numpy()) for name in names}
     finally:
         with _lock:

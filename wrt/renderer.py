@@ -1,9 +1,12 @@
 """Render orchestration: scene -> primitives + BVH -> device arrays -> integrator kernel -> numpy.
 
-On the CPU a Warp launch runs on one thread but releases the GIL, so the image is cut into
-tiles of consecutive pixels launched from a thread pool. Every pixel's value depends only on
-(scene, seed, pixel, sample), never on the tiling or thread count: results are bit-identical
-for any ``threads``. On CUDA the whole image is one launch.
+One pass loop (``render_passes``: progressive, adaptive or one pass, and the ``RenderResult``)
+serves every render; a tile executor (``TileExecutor``) runs each pass. ``LocalTiles`` is this
+machine's: on the CPU a Warp launch runs on one thread but releases the GIL, so the image is cut
+into tiles of consecutive pixels launched from a thread pool; on CUDA the whole image is one
+launch. ``wrt.distributed`` runs the tiles as tasks on a Dask cluster. Every pixel's value
+depends only on (scene, seed, pixel, sample), never on the tiling, threads or executor: results
+are bit-identical whatever runs the tiles.
 
 With a ``progress`` callback, ``render`` draws the samples in passes of about ``PASS_SECONDS``
 each (samples ``a .. b - 1`` of every pixel per pass) and reports after each; the film keeps a
@@ -24,6 +27,7 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import partial
+from typing import Protocol
 
 import numpy as np
 import warp as wp
@@ -32,7 +36,7 @@ from wrt.kernels.features import ALL, Features
 from wrt.kernels.film import LUMINANCE_WEIGHTS, Film
 from wrt.kernels.integrator import RenderPass
 from wrt.kernels.record import RayRecord
-from wrt.kernels.variants import render_kernel
+from wrt.kernels.variants import compiled, render_kernel
 
 from .device import (
     camera_data,
@@ -64,9 +68,11 @@ from .scene import (
 
 TILE_PIXELS = 4096  # pixels per CPU launch: small enough to balance two threads, large enough to amortise a launch
 PASS_SECONDS = 1.0  # wall seconds a pass of a progressive render aims at
-AOV_NAMES = ("depth", "normal", "object_id", "position")
+AOV_NAMES = ("depth", "normal", "object_id", "position")  # film arrays the first pass writes
+PASS_STATE = ("rgb_sum", "luminance_sq_sum", "rejected")  # film arrays a pass continues from the previous one
 NO_RECORD = RayRecord()  # what the rendering variants get for the record buffer they never touch
-SPECIALIZE_MIN_SAMPLES = 1 << 20  # pixel samples from which a render uses its scene's kernel variant by default
+SPECIALIZE_MIN_SAMPLES = 1 << 20  # pixel samples from which a render takes its scene's variant when Warp's cache has it
+SPECIALIZE_COLD_SAMPLES = 1 << 27  # and from which it compiles the variant when not (docs/performance.md)
 ADAPTIVE_FIRST_PASS = 16  # samples every pixel takes before adaptive sampling may stop it
 ADAPTIVE_FLOOR = 0.01  # luminance below which an adaptive pixel's error is measured absolutely
 
@@ -104,6 +110,26 @@ def scene_features(scene: Scene) -> Features:
         textures=any(m.textures for m in used),
         normal_map=any(name == "normal_map" for m in used for name, _ in m.textures),
     )
+
+
+def render_kernel_for(scene: Scene, specialize: bool | None, dev: wp.context.Device):
+    """The rendering kernel of ``scene``'s integrator on ``dev``: specialised on
+    ``scene_features(scene)`` for ``specialize=True``, all-features for False. For None
+    (``render``'s rule), by the render's pixel samples (width x height x spp): all-features below
+    ``SPECIALIZE_MIN_SAMPLES``; from there the variant where Warp's kernel cache has it (a load
+    costs milliseconds); from ``SPECIALIZE_COLD_SAMPLES`` on the variant always, as the render is
+    then long enough to pay its first compilation (10-30 CPU-seconds against a render 3-26%
+    faster). The image is the same either way."""
+    integrator = scene.render.integrator
+    if specialize is None:
+        samples = scene.render.width * scene.render.height * scene.render.spp
+        if samples < SPECIALIZE_MIN_SAMPLES:
+            return render_kernel(integrator, ALL)
+        variant = render_kernel(integrator, scene_features(scene))
+        return (
+            variant if samples >= SPECIALIZE_COLD_SAMPLES or compiled(variant, dev) else render_kernel(integrator, ALL)
+        )
+    return render_kernel(integrator, scene_features(scene) if specialize else ALL)
 
 
 @dataclass
@@ -175,15 +201,6 @@ class DeviceScene:
         scene = [self.geometry, self.materials, self.lights, self.settings, self.camera]
         inputs = [*scene, sampler, launch, self.film, NO_RECORD if rec is None else rec]
         wp.launch(kernel, dim=count, inputs=inputs, device=self.device)
-
-    def aovs(self) -> dict[str, np.ndarray]:
-        h, w = self.height, self.width
-        return {
-            "depth": self.film.depth.numpy().reshape(h, w),
-            "normal": self.film.normal.numpy().reshape(h, w, 3),
-            "object_id": self.film.object_id.numpy().reshape(h, w),
-            "position": self.film.position.numpy().reshape(h, w, 3),
-        }
 
 
 def new_film(pixels: int, dev: wp.context.Device) -> Film:
@@ -312,12 +329,180 @@ def relative_error(rgb_sum: np.ndarray, luminance_sq_sum: np.ndarray, n: int) ->
     return np.sqrt(variance / n) / scale
 
 
-def pass_state(film: Film, first_sample: int) -> list[wp.array]:
-    """The film arrays a pass starting at ``first_sample`` writes (the first pass also the AOVs)."""
-    state = [film.rgb, film.rgb_sum, film.luminance_sq_sum, film.rejected]
-    if first_sample == 0:
-        state += [film.depth, film.normal, film.object_id, film.position]
-    return state
+def pass_outputs(first_sample: int) -> tuple[str, ...]:
+    """The ``Film`` arrays a pass starting at ``first_sample`` writes: the image and ``PASS_STATE``,
+    the first pass also ``AOV_NAMES``."""
+    return ("rgb", *PASS_STATE, *(AOV_NAMES if first_sample == 0 else ()))
+
+
+# ---- Tile executors: what runs a pass ----------------------------------------------------------
+
+
+class TileExecutor(Protocol):
+    """What draws the passes of a render for ``render_passes``: ``LocalTiles`` (this machine's
+    threads, or one CUDA launch), ``wrt.distributed``'s tasks on a Dask cluster.
+
+    ``film``: the film the passes accumulate into (its ``.numpy()`` arrays are the image so far);
+    ``device``, ``threads``, ``build_time_s`` and ``compile_time_s``: the ``RenderResult`` fields.
+    """
+
+    film: Film
+    device: str
+    threads: int
+    build_time_s: float
+    compile_time_s: float
+
+    def run_pass(self, first_sample: int, pass_spp: int, active: np.ndarray | None) -> bool:
+        """Samples ``first_sample .. first_sample + pass_spp - 1`` of every pixel (of those whose
+        row-major indices are ``active``, int32, if given), continuing the film's running sums.
+        False when a stop abandoned the pass: the film is then as it was before it."""
+        ...
+
+
+class LocalTiles:
+    """The tile executor of ``render``: ``scene`` prepared on ``device``, every pass launched in
+    tiles of ``TILE_PIXELS`` pixels from ``threads`` threads on the CPU (default: all available
+    cores), as one launch on CUDA. ``stop``, set from another thread, abandons a CPU pass at the
+    next tile and rolls back the tiles of it already done."""
+
+    def __init__(
+        self,
+        scene: Scene,
+        *,
+        device: str | None,
+        threads: int | None,
+        specialize: bool | None,
+        stop: threading.Event | None,
+    ):
+        dev = resolve_device(device)
+        check_memory(scene, dev)
+        self.device, self.stop = str(dev), stop
+        self.threads = 1 if dev.is_cuda else max(1, threads or default_threads())
+        self.spp, self.seed = scene.render.spp, scene.render.seed
+        self.kernel = render_kernel_for(scene, specialize, dev)
+        t0 = time.perf_counter()
+        wp.load_module(self.kernel.module, device=dev)
+        self.compile_time_s = time.perf_counter() - t0
+        self.device_scene = prepare(scene, dev)
+        self.film, self.build_time_s = self.device_scene.film, self.device_scene.build_time_s
+
+    def run_pass(self, first_sample: int, pass_spp: int, active: np.ndarray | None) -> bool:
+        """See ``TileExecutor.run_pass``."""
+        device_scene, dev = self.device_scene, self.device_scene.device
+        n = device_scene.width * device_scene.height if active is None else len(active)
+        on_device = None if active is None else wp.array(active, dtype=wp.int32, device=dev)
+
+        def launch(first: int, count: int) -> None:
+            device_scene.launch(self.kernel, first, count, self.spp, self.seed, None, first_sample, pass_spp, on_device)
+
+        if dev.is_cuda:  # one launch: it ends before a stop is looked at
+            launch(0, n)
+            wp.synchronize_device(dev)
+            return True
+
+        def tile(first: int, count: int) -> bool:
+            if self.stop is not None and self.stop.is_set():
+                return False
+            launch(first, count)
+            return True
+
+        names = pass_outputs(first_sample) if self.stop is not None else ()
+        before = {name: np.copy(getattr(self.film, name).numpy()) for name in names}  # CPU: numpy views of the film
+        pool = ThreadPoolExecutor(max_workers=self.threads)
+        try:
+            tiles = [(first, min(TILE_PIXELS, n - first)) for first in range(0, n, TILE_PIXELS)]
+            finished = all([future.result() for future in [pool.submit(tile, *t) for t in tiles]])
+        finally:
+            pool.shutdown(cancel_futures=True)  # interrupted: drop the tiles not started
+        if not finished:
+            for name, saved in before.items():
+                getattr(self.film, name).numpy()[...] = saved
+        return finished
+
+
+# ---- The pass loop: one for every executor -----------------------------------------------------
+
+
+def render_passes(
+    scene: Scene,
+    start: Callable[[Scene], TileExecutor],
+    *,
+    spp: int | None,
+    seed: int | None,
+    progress: Progress | None,
+    progress_every: int | None,
+    target_error: float | None = None,
+) -> RenderResult:
+    """Render ``scene`` (``spp`` and ``seed`` overridden) in passes drawn by the executor
+    ``start(scene)``: progressive with ``progress``, adaptive with ``target_error``, else one
+    pass. The arguments and the result are ``render``'s; a pass the executor abandoned (a stop)
+    ends the render with the passes done."""
+    scene = override_render(scene, source="wrt.render", spp=spp, seed=seed)
+    if progress_every is not None and progress_every < 1:
+        raise WrtError(f"progress_every must be >= 1, got {progress_every}")
+    if target_error is not None and not target_error > 0.0:
+        raise WrtError(f"target_error must be > 0, got {target_error}")
+    executor = start(scene)
+    spp, pixels = scene.render.spp, scene.render.width * scene.render.height
+    schedule = None if target_error is None else adaptive_passes(spp)
+    counts = None if target_error is None else np.zeros(pixels, dtype=np.int32)  # samples taken by each pixel
+    active = None  # adaptive sampling: indices of the pixels still sampled (None: all)
+    done, busy = 0, 0.0  # samples per pixel done (the most any pixel took), wall seconds of passes
+    while done < spp:
+        if schedule is not None:
+            n = schedule[schedule.index(done) + 1] - done if done else schedule[0]
+        else:
+            n = spp - done if progress is None else pass_size(spp, done, busy, progress_every)
+        t0 = time.perf_counter()
+        if not executor.run_pass(done, n, active):
+            busy += time.perf_counter() - t0
+            break
+        done += n
+        if schedule is not None:
+            counts[slice(None) if active is None else active] = done
+            if done < spp:
+                taken = np.arange(pixels) if active is None else active
+                sums, squares = executor.film.rgb_sum.numpy(), executor.film.luminance_sq_sum.numpy()
+                error = relative_error(sums[taken], squares[taken], done)
+                active = taken[error > target_error].astype(np.int32)
+        busy += time.perf_counter() - t0
+        snapshot = partial(_result, scene, executor, done, busy, counts, copy=True)
+        if progress is not None and progress(done, spp, busy, snapshot) is False:
+            break
+        if active is not None and len(active) == 0:
+            break
+    return _result(scene, executor, done, busy, counts, copy=False)
+
+
+def _result(
+    scene: Scene, executor: TileExecutor, done: int, elapsed: float, counts: np.ndarray | None, *, copy: bool
+) -> RenderResult:
+    """The ``RenderResult`` of ``executor.film`` after ``done`` samples per pixel in ``elapsed`` wall
+    seconds; ``counts``: each pixel's samples (adaptive; else None). Its arrays are copies, or
+    with ``copy=False`` views of a film on the host."""
+    w, h = scene.render.width, scene.render.height
+    take = np.copy if copy else np.asarray
+
+    def image(name: str) -> np.ndarray:
+        values = getattr(executor.film, name).numpy()
+        return take(values.reshape(h, w, *values.shape[1:]))
+
+    aovs = {name: image(name) for name in AOV_NAMES}
+    if counts is not None:
+        aovs["spp"] = counts.reshape(h, w).copy()
+    return RenderResult(
+        rgb=image("rgb"),
+        aovs=aovs,
+        spp=done,
+        seed=scene.render.seed,
+        integrator=scene.render.integrator,
+        device=executor.device,
+        threads=executor.threads,
+        build_time_s=executor.build_time_s,
+        compile_time_s=executor.compile_time_s,
+        render_time_s=elapsed,
+        rejected_samples=int(executor.film.rejected.numpy().sum()),
+    )
 
 
 def render(
@@ -363,10 +548,12 @@ def render(
         ``progress_every``). The result's ``aovs["spp"]`` holds each pixel's sample count.
     specialize : bool, optional
         True: render with the kernel specialised on the scene's features (``scene_features``);
-        False: with the all-features kernel. Both give the same image. Default: specialised from
-        ``SPECIALIZE_MIN_SAMPLES`` pixel samples (width x height x spp) on: a variant's first
-        compilation takes seconds (then Warp's cache serves it), more than a smaller render
-        could save, so small renders take the all-features kernel, compiled once for all.
+        False: with the all-features kernel. Both give the same image. Default
+        (``render_kernel_for``): a variant's first compilation takes 10-30 CPU-seconds (then
+        Warp's cache serves it), more than most renders could save, so the variant is taken
+        where it is already compiled (from ``SPECIALIZE_MIN_SAMPLES`` pixel samples on) or the
+        render is long (``SPECIALIZE_COLD_SAMPLES``), else the all-features kernel, compiled
+        once for all.
     stop : threading.Event, optional
         Set from another thread (a signal handler) to end the render at the next tile boundary
         on the CPU, without waiting for the pass in flight: that pass is abandoned and its tiles
@@ -381,97 +568,7 @@ def render(
     centre; with ``spp > 1`` every sample, the first pass's included, is uniform over the pixel.
     An adaptive render is deterministic too: a pixel's stopping depends only on its own samples.
     """
-    scene = override_render(scene, source="wrt.render", spp=spp, seed=seed)
-    spp, seed = scene.render.spp, scene.render.seed
-    if progress_every is not None and progress_every < 1:
-        raise WrtError(f"progress_every must be >= 1, got {progress_every}")
-    if target_error is not None and not target_error > 0.0:
-        raise WrtError(f"target_error must be > 0, got {target_error}")
-    dev = resolve_device(device)
-    check_memory(scene, dev)
-    threads = 1 if dev.is_cuda else max(1, threads or default_threads())
-    if specialize is None:
-        specialize = scene.render.width * scene.render.height * spp >= SPECIALIZE_MIN_SAMPLES
-    kernel = render_kernel(scene.render.integrator, scene_features(scene) if specialize else ALL)
-    w, h = scene.render.width, scene.render.height
-
-    t0 = time.perf_counter()
-    wp.load_module(kernel.module, device=dev)
-    t1 = time.perf_counter()
-    device_scene = prepare(scene, dev)
-    pool = None if dev.is_cuda else ThreadPoolExecutor(max_workers=threads)
-    counts = np.zeros(w * h, dtype=np.int32)  # samples taken by each pixel
-    active = None  # adaptive sampling: indices of the pixels still sampled (None: all)
-
-    def run_pass(first_sample: int, pass_spp: int) -> bool:
-        """One pass; False when ``stop`` abandoned it (the film is then as it was before it)."""
-        n = w * h if active is None else len(active)
-        on_device = None if active is None else wp.array(active, dtype=wp.int32, device=dev)
-        if pool is None:
-            device_scene.launch(kernel, 0, n, spp, seed, None, first_sample, pass_spp, on_device)
-            wp.synchronize_device(dev)
-        else:
-            state = pass_state(device_scene.film, first_sample) if stop is not None else []
-            before = [np.copy(a.numpy()) for a in state]  # CPU arrays: numpy views of the film
-
-            def tile(first: int, count: int) -> bool:
-                if stop is not None and stop.is_set():
-                    return False
-                device_scene.launch(kernel, first, count, spp, seed, None, first_sample, pass_spp, on_device)
-                return True
-
-            tiles = [(first, min(TILE_PIXELS, n - first)) for first in range(0, n, TILE_PIXELS)]
-            if not all([future.result() for future in [pool.submit(tile, *t) for t in tiles]]):
-                for a, saved in zip(state, before):
-                    a.numpy()[...] = saved
-                return False
-        counts[slice(None) if active is None else active] = first_sample + pass_spp
-        return True
-
-    def result(done: int, elapsed: float, copy: bool) -> RenderResult:
-        take = np.copy if copy else np.asarray
-        aovs = {name: take(a) for name, a in device_scene.aovs().items()}
-        if target_error is not None:
-            aovs["spp"] = counts.reshape(h, w).copy()
-        return RenderResult(
-            rgb=take(device_scene.film.rgb.numpy().reshape(h, w, 3)),
-            aovs=aovs,
-            spp=done,
-            seed=seed,
-            integrator=scene.render.integrator,
-            device=str(dev),
-            threads=threads,
-            build_time_s=device_scene.build_time_s,
-            compile_time_s=t1 - t0,
-            render_time_s=elapsed,
-            rejected_samples=int(device_scene.film.rejected.numpy().sum()),
-        )
-
-    schedule = adaptive_passes(spp) if target_error is not None else None
-    done, busy = 0, 0.0  # samples per pixel done (the most any pixel took), wall seconds of passes
-    try:
-        while done < spp:
-            if schedule is not None:
-                n = schedule[schedule.index(done) + 1] - done if done else schedule[0]
-            else:
-                n = spp - done if progress is None else pass_size(spp, done, busy, progress_every)
-            t2 = time.perf_counter()
-            if not run_pass(done, n):
-                busy += time.perf_counter() - t2
-                break
-            done += n
-            if schedule is not None and done < spp:
-                pixels = np.arange(w * h) if active is None else active
-                error = relative_error(
-                    device_scene.film.rgb_sum.numpy()[pixels], device_scene.film.luminance_sq_sum.numpy()[pixels], done
-                )
-                active = pixels[error > target_error].astype(np.int32)
-            busy += time.perf_counter() - t2
-            if progress is not None and progress(done, spp, busy, partial(result, done, busy, True)) is False:
-                break
-            if active is not None and len(active) == 0:
-                break
-    finally:
-        if pool is not None:
-            pool.shutdown(cancel_futures=True)  # interrupted: drop the tiles not started
-    return result(done, busy, copy=False)
+    start = partial(LocalTiles, device=device, threads=threads, specialize=specialize, stop=stop)
+    return render_passes(
+        scene, start, spp=spp, seed=seed, progress=progress, progress_every=progress_every, target_error=target_error
+    )

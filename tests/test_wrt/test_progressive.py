@@ -21,9 +21,10 @@ import wrt
 import wrt.imageio
 import wrt.renderer
 from wrt.cli import main
+from wrt.device import resolve_device
 from wrt.imageio import read_image
 from wrt.loader import override_render
-from wrt.renderer import pass_size
+from wrt.renderer import new_film, pass_size, render_passes
 
 
 def path_scene(spp=13, width=24, height=16):
@@ -97,6 +98,45 @@ def test_pass_size():
     assert pass_size(1024, 10, 0.5, 16) == 6  # ending at the next multiple of `every`
     assert pass_size(1024, 1020, 0.5, None) == 4  # and at spp
     assert pass_size(1024, 10, 100.0, None) == 1
+
+
+class RecordingTiles:
+    """A tile executor that draws no samples: it records the passes asked of it and abandons the
+    one starting at ``abandon`` (as a stop would)."""
+
+    def __init__(self, scene, abandon):
+        self.film = new_film(scene.render.width * scene.render.height, resolve_device("cpu"))
+        self.device, self.threads, self.build_time_s, self.compile_time_s = "recording", 7, 0.5, 0.25
+        self.passes, self.abandon = [], abandon
+
+    def run_pass(self, first_sample, pass_spp, active):
+        if first_sample == self.abandon:
+            return False
+        self.passes.append((first_sample, pass_spp, active))
+        return True
+
+
+def test_the_pass_loop_drives_any_tile_executor():
+    """One pass loop for every executor (local threads, a Dask cluster): it sizes the passes,
+    reports them, ends at an abandoned pass, and assembles the result from the executor's film."""
+    started, reported = [], []
+
+    def start(scene):
+        started.append(RecordingTiles(scene, abandon=4))
+        return started[-1]
+
+    result = render_passes(
+        path_scene(spp=13), start, spp=9, seed=2, progress=lambda done, *_: reported.append(done), progress_every=2
+    )
+    (tiles,) = started
+    assert tiles.passes == [(0, 1, None), (1, 1, None), (2, 2, None)]  # one sample, then to every multiple of 2
+    assert reported == [1, 2, 4]  # the pass from 4 on was abandoned
+    assert (result.spp, result.seed, result.device, result.threads) == (4, 2, "recording", 7)
+    assert (result.build_time_s, result.compile_time_s) == (0.5, 0.25) and result.render_time_s > 0
+    assert result.rgb.shape == (16, 24, 3) and sorted(result.aovs) == ["depth", "normal", "object_id", "position"]
+    with pytest.raises(wrt.WrtError, match="progress_every must be >= 1, got 0"):
+        render_passes(path_scene(), start, spp=None, seed=None, progress=None, progress_every=0)
+    assert len(started) == 1  # refused before the executor started
 
 
 def test_checkpoints_are_written_every_n_samples(tmp_path, monkeypatch, capsys):
