@@ -5,9 +5,10 @@ import dataclasses
 
 import numpy as np
 import pytest
+import warp as wp
 from conftest import CAMERA, EXAMPLES, make_scene
 from wrt.kernels.features import ALL, Features
-from wrt.kernels.variants import relevant, render_kernel
+from wrt.kernels.variants import compiled, relevant, render_kernel
 
 import wrt
 from wrt.renderer import scene_features
@@ -256,9 +257,10 @@ def test_specialised_kernel_renders_the_same_image(name):
     assert special.rgb.max() > 0  # something was rendered
 
 
-def test_small_renders_take_the_all_features_kernel_by_default(monkeypatch):
-    """A variant's first compilation costs seconds: by default only renders of at least
-    SPECIALIZE_MIN_SAMPLES pixel samples use one (the image is the same either way)."""
+def test_the_variant_is_taken_where_it_is_compiled_or_pays_its_compilation(monkeypatch):
+    """A variant's first compilation costs 10-30 CPU-seconds: by default a render takes the
+    all-features kernel below SPECIALIZE_MIN_SAMPLES pixel samples; from there the variant when
+    Warp's cache has it; from SPECIALIZE_COLD_SAMPLES on the variant whatever the cache."""
     chosen = []
     monkeypatch.setattr(
         wrt.renderer,
@@ -266,7 +268,28 @@ def test_small_renders_take_the_all_features_kernel_by_default(monkeypatch):
         lambda integrator, features: chosen.append(features) or render_kernel(integrator, features),
     )
     scene = make_scene([FLOOR], materials=DIFFUSE, render={"width": 16, "height": 8, "spp": 2, "integrator": "path"})
-    wrt.render(scene)
-    monkeypatch.setattr(wrt.renderer, "SPECIALIZE_MIN_SAMPLES", 16 * 8 * 2)
-    wrt.render(scene)
-    assert chosen == [ALL, scene_features(scene)]
+    samples = 16 * 8 * 2
+    cases = [  # (SPECIALIZE_MIN_SAMPLES, SPECIALIZE_COLD_SAMPLES, in the cache): the kernel taken
+        ((samples + 1, samples + 1, True), ALL),
+        ((samples, samples + 1, True), scene_features(scene)),
+        ((samples, samples + 1, False), ALL),
+        ((samples, samples, False), scene_features(scene)),
+    ]
+    images = []
+    for (least, cold, cached), expected in cases:
+        monkeypatch.setattr(wrt.renderer, "SPECIALIZE_MIN_SAMPLES", least)
+        monkeypatch.setattr(wrt.renderer, "SPECIALIZE_COLD_SAMPLES", cold)
+        monkeypatch.setattr(wrt.renderer, "compiled", lambda kernel, dev, cached=cached: cached)
+        chosen.clear()
+        images.append(wrt.render(scene).rgb)
+        assert chosen[-1] == expected, (least, cold, cached)
+    assert all(np.array_equal(image, images[0]) for image in images)
+
+
+def test_compiled_sees_warps_kernel_cache(monkeypatch, tmp_path):
+    """``compiled`` is true for a kernel whose module is in Warp's cache, false in an empty cache."""
+    kernel = render_kernel("raycast", ALL)
+    wp.load_module(kernel.module, device="cpu")
+    assert compiled(kernel, wp.get_device("cpu"))
+    monkeypatch.setattr(wp.config, "kernel_cache_dir", str(tmp_path))
+    assert not compiled(kernel, wp.get_device("cpu"))
