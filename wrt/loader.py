@@ -58,7 +58,6 @@ GROUP_SHAPE_TYPES = ("sphere", "triangle", "polygon", "mesh", "disk", "cylinder"
 MESH_SHADING = ("flat", "smooth")  # a mesh's shading normals: its face normals, or interpolated vertex normals
 LIGHT_TYPES = ("point", "directional", "spot", "area", "sphere", "environment")
 DEFAULT_MATERIAL = Material(name="default", type="diffuse", albedo=(0.5, 0.5, 0.5))
-FLOAT32_MAX = float(np.finfo(np.float32).max)
 FLOAT32_TINY = float(np.finfo(np.float32).tiny)  # the smallest normal float32
 BEYOND_FLOAT32 = f"must be at most {MAX_MAGNITUDE:g} in magnitude (so that float32 products of it stay finite)"
 _REQUIRED = object()
