@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import glob
 import hashlib
 import json
@@ -40,14 +41,24 @@ def _digest(*arrays) -> str:
     return h.hexdigest()[:24]
 
 
-def scene_cases() -> list[tuple[str, str]]:
-    """(name, kind) of every case: ``example:PATH``, ``feature:NAME`` and ``wrong:NAME``."""
+def _mitsuba_files() -> list[str]:
+    """Every Mitsuba XML example, the ``fragments`` that others ``<include>`` too."""
+    return sorted(glob.glob(os.path.join(EXAMPLES, "mitsuba", "**", "*.xml"), recursive=True))
+
+
+@functools.cache
+def _features() -> dict:
     from wrt_harness.matrix import load_features
 
+    return {feature.name: feature for feature in load_features()}
+
+
+def scene_cases() -> list[str]:
+    """Every rendered case: ``example:PATH``, ``feature:NAME`` and ``wrong:NAME``."""
     files = sorted(glob.glob(os.path.join(EXAMPLES, "**", "*.toml"), recursive=True))
-    files += sorted(glob.glob(os.path.join(EXAMPLES, "mitsuba", "**", "*.xml"), recursive=True))
+    files += [f for f in _mitsuba_files() if f"{os.sep}fragments{os.sep}" not in f]  # parts, not scenes
     cases = [f"example:{os.path.relpath(f, EXAMPLES)}" for f in files if "own_matrix" not in f]
-    for feature in load_features():
+    for feature in _features().values():
         cases.append(f"feature:{feature.name}")
         if feature.wrong:
             cases.append(f"wrong:{feature.name}")
@@ -55,18 +66,14 @@ def scene_cases() -> list[tuple[str, str]]:
 
 
 def _load(case: str):
-    from wrt_harness.matrix import load_feature_scene, load_features
+    from wrt_harness.matrix import load_feature_scene
 
     import wrt
 
     kind, name = case.split(":", 1)
     if kind == "example":
-        path = os.path.join(EXAMPLES, name)
-        if path.endswith(".xml") and "fragments" in path:
-            return None
-        return wrt.load_scene(path, approximate=True)
-    feature = {f.name: f for f in load_features()}[name]
-    return load_feature_scene(feature, wrong=kind == "wrong")
+        return wrt.load_scene(os.path.join(EXAMPLES, name), approximate=True)
+    return load_feature_scene(_features()[name], wrong=kind == "wrong")
 
 
 def fingerprint(case: str) -> dict:
@@ -78,8 +85,6 @@ def fingerprint(case: str) -> dict:
         scene = _load(case)
     except Exception as e:  # a refusal is part of the behaviour
         return {"error": f"{type(e).__name__}: {e}"}
-    if scene is None:
-        return {}
     out = {}
     for spp in SPPS:
         for specialize in (False, True):
@@ -104,7 +109,7 @@ def mitsuba_fingerprints() -> dict:
     from wrt.mitsuba import load_mitsuba
 
     out = {}
-    for path in sorted(glob.glob(os.path.join(EXAMPLES, "mitsuba", "**", "*.xml"), recursive=True)):
+    for path in _mitsuba_files():
         for approximate in (False, True):
             key = f"mitsuba:{os.path.relpath(path, EXAMPLES)}:{'approximate' if approximate else 'strict'}"
             try:
