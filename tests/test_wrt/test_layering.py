@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-KERNEL_ALLOWED = {"warp", "numpy"}  # besides the standard library and wrt.kernels itself
+KERNEL_ALLOWED = {"warp"}  # besides the standard library and wrt.kernels itself
 
 
 def imports(path: Path) -> list[tuple[int, str]]:
