@@ -22,13 +22,18 @@ Modules, in data-flow order:
 - ``integrator``    the pixel loop every integrator shares, tracing a segment; ``record``: ray recording
 - ``raycast``, ``whitted``, ``path``   the integrators
 - ``stress``        kernels of the numerical stress suite
+- ``cpu_target``    the CPU instruction set modules compile for (portable, so they can be shipped compiled)
 
 This package imports only Warp: it knows nothing of scene files, images or the harness.
-Importing it configures Warp for rendering: no gradients (smaller, faster modules) and
-no informational log lines on the console.
+Importing it configures Warp for rendering: no gradients (smaller, faster modules), no
+informational log lines on the console, and CPU code for a portable instruction set
+(``cpu_target``) where this CPU has it.
 """
 
 import warp as wp
 
+from .cpu_target import cpu_compiler_flags
+
 wp.config.enable_backward = False
 wp.config.log_level = wp.LOG_WARNING
+wp.config.cpu_compiler_flags = cpu_compiler_flags()

@@ -14,9 +14,6 @@ from __future__ import annotations
 
 import functools
 import importlib
-import os
-
-import warp as wp
 
 from .features import ALL, GEOMETRY, Features, only
 from .integrator import make_render_kernel
@@ -80,16 +77,3 @@ def _kernel(integrator: str, features: Features):
     return make_render_kernel(
         _radiance(integrator, features), features=features, module=f"wrt_{integrator}_{features.key}"
     )
-
-
-def compiled(kernel, device) -> bool:
-    """Whether ``kernel``'s module is in Warp's kernel cache for ``device``: using it then costs
-    a load (milliseconds), not a compilation (10-30 CPU-seconds for an integrator's variant).
-    Warp 1.19's layout: ``<cache>/<identifier>/<binary>``, for the block size a launch uses."""
-    from warp._src.context import _resolve_launch_block_dim
-
-    module, dev = kernel.module, wp.get_device(device)
-    block_dim = _resolve_launch_block_dim(dev, None if dev.is_cpu else module.options["block_dim"])
-    identifier = module.get_module_identifier(block_dim)
-    binary = module._get_compile_output_name(dev, block_dim=block_dim)
-    return os.path.exists(os.path.join(wp.config.kernel_cache_dir, identifier, binary))

@@ -283,7 +283,34 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
     )
     st.add_argument("--seed", type=int_in(0, MAX_SEED, "--seed"), default=0, help="random seed (default 0)")
     st.add_argument("--report", metavar="DIR", help="also write the table as DIR/stress.json and DIR/stress.md")
-    runs = {"render": _render, "rays": _rays, "stress": _stress}
+    k = verbs.add_parser(
+        "kernels",
+        help="list the Warp modules scenes need; compile them; rebuild the shipped ones",
+        description="List the Warp kernel modules that scenes need (default: every example scene, which the "
+        "matrix renders), with their generated source and object sizes, compile time and state: shipped "
+        "(compiled ahead of time, in the package), cached (in Warp's kernel cache) or to compile (on first use). "
+        "See docs/performance.md.",
+    )
+    k.add_argument(
+        "scenes", nargs="*", metavar="SCENE", help="scene files (.toml or Mitsuba .xml; default: the examples)"
+    )
+    k.add_argument(
+        "--compile",
+        action="store_true",
+        help="compile the modules that are not cached, --jobs at a time, and time each",
+    )
+    k.add_argument(
+        "--ship",
+        nargs="?",
+        const="",
+        metavar="DIR",
+        help="rebuild the shipped modules: compile every module for the portable CPU target and write cpu.zip and "
+        "manifest.json to DIR (default: the package's kernels/compiled); after editing a kernel",
+    )
+    k.add_argument(
+        "--jobs", type=int_in(1, MAX_THREADS, "--jobs"), help="modules compiled at once (default: one per core)"
+    )
+    runs = {"render": _render, "rays": _rays, "stress": _stress, "kernels": _kernels}
     if plugins:
         from importlib.metadata import entry_points
 
@@ -502,7 +529,44 @@ def _stress(args) -> int:
     return stress.command(args.rays, args.seed, args.report)
 
 
-LIBRARY_VERBS = ("render", "rays", "stress")
+def _kernels(args) -> int:
+    from . import aot
+
+    scenes = args.scenes or [aot.example_path(f) for f in aot.example_scenes()]
+    for scene in args.scenes:
+        if not os.path.isfile(scene):
+            raise WrtError(f"{scene}: no such scene file")
+
+    def done(name: str, seconds: float) -> None:
+        print(f"  {name}: {seconds:.1f} s", file=sys.stderr, flush=True)
+
+    if args.ship is not None:
+        folder = args.ship or aot.SHIPPED_DIR
+        manifest = aot.ship(scenes, folder, args.jobs, progress=done)
+        size = sum(m["object_bytes"] for m in manifest["modules"])
+        print(
+            f"wrote {len(manifest['modules'])} modules ({size / 1e6:.1f} MB of objects, "
+            f"{os.path.getsize(os.path.join(folder, 'cpu.zip')) / 1e6:.1f} MB zipped) to {folder} "
+            f"in {manifest['wall_s']:.0f} s"
+        )
+        return 0
+    modules = aot.needed_modules(scenes)
+    if args.compile:
+        aot.compile_modules(
+            {n: m for n, m in modules.items() if not aot.cache_entry(m, "cpu").cached()}, args.jobs, done
+        )
+    rows = aot.table(modules)
+    print(f"{'module':<40} {'state':<10} {'source KB':>9} {'object KB':>9} {'compile s':>9}")
+    for r in rows:
+        cells = [f"{r[k] / 1024:.0f}" if k in r else "-" for k in ("source_bytes", "object_bytes")]
+        cells.append(f"{r['compile_s']:.1f}" if "compile_s" in r else "-")
+        print(f"{r['name']:<40} {r['state']:<10} {cells[0]:>9} {cells[1]:>9} {cells[2]:>9}")
+    states = {s: sum(r["state"] == s for r in rows) for s in ("shipped", "cached", "to compile")}
+    print(f"{len(rows)} modules: " + ", ".join(f"{n} {s}" for s, n in states.items()))
+    return 0
+
+
+LIBRARY_VERBS = ("render", "rays", "stress", "kernels")
 
 
 def run_verb(run, args: argparse.Namespace, prog: str = "wrt") -> int:

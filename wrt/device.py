@@ -48,6 +48,7 @@ from wrt.kernels.sampling import INDEPENDENT, SOBOL, STRATIFIED, Sampler
 from wrt.kernels.textures import TextureData
 from wrt.kernels.traverse import GeometryData, mat24
 
+from .aot import install
 from .conductors import normal_reflectance
 from .emitting import emitting_primitives
 from .envmap import environment_distribution
@@ -95,6 +96,7 @@ def init_warp() -> str:
 
     Warp's native library prints a warning to stderr when it finds no CUDA driver, which is the
     normal case on a CPU-only machine. The CLI shows the text only if CUDA was asked for.
+    Then the shipped compiled modules are installed into Warp's kernel cache (``wrt.aot``).
     """
     saved = os.dup(2)
     with tempfile.TemporaryFile() as capture:
@@ -105,7 +107,9 @@ def init_warp() -> str:
             os.dup2(saved, 2)
             os.close(saved)
         capture.seek(0)
-        return capture.read().decode(errors="replace")
+        messages = capture.read().decode(errors="replace")
+    install()
+    return messages
 
 
 def resolve_device(name: str | wp.Device | None) -> wp.Device:
@@ -114,16 +118,19 @@ def resolve_device(name: str | wp.Device | None) -> wp.Device:
     Raises ``WrtError`` when Warp has no such device (e.g. "cuda" on a machine without a GPU).
     """
     if isinstance(name, wp.Device):
-        return name
-    name = "cpu" if name is None else name
-    if not isinstance(name, str) or not name:
-        raise WrtError(f"device {name!r}: not a device name (use cpu, cuda or cuda:N)")
-    if name.startswith("cuda") and not wp.is_cuda_available():
-        raise WrtError(f"device {name!r}: Warp found no CUDA device on this machine (use --device cpu)")
-    try:
-        return wp.get_device(name)
-    except (RuntimeError, ValueError) as e:
-        raise WrtError(f"device {name!r}: {e}") from None
+        dev = name
+    else:
+        name = "cpu" if name is None else name
+        if not isinstance(name, str) or not name:
+            raise WrtError(f"device {name!r}: not a device name (use cpu, cuda or cuda:N)")
+        if name.startswith("cuda") and not wp.is_cuda_available():
+            raise WrtError(f"device {name!r}: Warp found no CUDA device on this machine (use --device cpu)")
+        try:
+            dev = wp.get_device(name)
+        except (RuntimeError, ValueError) as e:
+            raise WrtError(f"device {name!r}: {e}") from None
+    install()  # the shipped compiled modules, before any launch (wrt.aot)
+    return dev
 
 
 def _vec3(a: np.ndarray, device) -> wp.array:

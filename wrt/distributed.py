@@ -48,6 +48,7 @@ from functools import partial
 import numpy as np
 import warp as wp
 
+from .aot import load
 from .device import init_warp, resolve_device
 from .errors import WrtError, foreign
 from .loader import override_render
@@ -602,9 +603,7 @@ def _device_scene(scene: Scene, key: str, dev: wp.Device, kernel) -> tuple:
     with _lock:
         module = (kernel.module.name, str(dev))
         if module not in _loaded:
-            t0 = time.perf_counter()
-            wp.load_module(kernel.module, device=dev)
-            load_s = time.perf_counter() - t0
+            load_s = load(kernel.module, dev)
             _loaded.add(module)
             _stats["kernel_loads"] += 1
             _stats["kernel_load_s"] += load_s

@@ -34,6 +34,7 @@ from wrt.kernels.record import (
 from wrt.kernels.traverse import VisitLog, trace_visits
 from wrt.kernels.whitted import whitted_record
 
+from .aot import load
 from .bvh import node_bounds
 from .device import resolve_device
 from .errors import WrtError
@@ -200,7 +201,7 @@ def trace_rays(
         raise WrtError(f"capacity must be >= 1, got {capacity}")
     dev = resolve_device(device)
     kernel = RECORD_KERNELS[scene.render.integrator]
-    wp.load_module(kernel.module, device=dev)
+    load(kernel.module, dev)
     device_scene = prepare(scene, dev)
     rec = RayRecord()
     rec.count = wp.zeros(1, dtype=wp.int32, device=dev)

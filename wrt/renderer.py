@@ -36,8 +36,9 @@ from wrt.kernels.features import ALL, Features
 from wrt.kernels.film import LUMINANCE_WEIGHTS, Film
 from wrt.kernels.integrator import RenderPass
 from wrt.kernels.record import RayRecord
-from wrt.kernels.variants import compiled, render_kernel
+from wrt.kernels.variants import render_kernel
 
+from .aot import compiled, load
 from .device import (
     camera_data,
     integrator_settings,
@@ -380,9 +381,7 @@ class LocalTiles:
         self.threads = 1 if dev.is_cuda else max(1, threads or default_threads())
         self.spp, self.seed = scene.render.spp, scene.render.seed
         self.kernel = render_kernel_for(scene, specialize, dev)
-        t0 = time.perf_counter()
-        wp.load_module(self.kernel.module, device=dev)
-        self.compile_time_s = time.perf_counter() - t0
+        self.compile_time_s = load(self.kernel.module, dev)
         self.device_scene = prepare(scene, dev)
         self.film, self.build_time_s = self.device_scene.film, self.device_scene.build_time_s
 

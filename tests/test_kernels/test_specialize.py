@@ -8,9 +8,10 @@ import pytest
 import warp as wp
 from conftest import CAMERA, EXAMPLES, make_scene
 from wrt.kernels.features import ALL, Features
-from wrt.kernels.variants import compiled, relevant, render_kernel
+from wrt.kernels.variants import relevant, render_kernel
 
 import wrt
+from wrt.aot import compiled
 from wrt.renderer import scene_features
 
 DIFFUSE = [{"name": "white", "albedo": [0.7, 0.7, 0.7]}]

@@ -1,0 +1,163 @@
+"""Modules compiled ahead of time (``wrt.aot``): the shipped ones match the kernel sources, are
+installed into Warp's kernel cache and loaded without compiling; an edited kernel compiles (and
+says so) instead of running a stale object; the CPU target is portable where the CPU allows."""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import subprocess
+import sys
+import zipfile
+
+import pytest
+import warp as wp
+from conftest import EXAMPLES
+from wrt.kernels.cpu_target import PORTABLE_FLAGS, WARP_FLAGS, X86_64_V3, cpu_compiler_flags
+
+from wrt import aot
+
+PORTABLE_CPU = wp.config.cpu_compiler_flags == PORTABLE_FLAGS
+
+
+@pytest.mark.skipif(not PORTABLE_CPU, reason="this CPU lacks x86-64-v3: nothing shipped applies to it")
+def test_the_shipped_modules_are_those_the_kernel_sources_make():
+    """Fails after a kernel edit (or a new example scene) until the shipped modules are rebuilt."""
+    manifest = aot.read_manifest()
+    rebuild = f"rebuild them with `{aot.SHIP_COMMAND}`"
+    assert manifest is not None, f"no shipped modules in {aot.SHIPPED_DIR}: {rebuild}"
+    assert aot.usable(manifest), f"the shipped modules were built for another Warp or CPU target: {rebuild}"
+    assert manifest["scenes"] == aot.example_scenes(), f"the example scenes changed: {rebuild}"
+    modules = aot.needed_modules([aot.example_path(s) for s in manifest["scenes"]])
+    expected = {name: aot.cache_entry(m, "cpu").identifier for name, m in modules.items()}
+    shipped = {m["name"]: m["identifier"] for m in manifest["modules"]}
+    stale = sorted(n for n in expected.keys() | shipped.keys() if expected.get(n) != shipped.get(n))
+    assert not stale, f"the kernels changed since the shipped modules were built ({', '.join(stale)}): {rebuild}"
+    with zipfile.ZipFile(os.path.join(aot.SHIPPED_DIR, "cpu.zip")) as archive:
+        names = set(archive.namelist())
+    assert {f"{m['identifier']}/{m[k]}" for m in manifest["modules"] for k in ("binary", "meta")} == names
+
+
+def test_the_cpu_target_is_portable_where_the_cpu_has_x86_64_v3(tmp_path, monkeypatch):
+    monkeypatch.setattr("platform.machine", lambda: "x86_64")
+    info = tmp_path / "cpuinfo"
+    info.write_text("processor\t: 0\nflags\t\t: " + " ".join(sorted(X86_64_V3 | {"avx512f"})) + "\n")
+    assert cpu_compiler_flags(str(info)) == PORTABLE_FLAGS
+    assert "x86-64-v3" in PORTABLE_FLAGS.split() and "-march=native" not in PORTABLE_FLAGS.split()
+    info.write_text("flags\t\t: " + " ".join(sorted(X86_64_V3 - {"avx2"})) + "\n")  # an older CPU
+    assert cpu_compiler_flags(str(info)) == WARP_FLAGS
+    assert cpu_compiler_flags(str(tmp_path / "missing")) == WARP_FLAGS
+    monkeypatch.setattr("platform.machine", lambda: "aarch64")
+    assert cpu_compiler_flags(str(info)) == WARP_FLAGS
+    monkeypatch.setattr("platform.machine", lambda: "x86_64")
+    info.write_text("flags\t\t: " + " ".join(sorted(X86_64_V3)) + "\n")
+    monkeypatch.setenv("WRT_CPU_TARGET", "native")  # asked for: this CPU's own instruction set
+    assert cpu_compiler_flags(str(info)) == WARP_FLAGS
+
+
+EDITABLE = """\
+import warp as wp
+
+
+@wp.kernel
+def fill(out: wp.array(dtype=float)):
+    out[wp.tid()] = VALUE
+"""
+
+
+def _import_probe(folder, value: float):
+    """The module ``wrt_aot_probe`` from a source file whose kernel writes ``value``: an edit of
+    the same module, as a developer makes one."""
+    folder.mkdir()
+    path = folder / "wrt_aot_probe.py"
+    path.write_text(EDITABLE.replace("VALUE", repr(value)))
+    spec = importlib.util.spec_from_file_location("wrt_aot_probe", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.fill
+
+
+def _launch(kernel) -> float:
+    out = wp.zeros(1, dtype=float, device="cpu")
+    wp.launch(kernel, dim=1, inputs=[out], device="cpu")
+    return float(out.numpy()[0])
+
+
+def test_an_edited_kernel_compiles_and_says_so_instead_of_loading_the_shipped_object(tmp_path, monkeypatch, capsys):
+    shipped = str(tmp_path / "shipped")
+    kernel = _import_probe(tmp_path / "v1", 1.0)
+    manifest = aot.ship_modules({kernel.module.name: kernel.module}, shipped, jobs=1)
+    assert [m["name"] for m in manifest["modules"]] == ["wrt_aot_probe"] and aot.usable(manifest)
+    capsys.readouterr()
+
+    monkeypatch.setattr(wp.config, "kernel_cache_dir", str(tmp_path / "cache"))  # a fresh install's
+    assert aot.install(shipped) == 1 and aot.cache_entry(kernel.module, "cpu").cached()
+    kernel.module.unload()
+    aot.load(kernel.module, "cpu")
+    assert capsys.readouterr().err == "" and _launch(kernel) == 1.0  # shipped: loaded, not compiled
+
+    edited = _import_probe(tmp_path / "v2", 2.0)
+    assert edited.module is kernel.module  # the same Warp module, new source: a new hash
+    aot._install.cache_clear()  # as a new process would
+    assert aot.install(shipped) == 0 and not aot.cache_entry(edited.module, "cpu").cached()
+    aot.load(edited.module, "cpu")
+    err = capsys.readouterr().err
+    assert "wrt: compiling Warp module wrt_aot_probe for cpu" in err and "wrt: compiled wrt_aot_probe for cpu in" in err
+    assert _launch(edited) == 2.0  # the edit runs, not the shipped object
+
+
+def test_install_writes_every_shipped_entry_once(tmp_path, monkeypatch):
+    manifest = aot.read_manifest()
+    if not aot.usable(manifest):
+        pytest.skip("no shipped modules for this Warp and CPU")
+    monkeypatch.setattr(wp.config, "kernel_cache_dir", str(tmp_path))
+    assert aot.install() == len(manifest["modules"])
+    with zipfile.ZipFile(os.path.join(aot.SHIPPED_DIR, "cpu.zip")) as archive:
+        for name in archive.namelist():
+            assert (tmp_path / name).read_bytes() == archive.read(name)
+    assert not [p for p in tmp_path.rglob("*") if p.name.startswith(".")]  # no temporary files left
+    aot._install.cache_clear()
+    assert aot.install() == 0  # all there already
+
+
+def test_a_damaged_archive_is_a_warning_and_modules_compile_instead(tmp_path, monkeypatch, capsys):
+    kernel = _import_probe(tmp_path / "v1", 3.0)
+    shipped = tmp_path / "shipped"
+    aot.ship_modules({kernel.module.name: kernel.module}, str(shipped), jobs=1)
+    (shipped / "cpu.zip").write_bytes(b"not a zip")
+    monkeypatch.setattr(wp.config, "kernel_cache_dir", str(tmp_path / "cache"))
+    assert aot.install(str(shipped)) == 0
+    assert "wrt: warning: shipped kernels not installed" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(not PORTABLE_CPU, reason="this CPU lacks x86-64-v3: nothing shipped applies to it")
+@pytest.mark.parametrize(
+    "scene",
+    ["path/cornell_box.toml", "whitted/refraction.toml", "raycast/raycast_mesh.toml", "mitsuba/cornell_box.xml"],
+)
+def test_a_fresh_kernel_cache_renders_the_examples_without_compiling(tmp_path, scene):
+    """What a new user's first render does: every module it loads comes from the package."""
+    out = tmp_path / "out.exr"
+    env = dict(os.environ, WARP_CACHE_PATH=str(tmp_path / "cache"))
+    args = [sys.executable, "-m", "wrt", "render", str(EXAMPLES / scene), "-o", str(out), "--spp", "1"]
+    run = subprocess.run([*args, "--width", "32", "--height", "24"], capture_output=True, text=True, env=env)
+    assert run.returncode == 0, run.stderr
+    assert "compiling" not in run.stderr and out.stat().st_size > 0
+    cached = {p.name for p in (tmp_path / "cache").glob("*/wp_*")}
+    assert not [name for name in cached if name.endswith(".cpp")]  # nothing was generated, let alone compiled
+
+
+def test_kernels_lists_the_modules_of_a_scene(tmp_path):
+    run = subprocess.run(
+        [sys.executable, "-m", "wrt", "kernels", str(EXAMPLES / "path" / "cornell_box.toml")],
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 0, run.stderr
+    lines = run.stdout.splitlines()
+    assert lines[0].split() == ["module", "state", "source", "KB", "object", "KB", "compile", "s"]
+    names = {line.split()[0] for line in lines[1:-1]}
+    assert {"wrt_path_all", "wrt_path_record", "wrt.kernels.bvh_build"} <= names
+    assert lines[-1].startswith(f"{len(names)} modules: ")
+    missing = subprocess.run([sys.executable, "-m", "wrt", "kernels", str(tmp_path / "nope.toml")], capture_output=True)
+    assert missing.returncode == 2 and b"nope.toml: no such scene file" in missing.stderr

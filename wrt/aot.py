@@ -1,0 +1,344 @@
+"""Kernels compiled ahead of time: shipped with wrt, installed into Warp's kernel cache.
+
+Warp keeps a compiled module in its kernel cache under the module's content hash: a folder
+``<kernel cache>/<identifier>/`` (``identifier`` = ``wp_<module name>_<hash>``) holding the object
+(``.o`` on the CPU) and a ``.meta`` file. wrt ships such entries, built for the portable CPU target
+of ``wrt.kernels.cpu_target``, for the modules its examples need (the matrix renders them), in
+``wrt/kernels/compiled/``: ``cpu.zip`` and ``manifest.json``. ``install`` copies the entries missing
+from the kernel cache before a process's first launch (``wrt.device`` calls it), and Warp loads
+them as it would its own. A kernel whose source has changed hashes differently: nothing shipped
+matches it and it compiles, as any module does, so an edit never runs a stale object
+(``load`` prints what a compilation took). ``ship`` (``wrt kernels --ship``) rebuilds the archive.
+
+Everything here that knows Warp's cache layout (1.19) is in ``cache_entry``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import glob
+import io
+import json
+import os
+import sys
+import tempfile
+import time
+import zipfile
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import warp as wp
+
+import wrt.kernels
+from wrt.kernels.cpu_target import PORTABLE_FLAGS
+
+from .errors import WrtError
+from .files import atomic_path, write_atomic, write_json
+from .host import machine_line
+
+SHIPPED_DIR = os.path.join(os.path.dirname(wrt.kernels.__file__), "compiled")
+"""Where the package keeps the shipped modules: ``cpu.zip`` and ``manifest.json``."""
+SHIP_COMMAND = "wrt kernels --ship"
+"""The command that rebuilds the shipped modules (after a kernel edit)."""
+FORMAT = 1
+
+
+@dataclass(frozen=True)
+class CacheEntry:
+    """Where Warp's kernel cache keeps a module for a device: ``<cache>/<identifier>/<binary>``
+    and ``<cache>/<identifier>/<meta>``."""
+
+    name: str
+    identifier: str
+    binary: str
+    meta: str
+
+    def paths(self, cache_dir: str) -> tuple[str, str]:
+        folder = os.path.join(cache_dir, self.identifier)
+        return os.path.join(folder, self.binary), os.path.join(folder, self.meta)
+
+    def cached(self, cache_dir: str | None = None) -> bool:
+        """Whether the entry is in ``cache_dir`` (default: Warp's kernel cache)."""
+        return all(os.path.exists(p) for p in self.paths(cache_dir or wp.config.kernel_cache_dir))
+
+
+def cache_entry(module: wp.context.Module, device) -> CacheEntry:
+    """``module``'s entry in Warp's kernel cache for ``device``, for the block size a launch uses
+    (Warp 1.19's layout; computing it hashes the module's source)."""
+    dev = wp.get_device(device)
+    block_dim = _block_dim(dev, module)
+    return CacheEntry(
+        module.name,
+        module.get_module_identifier(block_dim),
+        module._get_compile_output_name(dev, block_dim=block_dim),
+        module._get_meta_name(block_dim=block_dim),
+    )
+
+
+def compiled(kernel, device) -> bool:
+    """Whether ``kernel``'s module is in Warp's kernel cache for ``device``: using it then costs a
+    load (milliseconds), not a compilation (seconds to tens of seconds for an integrator's)."""
+    return cache_entry(kernel.module, device).cached()
+
+
+def load(module: wp.context.Module, device) -> float:
+    """Load ``module`` on ``device``; the seconds it took. A compilation (the module is neither
+    cached nor shipped: a kernel was edited, or this is a variant no example uses) is announced on
+    stderr, and how long it took, so that a wait is never silent."""
+    dev = wp.get_device(device)
+    t0 = time.perf_counter()
+    if cache_entry(module, dev).cached():
+        wp.load_module(module, device=dev)
+        return time.perf_counter() - t0
+    print(f"wrt: compiling Warp module {module.name} for {dev.alias} (not in the kernel cache)...", file=sys.stderr)
+    wp.load_module(module, device=dev)
+    seconds = time.perf_counter() - t0
+    print(f"wrt: compiled {module.name} for {dev.alias} in {seconds:.1f} s (cached from now on)", file=sys.stderr)
+    return seconds
+
+
+def _block_dim(dev, module) -> int:
+    """The block size of a launch of ``module``'s kernels on ``dev`` (1 on the CPU)."""
+    from warp._src.context import _resolve_launch_block_dim
+
+    return _resolve_launch_block_dim(dev, None if dev.is_cpu else module.options["block_dim"])
+
+
+def read_manifest(folder: str = SHIPPED_DIR) -> dict | None:
+    """The shipped modules' manifest (``manifest.json``), None where there is none."""
+    try:
+        with open(os.path.join(folder, "manifest.json")) as f:
+            return json.load(f)
+    except FileNotFoundError:
+        return None
+
+
+def usable(manifest: dict | None) -> bool:
+    """Whether ``manifest``'s objects load in this process: the same Warp and the same CPU target
+    (``wp.get_cpu_kernel_cache_key``: the toolchain, the system and the flags; a CPU without
+    x86-64-v3 compiles with ``-march=native`` and has another key)."""
+    return (
+        manifest is not None
+        and manifest.get("format") == FORMAT
+        and manifest.get("warp") == wp.config.version
+        and manifest.get("cpu_target") == wp.get_cpu_kernel_cache_key()
+    )
+
+
+def install(folder: str = SHIPPED_DIR) -> int:
+    """Copy the shipped modules that Warp's kernel cache lacks into it; how many were copied.
+
+    Each file is written to a temporary name and renamed, the object before its ``.meta``
+    (Warp takes an entry as cached when both exist), so that processes installing at once, or one
+    killed midway, never leave an entry Warp would misread. Once per process and cache folder."""
+    return _install(os.path.abspath(folder), wp.config.kernel_cache_dir)
+
+
+@functools.cache
+def _install(folder: str, cache_dir: str) -> int:
+    manifest = read_manifest(folder)
+    if not usable(manifest):
+        return 0
+    missing = [CacheEntry(**{k: m[k] for k in ("name", "identifier", "binary", "meta")}) for m in manifest["modules"]]
+    missing = [e for e in missing if not e.cached(cache_dir)]
+    if not missing:
+        return 0
+    try:
+        with zipfile.ZipFile(os.path.join(folder, "cpu.zip")) as archive:
+            for entry in missing:
+                os.makedirs(os.path.join(cache_dir, entry.identifier), exist_ok=True)
+                for name, path in zip((entry.binary, entry.meta), entry.paths(cache_dir)):
+                    write_atomic(path, archive.read(f"{entry.identifier}/{name}"))
+    except (OSError, WrtError, zipfile.BadZipFile, KeyError) as e:  # a damaged package, a full disk: compile
+        print(f"wrt: warning: shipped kernels not installed ({e}); modules compile on first use", file=sys.stderr)
+        return 0
+    return len(missing)
+
+
+def example_scenes() -> list[str]:
+    """Every scene file of ``wrt.examples`` (TOML and Mitsuba XML; the ``fragments`` that Mitsuba
+    scenes include are parts, not scenes; ``own_matrix`` is a user's project to copy, not installed),
+    relative to its folder, sorted."""
+    import wrt.examples
+
+    root = os.path.dirname(wrt.examples.__file__)
+    files = glob.glob("**/*.toml", root_dir=root, recursive=True) + glob.glob("**/*.xml", root_dir=root, recursive=True)
+    return sorted(f for f in files if not {"fragments", "own_matrix"} & set(f.split(os.sep)))
+
+
+def example_path(name: str) -> str:
+    import wrt.examples
+
+    return os.path.join(os.path.dirname(wrt.examples.__file__), name)
+
+
+def scene_modules(path: str) -> dict[str, wp.context.Module]:
+    """The Warp modules a render or a ray recording of the scene file ``path`` can load, by name:
+    its integrator's all-features and recording kernels and its variant (``render_kernel_for``).
+    A Mitsuba scene counts as imported strictly and with ``--approximate``; a scene that neither
+    loads adds nothing."""
+    from wrt.kernels.features import ALL
+    from wrt.kernels.variants import render_kernel
+
+    from .loader import load_scene
+    from .rays import RECORD_KERNELS
+    from .renderer import scene_features
+
+    modules = {}
+    for approximate in (False, True) if path.lower().endswith(".xml") else (False,):
+        try:
+            with contextlib.redirect_stderr(io.StringIO()):  # an approximate import's warnings
+                scene = load_scene(path, approximate=approximate)
+        except WrtError:
+            continue
+        integrator = scene.render.integrator
+        for kernel in (
+            render_kernel(integrator, ALL),
+            render_kernel(integrator, scene_features(scene)),
+            RECORD_KERNELS[integrator],
+        ):
+            modules[kernel.module.name] = kernel.module
+    return modules
+
+
+def library_modules() -> dict[str, wp.context.Module]:
+    """The Warp modules of ``wrt.kernels`` that hold kernels of their own (the BVH build, the
+    batch traversal kernels, the stress suite's), by name."""
+    import importlib
+    import pkgutil
+
+    from warp._src.context import user_modules
+
+    for info in pkgutil.iter_modules(wrt.kernels.__path__):
+        importlib.import_module(f"wrt.kernels.{info.name}")
+    return {n: m for n, m in user_modules.items() if n.startswith("wrt.kernels.") and m.kernels}
+
+
+def needed_modules(scenes: list[str]) -> dict[str, wp.context.Module]:
+    """The Warp modules that ``scenes`` (scene files) need, with the library's own, by name."""
+    modules = library_modules()
+    for path in scenes:
+        modules.update(scene_modules(path))
+    return dict(sorted(modules.items()))
+
+
+def compile_modules(modules: dict[str, wp.context.Module], jobs: int | None = None, progress=None) -> dict:
+    """Compile (or load from the cache) ``modules`` on the CPU, ``jobs`` at a time (default:
+    every core; a Warp compilation runs on one core and releases the GIL); the seconds each took,
+    by name. ``progress(name, seconds)`` is called as each is done."""
+    dev = wp.get_device("cpu")
+
+    def build(module):
+        t0 = time.perf_counter()
+        module.load(dev, block_dim=_block_dim(dev, module))
+        seconds = time.perf_counter() - t0
+        if progress is not None:
+            progress(module.name, seconds)
+        return seconds
+
+    with ThreadPoolExecutor(max_workers=jobs or os.cpu_count() or 1) as pool:
+        return dict(zip(modules, pool.map(build, modules.values())))
+
+
+def ship(scenes: list[str], folder: str = SHIPPED_DIR, jobs: int | None = None, progress=None) -> dict:
+    """Compile ``needed_modules(scenes)`` for the CPU at the portable target (``compile_modules``)
+    in a kernel cache of their own, and write their entries to ``folder`` as ``cpu.zip`` and
+    ``manifest.json`` (each atomically); the manifest. ``scenes`` are recorded relative to
+    ``wrt.examples`` where they lie in it. Refused on a CPU without x86-64-v3."""
+    if wp.config.cpu_compiler_flags != PORTABLE_FLAGS:
+        raise WrtError(
+            f"{SHIP_COMMAND}: this CPU lacks x86-64-v3 (AVX2, FMA), so its objects would not be portable; "
+            "build on an x86-64-v3 machine"
+        )
+    return ship_modules(needed_modules(scenes), folder, jobs, progress, scenes=[_relative(s) for s in scenes])
+
+
+def ship_modules(
+    modules: dict[str, wp.context.Module], folder: str, jobs: int | None = None, progress=None, scenes=()
+) -> dict:
+    """``ship``'s work for any ``modules``, at this process's CPU flags (the manifest records its
+    ``cpu_target``, and ``install`` uses it only where that matches)."""
+    dev = wp.get_device("cpu")
+    saved = wp.config.kernel_cache_dir
+    started = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="wrt-ship-") as build_cache:
+        wp.config.kernel_cache_dir = build_cache
+        try:
+            seconds = compile_modules(modules, jobs, progress)
+        finally:
+            wp.config.kernel_cache_dir = saved
+        entries = []
+        os.makedirs(folder, exist_ok=True)
+        with atomic_path(os.path.join(folder, "cpu.zip")) as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zf:
+            for name, module in modules.items():
+                entry = cache_entry(module, dev)
+                binary, meta = entry.paths(build_cache)
+                zf.write(binary, f"{entry.identifier}/{entry.binary}")
+                zf.write(meta, f"{entry.identifier}/{entry.meta}")
+                entries.append(
+                    {
+                        "name": name,
+                        "identifier": entry.identifier,
+                        "binary": entry.binary,
+                        "meta": entry.meta,
+                        "source_bytes": os.path.getsize(_source(entry, build_cache)),
+                        "object_bytes": os.path.getsize(binary),
+                        "compile_s": round(seconds[name], 2),
+                    }
+                )
+    manifest = {
+        "format": FORMAT,
+        "warp": wp.config.version,
+        "cpu_target": wp.get_cpu_kernel_cache_key(),
+        "cpu_compiler_flags": wp.config.cpu_compiler_flags,
+        "built": time.strftime("%Y-%m-%d"),
+        "machine": machine_line(),
+        "jobs": jobs or os.cpu_count() or 1,
+        "wall_s": round(time.perf_counter() - started, 1),
+        "scenes": list(scenes),
+        "modules": entries,
+    }
+    write_json(os.path.join(folder, "manifest.json"), manifest)
+    return manifest
+
+
+def _source(entry: CacheEntry, cache_dir: str) -> str:
+    """The generated C++ source Warp keeps beside a CPU module's object."""
+    return os.path.join(cache_dir, entry.identifier, entry.identifier + ".cpp")
+
+
+def table(modules: dict[str, wp.context.Module], folder: str = SHIPPED_DIR) -> list[dict]:
+    """One row per module of ``modules``: ``name``, ``state`` ("shipped": in the package's
+    archive, for this CPU; "cached": in Warp's kernel cache; "to compile": neither), and where known
+    (the manifest for shipped modules, the cache's files for cached ones) ``source_bytes``,
+    ``object_bytes`` and ``compile_s`` (seconds, at build)."""
+    manifest = read_manifest(folder)
+    shipped = {m["identifier"]: m for m in manifest["modules"]} if usable(manifest) else {}
+    rows = []
+    for name, module in modules.items():
+        entry = cache_entry(module, "cpu")
+        row = {"name": name, "identifier": entry.identifier}
+        if entry.identifier in shipped:
+            row.update(
+                state="shipped",
+                **{k: shipped[entry.identifier][k] for k in ("source_bytes", "object_bytes", "compile_s")},
+            )
+        elif entry.cached():
+            binary, _ = entry.paths(wp.config.kernel_cache_dir)
+            source = _source(entry, wp.config.kernel_cache_dir)
+            row.update(state="cached", object_bytes=os.path.getsize(binary))
+            if os.path.exists(source):
+                row["source_bytes"] = os.path.getsize(source)
+        else:
+            row["state"] = "to compile"
+        rows.append(row)
+    return rows
+
+
+def _relative(path: str) -> str:
+    import wrt.examples
+
+    root = os.path.dirname(wrt.examples.__file__)
+    rel = os.path.relpath(os.path.abspath(path), root)
+    return path if rel.startswith("..") else rel
