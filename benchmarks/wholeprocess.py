@@ -122,12 +122,12 @@ def wrt_command() -> list[str]:
     return [exe] if os.path.exists(exe) else [sys.executable, "-m", "wrt"]
 
 
-_ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}  # see the module docstring
+CHILD_ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}  # see the module docstring
 
 
 def _timed(command: list[str], cwd: str) -> float:
     t0 = time.perf_counter()
-    done = subprocess.run(command, cwd=cwd, capture_output=True, text=True, env=_ENV)
+    done = subprocess.run(command, cwd=cwd, capture_output=True, text=True, env=CHILD_ENV)
     seconds = time.perf_counter() - t0
     if done.returncode != 0:
         raise RuntimeError(

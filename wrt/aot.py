@@ -34,7 +34,7 @@ import wrt.kernels
 from wrt.kernels.cpu_target import PORTABLE_FLAGS
 
 from .errors import WrtError
-from .files import atomic_path, write_atomic, write_json
+from .files import atomic_path, write_json
 from .host import machine_line
 
 SHIPPED_DIR = os.path.join(os.path.dirname(wrt.kernels.__file__), "compiled")
@@ -149,11 +149,25 @@ def _install(folder: str, cache_dir: str) -> int:
             for entry in missing:
                 os.makedirs(os.path.join(cache_dir, entry.identifier), exist_ok=True)
                 for name, path in zip((entry.binary, entry.meta), entry.paths(cache_dir)):
-                    write_atomic(path, archive.read(f"{entry.identifier}/{name}"))
-    except (OSError, WrtError, zipfile.BadZipFile, KeyError) as e:  # a damaged package, a full disk: compile
+                    _write_cache_file(path, archive.read(f"{entry.identifier}/{name}"))
+    except (OSError, zipfile.BadZipFile, KeyError) as e:  # a damaged package, a full disk: compile
         print(f"wrt: warning: shipped kernels not installed ({e}); modules compile on first use", file=sys.stderr)
         return 0
     return len(missing)
+
+
+def _write_cache_file(path: str, data: bytes) -> None:
+    """Write a file of Warp's kernel cache as Warp does: to a temporary name, then renamed (not
+    synced to disk: a cache, which Warp rebuilds where an entry is missing)."""
+    fd, tmp = tempfile.mkstemp(dir=os.path.dirname(path), prefix=".wrt-", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
 
 
 def example_scenes() -> list[str]:

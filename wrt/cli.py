@@ -551,11 +551,11 @@ def _kernels(args) -> int:
         )
         return 0
     modules = aot.needed_modules(scenes)
+    seconds = {}
     if args.compile:
-        aot.compile_modules(
-            {n: m for n, m in modules.items() if not aot.cache_entry(m, "cpu").cached()}, args.jobs, done
-        )
-    rows = aot.table(modules)
+        missing = {n: m for n, m in modules.items() if not aot.cache_entry(m, "cpu").cached()}
+        seconds = aot.compile_modules(missing, args.jobs, done)
+    rows = [{**r, "compile_s": seconds[r["name"]]} if r["name"] in seconds else r for r in aot.table(modules)]
     print(f"{'module':<40} {'state':<10} {'source KB':>9} {'object KB':>9} {'compile s':>9}")
     for r in rows:
         cells = [f"{r[k] / 1024:.0f}" if k in r else "-" for k in ("source_bytes", "object_bytes")]
