@@ -161,3 +161,17 @@ def test_kernels_lists_the_modules_of_a_scene(tmp_path):
     assert lines[-1].startswith(f"{len(names)} modules: ")
     missing = subprocess.run([sys.executable, "-m", "wrt", "kernels", str(tmp_path / "nope.toml")], capture_output=True)
     assert missing.returncode == 2 and b"nope.toml: no such scene file" in missing.stderr
+
+
+def test_a_module_compiles_for_cuda_where_no_gpu_is(tmp_path):
+    """The CUDA path compiled on this (GPU-less) machine: the BVH build's kernels to PTX for
+    sm_75 with Warp's NVRTC, every kernel of the module an entry point of the PTX."""
+    import wrt.kernels.bvh_build  # noqa: F401  (defines the module)
+
+    module = aot.library_modules()["wrt.kernels.bvh_build"]
+    (ptx,) = wp.compile_aot_module(module, arch=75, module_dir=str(tmp_path), use_ptx=True)
+    text = ptx.read_text(errors="replace")
+    assert ptx.name.endswith(".sm75.ptx") and ".target sm_75" in text
+    entries = [line.split()[-1] for line in text.splitlines() if line.startswith(".visible .entry")]
+    kernels = [k.get_mangled_name() for k in module.kernels.values()]
+    assert sorted(e.split("(")[0] for e in entries) == sorted(f"{k}_cuda_kernel_forward" for k in kernels)
