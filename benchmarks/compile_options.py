@@ -22,6 +22,8 @@ import time
 
 from wrt.host import machine_line
 
+from . import emit
+
 INLINING = "-mllvm=-inline-threshold=9000 -mllvm=-inline-cold-callsite-threshold=3000"
 SETTINGS = {
     "default (O2, Warp's inlining)": {},
@@ -97,11 +99,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", metavar="FILE", help="also write the results as JSON")
     args = parser.parse_args(argv)
     results = run(args.repeats, log=lambda line: print(line, file=sys.stderr, flush=True))
-    if args.json:
-        from wrt.files import write_json
-
-        write_json(args.json, results)
-    print(json.dumps(results, indent=1))
+    emit(results, args.json)
     return 0
 
 

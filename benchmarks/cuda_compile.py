@@ -16,7 +16,6 @@ traversal and the stress kernels; ``all``: every module ``wrt kernels`` lists fo
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import re
 import shutil
@@ -27,6 +26,8 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 
 from wrt.host import machine_line
+
+from . import emit
 
 CORE = ("wrt.kernels.bvh_build", "wrt.kernels.traverse", "wrt.kernels.stress")
 PTXAS_FUNCTION = re.compile(r"Compiling entry function '(\w+)' for 'sm_(\d+)'")
@@ -141,11 +142,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     archs = [int(a) for a in args.arch.split(",")]
     results = run(module_names(args.modules), archs, args.timeout, args.jobs, log=lambda s: print(s, file=sys.stderr))
-    if args.json:
-        from wrt.files import write_json
-
-        write_json(args.json, results)
-    print(json.dumps(results, indent=1))
+    emit(results, args.json)
     return 0
 
 

@@ -14,7 +14,6 @@ cost against objects for this CPU.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import statistics
 import subprocess
@@ -25,6 +24,7 @@ from importlib import resources
 
 from wrt.host import machine_line
 
+from . import emit
 from .wholeprocess import CHILD_ENV, wrt_command
 
 SCENES = ("path/cornell_box.toml", "whitted/refraction.toml", "raycast/raycast_mesh.toml", "mitsuba/cornell_box.xml")
@@ -87,12 +87,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", metavar="FILE", help="also write the results as JSON")
     args = parser.parse_args(argv)
     results = run(args.repeats, log=lambda line: print(line, file=sys.stderr, flush=True))
-    text = json.dumps(results, indent=1) + "\n"
-    if args.json:
-        from wrt.files import write_atomic
-
-        write_atomic(args.json, text)
-    print(text, end="")
+    emit(results, args.json)
     return 0
 
 

@@ -55,9 +55,9 @@ def _features() -> dict:
 
 def scene_cases() -> list[str]:
     """Every rendered case: ``example:PATH``, ``feature:NAME`` and ``wrong:NAME``."""
-    files = sorted(glob.glob(os.path.join(EXAMPLES, "**", "*.toml"), recursive=True))
-    files += [f for f in _mitsuba_files() if f"{os.sep}fragments{os.sep}" not in f]  # parts, not scenes
-    cases = [f"example:{os.path.relpath(f, EXAMPLES)}" for f in files if "own_matrix" not in f]
+    from wrt.aot import example_scenes
+
+    cases = [f"example:{name}" for name in example_scenes()]
     for feature in _features().values():
         cases.append(f"feature:{feature.name}")
         if feature.wrong:

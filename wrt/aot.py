@@ -88,13 +88,13 @@ def load(module: wp.context.Module, device) -> float:
     stderr, and how long it took, so that a wait is never silent."""
     dev = wp.get_device(device)
     t0 = time.perf_counter()
-    if cache_entry(module, dev).cached():
-        wp.load_module(module, device=dev)
-        return time.perf_counter() - t0
-    print(f"wrt: compiling Warp module {module.name} for {dev.alias} (not in the kernel cache)...", file=sys.stderr)
+    compiling = not cache_entry(module, dev).cached()
+    if compiling:
+        print(f"wrt: compiling Warp module {module.name} for {dev.alias} (not in the kernel cache)...", file=sys.stderr)
     wp.load_module(module, device=dev)
     seconds = time.perf_counter() - t0
-    print(f"wrt: compiled {module.name} for {dev.alias} in {seconds:.1f} s (cached from now on)", file=sys.stderr)
+    if compiling:
+        print(f"wrt: compiled {module.name} for {dev.alias} in {seconds:.1f} s (cached from now on)", file=sys.stderr)
     return seconds
 
 

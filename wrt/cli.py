@@ -531,6 +531,7 @@ def _stress(args) -> int:
 
 def _kernels(args) -> int:
     from . import aot
+    from .tables import text_table
 
     scenes = args.scenes or [aot.example_path(f) for f in aot.example_scenes()]
     for scene in args.scenes:
@@ -556,11 +557,11 @@ def _kernels(args) -> int:
         missing = {n: m for n, m in modules.items() if not aot.cache_entry(m, "cpu").cached()}
         seconds = aot.compile_modules(missing, args.jobs, done)
     rows = [{**r, "compile_s": seconds[r["name"]]} if r["name"] in seconds else r for r in aot.table(modules)]
-    print(f"{'module':<40} {'state':<10} {'source KB':>9} {'object KB':>9} {'compile s':>9}")
+    table = [["module", "state", "source KB", "object KB", "compile s"]]
     for r in rows:
-        cells = [f"{r[k] / 1024:.0f}" if k in r else "-" for k in ("source_bytes", "object_bytes")]
-        cells.append(f"{r['compile_s']:.1f}" if "compile_s" in r else "-")
-        print(f"{r['name']:<40} {r['state']:<10} {cells[0]:>9} {cells[1]:>9} {cells[2]:>9}")
+        sizes = [f"{r[k] / 1024:.0f}" if k in r else "-" for k in ("source_bytes", "object_bytes")]
+        table.append([r["name"], r["state"], *sizes, f"{r['compile_s']:.1f}" if "compile_s" in r else "-"])
+    print(text_table(table, right={2, 3, 4}))
     states = {s: sum(r["state"] == s for r in rows) for s in ("shipped", "cached", "to compile")}
     print(f"{len(rows)} modules: " + ", ".join(f"{n} {s}" for s, n in states.items()))
     return 0
