@@ -31,6 +31,7 @@ import textwrap
 
 import numpy as np
 from wrt.kernels import textures as texture_slots
+from wrt.kernels.materials import TYPES
 
 import wrt.loader as loader
 import wrt.scene as model
@@ -162,7 +163,7 @@ def exercised(feature: Feature, scene: model.Scene | None) -> set[tuple[str, str
         found.add(("material", material.type))
         found |= {("material option", f"texture: {slot}") for slot, _ in material.textures}
         found |= {("texture", kind_name(type(texture))) for _, texture in material.textures}
-        if "two_sided" in loader._MATERIAL_KEYS[material.type]:  # the types whose sidedness is an option
+        if "two_sided" in TYPES[material.type].keys:  # the types whose sidedness is an option
             found.add(("material option", SIDES[material.two_sided]))  # SIDES[False] is one-sided
     if any(not isinstance(s, model.Instance) and s.material in emitting for s in shapes):
         found.add(("light", EMISSIVE_SHAPE))

@@ -58,7 +58,7 @@ RESULTS_LIMIT = 256 << 20  # bytes of a results file read (all 39 faults on the 
 
 @dataclass(frozen=True)
 class Fault:
-    """One planted fault: in the installed file ``file`` (``wrt/kernels/materials.py``), the snippet
+    """One planted fault: in the installed file ``file`` (``wrt/kernels/materials/diffuse.py``), the snippet
     ``old`` (exactly once there) becomes ``new``; ``expect``: the features that should catch it."""
 
     id: str

@@ -6,8 +6,8 @@ generated code at all: no shadow rays or light sampling without lights, no sampl
 primitives without emitting meshes, triangles, polygons or spheres (``wrt.emitting``), and of
 triangles only without emitting polygons or spheres, no branch stack,
 Fresnel or media bookkeeping without mirrors and dielectrics, no rough dielectric's, plastic's or mask's
-BSDF cases (``wrt.kernels.materials.make_bsdf``) nor their light sampling across a surface or lobe
-choice without them, no lens or shutter-time sampling
+BSDF cases (``wrt.kernels.materials.make_bsdf``, the families' ``feature`` flags) nor their light
+sampling across a surface or lobe choice without them, no lens or shutter-time sampling
 with a pinhole camera or nothing moving, no orthographic projection with a perspective camera,
 no shading-normal interpolation without smooth-shaded meshes, no texture coordinates or lookups
 without textures, no tangent frames or normal-map lookups without normal maps;
@@ -21,11 +21,15 @@ kernel cache.
 
 from __future__ import annotations
 
-from dataclasses import astuple, dataclass
+from dataclasses import astuple, dataclass, make_dataclass
+
+from .materials import MATERIAL_FLAGS
 
 
 @dataclass(frozen=True)
-class Features:
+class SceneFeatures:
+    """The flags of the scene's camera, lights and geometry; ``Features`` adds the material families'."""
+
     lights: bool = True  # any light: shadow rays (whitted), next-event estimation and environment (path)
     environment_map: bool = True  # an environment light with a map: its lookup and sampling (path)
     emissive: bool = True  # emissive primitives sampled by next-event estimation (path; wrt.emitting)
@@ -44,10 +48,6 @@ class Features:
     instances: bool = True  # instances of groups: a two-level traversal
     smooth: bool = True  # smooth-shaded meshes: shading normals interpolated from vertex normals
     textures: bool = True  # textured material parameters: the hit's uv (wrt.kernels.textures)
-    rough_dielectric: bool = True  # glossy transmission: light sampled and media changed across a rough surface (path);
-    # a scene's rough dielectric sets ``dielectric`` too (its media)
-    plastic: bool = True  # plastics: a lobe choice (coating or base) at each bounce (path)
-    mask: bool = True  # masks: a choice between the inner material and the null lobe at each hit (path)
     normal_map: bool = True  # normal-mapped materials: the hit's tangent, a perturbed shading normal (wrt.kernels.hit)
 
     def __post_init__(self):
@@ -59,6 +59,15 @@ class Features:
         """A short name of the variant, e.g. ``"11001"`` (flags in field order)."""
         return "".join("1" if flag else "0" for flag in astuple(self))
 
+
+Features = make_dataclass(
+    "Features", [(name, bool, True) for name in MATERIAL_FLAGS], bases=(SceneFeatures,), frozen=True
+)
+Features.__module__ = __name__
+Features.__doc__ = """``SceneFeatures`` and a flag per material family compiled in only where a scene has one
+(``wrt.kernels.materials.MATERIAL_FLAGS``: ``rough_dielectric``, glossy transmission, light sampled
+and media changed across a rough surface, which sets ``dielectric`` too; ``plastic``, a lobe choice
+at each bounce; ``mask``, a choice between the inner material and the null lobe at each hit)."""
 
 ALL = Features()
 

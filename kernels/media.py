@@ -134,7 +134,7 @@ def dielectric_interface(
 def current_ior(materials: MaterialData, exterior_ior: float, media: Media, n_media: wp.int32) -> float:
     """Index of refraction of the medium a ray with stack ``media`` is in.
 
-    Refraction scales radiance by ``(n1 / n2)^2`` (``wrt.kernels.materials.specular_lobes``), so a
+    Refraction scales radiance by ``(n1 / n2)^2`` (``wrt.kernels.materials.dielectric``), so a
     path's throughput carries ``(n_camera / n_current)^2``: decisions on how much a path still
     matters (roulette, whitted's cut and branch order) multiply it back by
     ``(current_ior / n_camera)^2``, as pbrt-v4's ``etaScale`` does."""

@@ -8,7 +8,7 @@ at the angle between ``wo`` and the microfacet normal (the half vector).
 Masking-shadowing is separable Smith: ``G = G1(wo) G1(wi)``.
 A rough dielectric (``ggx_dielectric_eval`` / ``ggx_dielectric_pdf``) has the exact Fresnel
 reflectance at the microfacet normal in it: ``F`` reflected, ``1 - F`` refracted (Walter et al.,
-eq. 20-21, radiance transport as ``wrt.kernels.materials.specular_lobes``); ``wi`` may lie below
+eq. 20-21, radiance transport as ``wrt.kernels.materials.dielectric``); ``wi`` may lie below
 the surface there (``wi.z < 0``: transmission), and ``eta = n1 / n2`` is the ratio of the indices
 of refraction on ``wo``'s side and across the surface.
 

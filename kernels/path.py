@@ -66,6 +66,7 @@ from .materials import (
     BSDF_TRANSMISSION,
     MaterialData,
     bsdf_flags_from,
+    families_for,
     make_bsdf,
     non_specular,
 )
@@ -115,7 +116,7 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
     shadow_ray = make_shadow_ray(record, trace)
     sample_light = sample_emitter_or_map if features.environment_map else sample_emitter
     sample_emitting = make_sample_emitting(features.smooth, features.emissive_shapes)
-    bsdf = make_bsdf(features.rough_dielectric, features.plastic, features.textures, features.mask)
+    bsdf = make_bsdf(families_for(features), features.textures)
 
     @wp.func
     def next_event(
@@ -263,7 +264,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
     environment_radiance = make_environment_radiance(features.environment_map)
     emitting_index = make_emitting_index(features.emissive_shapes)
     emitting_pdf = make_emitting_pdf(features.emissive_shapes)
-    bsdf = make_bsdf(features.rough_dielectric, features.plastic, features.textures, features.mask)
+    bsdf = make_bsdf(families_for(features), features.textures)
     surface_hit = make_surface_hit_for(features)
 
     @wp.func

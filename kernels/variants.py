@@ -17,6 +17,7 @@ import importlib
 
 from .features import ALL, GEOMETRY, Features, only
 from .integrator import make_render_kernel
+from .materials import MATERIAL_FLAGS
 
 INTEGRATORS = ("raycast", "whitted", "path")
 
@@ -41,9 +42,7 @@ RELEVANT = {
         "emissive",
         "emissive_shapes",
         "dielectric",
-        "rough_dielectric",
-        "plastic",
-        "mask",
+        *MATERIAL_FLAGS,
         "smooth",
         "textures",
         "normal_map",

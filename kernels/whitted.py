@@ -62,6 +62,7 @@ from .materials import (
     BSDF_TRANSMISSION,
     MaterialData,
     bsdf_flags_from,
+    families_for,
     make_bsdf,
     non_specular,
 )
@@ -113,7 +114,7 @@ def make_direct_light(record: bool, trace: Traversal, textures: bool, normal_map
     """``direct_light``, recording its shadow rays when ``record``, with texture lookups when
     ``textures`` and normal maps' shadowing when ``normal_map`` (each compiled out otherwise)."""
     shadow_ray = make_shadow_ray(record, trace)
-    bsdf = make_bsdf(True, True, textures, False)  # masks need the path integrator (wrt.loader)
+    bsdf = make_bsdf(families_for(ALL, whitted=True), textures)  # masks need the path integrator (wrt.loader)
 
     @wp.func
     def direct_light(
@@ -174,7 +175,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
     trace = traversal(features)
     trace_segment = make_trace_segment(record, trace)
     direct_light = make_direct_light(record, trace, features.textures, features.normal_map)
-    bsdf = make_bsdf(True, True, features.textures, False)
+    bsdf = make_bsdf(families_for(features, whitted=True), features.textures)
     surface_hit = make_surface_hit_for(features)
 
     @wp.func

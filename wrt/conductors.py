@@ -13,8 +13,6 @@ E. D. Palik (ed.), Handbook of Optical Constants of Solids, Academic Press, 1985
 W. Jakob et al., Mitsuba 3: ``resources/data/ior`` and the ``conductor`` plugin's material list.
 """
 
-import numpy as np
-
 METALS: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]] = {
     "a-C": ((2.94405, 2.22714, 1.96816), (0.887465, 0.799299, 0.81529)),
     "Ag": ((0.155276, 0.116728, 0.138388), (4.82835, 3.12222, 2.1469)),
@@ -88,10 +86,3 @@ METALS: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]]
     "VN_palik": ((2.8656, 2.11919, 1.94009), (3.03224, 2.05612, 1.61631)),
     "W": ((4.37082, 3.30025, 2.99841), (3.50064, 2.60487, 2.27323)),
 }
-
-
-def normal_reflectance(eta, k) -> tuple[float, float, float]:
-    """The Fresnel reflectance of a conductor at normal incidence, ``((eta - 1)^2 + k^2) /
-    ((eta + 1)^2 + k^2)`` per channel (float64)."""
-    eta, k = np.asarray(eta, dtype=np.float64), np.asarray(k, dtype=np.float64)
-    return tuple(float(f) for f in ((eta - 1.0) ** 2 + k**2) / ((eta + 1.0) ** 2 + k**2))

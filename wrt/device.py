@@ -25,36 +25,17 @@ from wrt.kernels.lights import (
     SPOT,
     LightData,
 )
-from wrt.kernels.materials import (
-    COATING_RES,
-    CONDUCTOR,
-    DIELECTRIC,
-    DIFFUSE,
-    EMITTER,
-    GLOSSY,
-    MASK,
-    MIRROR,
-    PHONG,
-    PLASTIC,
-    ROUGH_DIELECTRIC,
-    ROUGH_PLASTIC,
-    THIN_DIELECTRIC,
-    MaterialData,
-    lobe_flags,
-    mask_flags,
-)
+from wrt.kernels.materials import FAMILIES, FAMILY_OF, TYPES, MaterialData, lobe_flags, mask_flags
 from wrt.kernels.media import MEDIA, Media
 from wrt.kernels.sampling import INDEPENDENT, SOBOL, STRATIFIED, Sampler
 from wrt.kernels.textures import TextureData
 from wrt.kernels.traverse import GeometryData, mat24
 
 from .aot import install
-from .conductors import normal_reflectance
 from .emitting import emitting_primitives
 from .envmap import environment_distribution
 from .errors import WrtError
 from .geometry import Primitives
-from .plastics import fresnel_diffuse_reflectance, rough_coating, specular_weight
 from .scene import (
     SURFACE_LIGHTS,
     AreaLight,
@@ -74,21 +55,6 @@ from .textures import texture_table
 
 SAMPLER_CODES = {"independent": INDEPENDENT, "stratified": STRATIFIED, "sobol": SOBOL}
 FILTER_CODES = {"box": BOX, "tent": TENT, "gaussian": GAUSSIAN}
-MATERIAL_CODES = {
-    "diffuse": DIFFUSE,
-    "phong": PHONG,
-    "mirror": MIRROR,
-    "dielectric": DIELECTRIC,
-    "glossy": GLOSSY,
-    "emitter": EMITTER,
-    "conductor": CONDUCTOR,
-    "thin_dielectric": THIN_DIELECTRIC,
-    "rough_dielectric": ROUGH_DIELECTRIC,
-    "plastic": PLASTIC,
-    "rough_plastic": ROUGH_PLASTIC,
-    "mask": MASK,
-}
-RELATIVE_IOR = ("thin_dielectric", "plastic", "rough_plastic")  # their ior is over the scene's exterior_ior
 
 
 def init_warp() -> str:
@@ -188,29 +154,15 @@ def upload_geometry(p: Primitives, device) -> GeometryData:
     return s
 
 
-def _lobes(mat: Material) -> int:
-    """The lobes (``BSDF_*`` flags) of a material other than a mask."""
-    return lobe_flags(MATERIAL_CODES[mat.type], mat.roughness)
-
-
 def _opaque(mask: Material) -> bool:
     """A mask of constant opacity 1: it has no null lobe."""
     return mask.opacity == 1.0 and not any(name == "opacity" for name, _ in mask.textures)
 
 
-def _base_color(mat) -> tuple:
-    """The colour the raycast integrator shows for a material (a conductor: its reflectance at
-    normal incidence; a mask: its inner material's)."""
-    if mat.type == "conductor":
-        return tuple(np.multiply(normal_reflectance(mat.eta, mat.k), mat.reflectance))
-    return {
-        "mirror": mat.reflectance,
-        "glossy": mat.reflectance,
-        "dielectric": mat.transmittance,
-        "thin_dielectric": mat.transmittance,
-        "rough_dielectric": mat.transmittance,
-        "emitter": mat.emission,
-    }.get(mat.type, mat.albedo)
+def _base_color(mat: Material) -> tuple:
+    """The colour the raycast integrator shows for a material (``Family.base_color``)."""
+    base = FAMILY_OF[mat.type].base_color
+    return base(mat) if callable(base) else getattr(mat, base)
 
 
 def surface_materials(scene: Scene) -> tuple[list[int], list[Material]]:
@@ -235,12 +187,13 @@ def upload_materials(scene: Scene, device) -> MaterialData:
     surfaces, mats = surface_materials(scene)
     m = MaterialData()
     m.shape_material = _int(surfaces or [0], device)
-    m.type = _int([MATERIAL_CODES[mat.type] for mat in mats], device)
+    m.type = _int([TYPES[mat.type].code for mat in mats], device)
     m.textures = upload_textures(scene, device)
     index = {mat.name: i for i, mat in enumerate(scene.materials)}
     inner = [index[mat.material] if mat.type == "mask" else -1 for mat in mats]  # a mask's is no mask
     m.flags = _int(
-        [_lobes(mat) if j < 0 else mask_flags(_lobes(mats[j]), _opaque(mat)) for mat, j in zip(mats, inner)], device
+        [lobe_flags(mat) if j < 0 else mask_flags(lobe_flags(mats[j]), _opaque(mat)) for mat, j in zip(mats, inner)],
+        device,
     )
     m.inner = _int(inner, device)
     m.opacity = _float([mat.opacity for mat in mats], device)
@@ -250,7 +203,7 @@ def upload_materials(scene: Scene, device) -> MaterialData:
     m.exponent = _float([mat.exponent for mat in mats], device)
     m.reflectance = _vec3([mat.reflectance for mat in mats], device)
     exterior = scene.render.exterior_ior  # a thin dielectric or a plastic sits in it: its ior is relative to it
-    m.ior = _float([mat.ior / exterior if mat.type in RELATIVE_IOR else mat.ior for mat in mats], device)
+    m.ior = _float([mat.ior / exterior if FAMILY_OF[mat.type].relative_ior else mat.ior for mat in mats], device)
     with np.errstate(divide="ignore"):
         m.sigma = _vec3([np.minimum(-np.log(mat.transmittance), 1e30) for mat in mats], device)
     m.transmittance = _vec3([mat.transmittance for mat in mats], device)
@@ -260,7 +213,9 @@ def upload_materials(scene: Scene, device) -> MaterialData:
     m.k = _vec3([mat.k for mat in mats], device)
     m.emission = _vec3([mat.emission for mat in mats], device)
     m.two_sided = _int([mat.two_sided for mat in mats], device)
-    _upload_plastics(m, mats, exterior, device)
+    for family in FAMILIES:
+        if family.data is not None:
+            setattr(m, family.name, _table(family.data, family.bake(mats, exterior), device))
     return m
 
 
@@ -283,22 +238,14 @@ def upload_textures(scene: Scene, device) -> TextureData:
     return t
 
 
-def _upload_plastics(m: MaterialData, mats: list[Material], exterior_ior: float, device) -> None:
-    """The plastics' constants (``wrt.plastics``), computed once per material; rough plastics'
-    coating tables in rows of their material index (one row of zeros without any)."""
-    internal, weight = np.zeros(len(mats)), np.zeros(len(mats))
-    tables = np.zeros((len(mats) if any(mat.type == "rough_plastic" for mat in mats) else 1, COATING_RES))
-    for i, mat in enumerate(mats):
-        eta = mat.ior / exterior_ior
-        if mat.type == "plastic":
-            internal[i] = fresnel_diffuse_reflectance(1.0 / eta)
-        elif mat.type == "rough_plastic":
-            tables[i], internal[i] = rough_coating(mat.roughness, eta)
-        weight[i] = specular_weight(mat.albedo, mat.reflectance)
-    m.nonlinear = _int([mat.nonlinear for mat in mats], device)
-    m.internal_reflectance = _float(internal, device)
-    m.specular_weight = _float(weight, device)
-    m.coating_transmittance = wp.array(tables.astype(np.float32), dtype=float, device=device)
+def _table(struct, columns: dict, device):
+    """An instance of the ``wp.struct`` ``struct`` whose array fields are ``columns`` (numpy, by
+    field name), each converted to the field's dtype (float64 rounded to float32 here)."""
+    table = struct()
+    for name, var in struct.vars.items():
+        values = np.asarray(columns[name], dtype=wp.dtype_to_numpy(var.type.dtype))
+        setattr(table, name, wp.array(values, dtype=var.type.dtype, device=device))
+    return table
 
 
 def upload_lights(scene: Scene, device, prims: Primitives | None = None) -> LightData:

@@ -20,6 +20,7 @@ from .conductors import METALS
 from .envmap import EnvironmentMapError, read_environment_map
 from .errors import MeshFileError, SceneError, listed
 from .files import TomlError, read_toml
+from .kernels.materials import TYPES
 from .limits import MAX_DEPTH, MAX_IMAGE_SIDE, MAX_MAGNITUDE, MAX_SEED, MAX_SPP
 from .meshio import apply_transform, load_mesh, transform_matrix, transform_normals, vertex_normals
 from .scene import (
@@ -294,22 +295,6 @@ def _camera(file: str, data) -> Camera:
     )
 
 
-# keys each material type reads, besides name, type and emission
-_MATERIAL_KEYS = {
-    "diffuse": ("albedo", "two_sided"),
-    "phong": ("albedo", "specular", "exponent", "two_sided"),
-    "mirror": ("reflectance", "two_sided"),
-    "dielectric": ("ior", "transmittance", "priority"),
-    "glossy": ("roughness", "reflectance", "two_sided"),
-    "conductor": ("reflectance", "two_sided"),  # and those of _conductor
-    "thin_dielectric": ("ior", "reflectance", "transmittance"),
-    "rough_dielectric": ("ior", "roughness", "transmittance", "priority"),
-    "plastic": ("albedo", "reflectance", "ior", "nonlinear", "two_sided"),
-    "rough_plastic": ("albedo", "reflectance", "ior", "roughness", "nonlinear", "two_sided"),
-    "mask": ("opacity", "material"),
-}
-
-
 def _conductor(t: _Table, scene_dir: str, textures: list) -> dict:
     """A conductor's ``roughness`` (0, the default: smooth; else GGX alpha, or a texture of it,
     appended to ``textures``) and its complex index of refraction: ``metal``, a name of
@@ -399,7 +384,7 @@ def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
         "material": lambda: t.string("material"),
     }
     textures = []
-    for key in _MATERIAL_KEYS[kind]:
+    for key in TYPES[kind].keys:
         if isinstance(t.data.get(key), Mapping):
             if key not in SLOTS or (key == "transmittance" and kind != "thin_dielectric"):
                 raise t.error(key, f"cannot be a texture here (textures give {TEXTURED})", t.data[key])

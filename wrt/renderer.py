@@ -35,6 +35,7 @@ import warp as wp
 from wrt.kernels.features import ALL, Features
 from wrt.kernels.film import LUMINANCE_WEIGHTS, Film
 from wrt.kernels.integrator import RenderPass
+from wrt.kernels.materials import FAMILIES, FAMILY_OF
 from wrt.kernels.record import RayRecord
 from wrt.kernels.variants import render_kernel
 
@@ -83,7 +84,6 @@ def scene_features(scene: Scene) -> Features:
     members = [shape for group in scene.groups for shape in group.shapes]
     used = {scene.materials[shape.material] for shape in (*scene.shapes, *members)}
     used |= {m for m in scene.materials for mask in used if mask.type == "mask" and m.name == mask.material}
-    kinds = {m.type for m in used}
     moving = any(any(shape.velocity) for shape in scene.shapes)
     shapes = {type(shape) for shape in (*scene.shapes, *members)} | {type(light) for light in scene.lights}
     return Features(
@@ -91,12 +91,9 @@ def scene_features(scene: Scene) -> Features:
         environment_map=any(isinstance(light, EnvironmentLight) and light.image is not None for light in scene.lights),
         emissive=bool(emitting_shapes(scene)),
         emissive_shapes=bool(emitting_shapes(scene, (Polygon, Sphere))),
-        specular=bool(kinds & {"mirror", "dielectric", "thin_dielectric", "rough_dielectric", "plastic"})
-        or any(m.type == "conductor" and not m.roughness for m in used),
-        dielectric=bool(kinds & {"dielectric", "rough_dielectric"}),
-        rough_dielectric="rough_dielectric" in kinds,
-        plastic=bool(kinds & {"plastic", "rough_plastic"}),
-        mask="mask" in kinds,
+        specular=any(FAMILY_OF[m.type].sends_specular_rays(m) for m in used),
+        dielectric=any(FAMILY_OF[m.type].medium for m in used),
+        **{family.feature: any(FAMILY_OF[m.type] is family for m in used) for family in FAMILIES if family.feature},
         lens=scene.camera.aperture_radius > 0.0,
         orthographic=scene.camera.type == "orthographic",
         motion=moving and scene.camera.shutter[1] > scene.camera.shutter[0],

@@ -12,6 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from wrt.kernels.materials import TYPES
+
 INTEGRATORS = ("raycast", "whitted", "path")
 SAMPLERS = ("independent", "stratified", "sobol")
 FILTERS = ("box", "tent", "gaussian")
@@ -89,19 +91,8 @@ class Camera:
         ), forward + sx * t * aspect * right + sy * t * up
 
 
-MATERIAL_TYPES = (
-    "diffuse",
-    "phong",
-    "mirror",
-    "dielectric",
-    "glossy",
-    "conductor",
-    "thin_dielectric",
-    "rough_dielectric",
-    "plastic",
-    "rough_plastic",
-    "mask",
-)
+MATERIAL_TYPES = tuple(name for name in TYPES if name != "emitter")
+"""The ``type`` values of ``[[material]]``: every material family's (``wrt.kernels.materials``)."""
 
 
 @dataclass(frozen=True)

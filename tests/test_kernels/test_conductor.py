@@ -1,5 +1,5 @@
 """Conductors (``fresnel_conductor`` in kernels/optics.py, the ``CONDUCTOR`` material of
-kernels/materials.py): the exact Fresnel reflectance of a complex index of refraction against the
+kernels/materials/conductor.py): the exact Fresnel reflectance of a complex index of refraction against the
 complex Fresnel equations in float64, and the smooth and rough (GGX) conductor's BSDF against
 closed forms, its own sampling and a white furnace."""
 
@@ -10,12 +10,16 @@ import wrt.kernels  # noqa: F401
 from conftest import make_scene
 from test_materials import draw
 from test_microfacet import albedo_float64
-from wrt.kernels.materials import BSDF_GLOSSY, BSDF_REFLECTION, BSDF_SPECULAR, MaterialData, bsdf_eval, bsdf_flags
+from wrt.kernels.materials import BSDF_GLOSSY, BSDF_REFLECTION, BSDF_SPECULAR, MaterialData, bsdf_flags, make_bsdf
+from wrt.kernels.materials.conductor import normal_reflectance
 from wrt.kernels.optics import fresnel_conductor1
 
 import wrt
-from wrt.conductors import METALS, normal_reflectance
+from wrt.conductors import METALS
 from wrt.device import upload_materials
+
+BSDF = make_bsdf()  # every material family's cases
+bsdf_eval = BSDF.eval
 
 pytestmark = pytest.mark.usefixtures("device")  # every test on every available device
 

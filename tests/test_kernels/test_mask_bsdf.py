@@ -1,4 +1,4 @@
-"""Masks (``MASK`` of kernels/materials.py, Mitsuba 3's ``mask``): the BSDF functions against their
+"""Masks (``MASK`` of kernels/materials/mask.py, Mitsuba 3's ``mask``): the BSDF functions against their
 inner material's scaled by the opacity, the null lobe's sample, the back of a one-sided inner
 material, a textured opacity and the host's lobe table."""
 
@@ -6,21 +6,16 @@ import numpy as np
 import pytest
 import warp as wp
 import wrt.kernels  # noqa: F401
-from wrt.kernels.materials import (
-    BSDF_DIFFUSE,
-    BSDF_REFLECTION,
-    NULL_LOBE,
-    PLASTIC,
-    MaterialData,
-    bsdf_eval,
-    bsdf_pdf,
-    bsdf_sample,
-    lobe_flags,
-)
+from wrt.kernels.materials import BSDF_DIFFUSE, BSDF_REFLECTION, BSDF_SPECULAR, NULL_LOBE, MaterialData, make_bsdf
 from wrt.kernels.sampling import independent_1d as sample_1d
 
 import wrt
 from wrt.device import upload_materials
+
+BSDF = make_bsdf()  # every material family's cases
+bsdf_eval = BSDF.eval
+bsdf_pdf = BSDF.pdf
+bsdf_sample = BSDF.sample
 
 pytestmark = pytest.mark.usefixtures("device")  # every test on every available device
 
@@ -116,7 +111,7 @@ def test_lobes_are_the_inner_materials_and_the_null_lobe(materials):
     diffuse = BSDF_REFLECTION | BSDF_DIFFUSE
     assert flags["veil"] == flags["clear"] == diffuse | NULL_LOBE
     assert flags["opaque"] == diffuse
-    assert flags["coated"] == flags["leaf"] == lobe_flags(PLASTIC, 0.0) | NULL_LOBE
+    assert flags["coated"] == flags["leaf"] == BSDF_REFLECTION | BSDF_DIFFUSE | BSDF_SPECULAR | NULL_LOBE
     assert materials.inner.numpy()[INDEX["leaf"]] == INDEX["coat"]
 
 

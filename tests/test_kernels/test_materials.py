@@ -1,5 +1,6 @@
-"""The BSDF interface (kernels/materials.py): sample, eval and pdf agree with each other and with
-closed forms, the flags say what each material is, and the delta lobes conserve energy."""
+"""The BSDF interface (kernels/materials/: the dispatch of every family): sample, eval and pdf
+agree with each other and with closed forms, the flags say what each material is, and the delta
+lobes conserve energy."""
 
 import numpy as np
 import pytest
@@ -14,18 +15,21 @@ from wrt.kernels.materials import (
     BSDF_TOTAL_INTERNAL,
     BSDF_TRANSMISSION,
     MaterialData,
-    bsdf_eval,
     bsdf_flags,
     bsdf_flags_from,
-    bsdf_pdf,
-    bsdf_sample,
+    make_bsdf,
     non_specular,
-    specular_lobes,
 )
 from wrt.kernels.sampling import independent_1d as sample_1d
 
 import wrt
 from wrt.device import upload_materials
+
+BSDF = make_bsdf()  # every material family's cases
+bsdf_eval = BSDF.eval
+bsdf_pdf = BSDF.pdf
+bsdf_sample = BSDF.sample
+specular_lobes = BSDF.specular_lobes
 
 MATERIALS = {
     "diffuse": {"albedo": [0.8, 0.5, 0.2]},

@@ -1,5 +1,5 @@
-"""The plastics (``PLASTIC`` and ``ROUGH_PLASTIC`` of kernels/materials.py, their host constants in
-wrt/plastics.py): the coating's constants against closed forms, the BSDF against a float64 reference
+"""The plastics (``PLASTIC`` and ``ROUGH_PLASTIC`` of kernels/materials/plastic.py, with their host
+constants): the coating's constants against closed forms, the BSDF against a float64 reference
 of Mitsuba 3's formulas and against Mitsuba 3's ``plastic`` and ``roughplastic`` themselves, and
 its own sampling."""
 
@@ -15,18 +15,21 @@ from wrt.kernels.materials import (
     BSDF_REFLECTION,
     BSDF_SPECULAR,
     MaterialData,
-    bsdf_eval,
     bsdf_flags,
-    bsdf_pdf,
-    bsdf_sample,
-    specular_lobes,
+    make_bsdf,
 )
+from wrt.kernels.materials.plastic import fresnel_diffuse_reflectance, rough_coating, specular_weight
 from wrt.kernels.sampling import independent_1d as sample_1d
 from wrt_harness.mitsuba_peer import mitsuba_available, variant
 
 import wrt
 from wrt.device import upload_materials
-from wrt.plastics import fresnel_diffuse_reflectance, rough_coating, specular_weight
+
+BSDF = make_bsdf()  # every material family's cases
+bsdf_eval = BSDF.eval
+bsdf_pdf = BSDF.pdf
+bsdf_sample = BSDF.sample
+specular_lobes = BSDF.specular_lobes
 
 pytestmark = pytest.mark.usefixtures("device")  # every test on every available device
 
@@ -152,7 +155,7 @@ def sample(materials, name, theta, n=50_000):
 
 def reference(name, wo, wi):
     """f (N, 3), pdf and the coating's delta reflectance (N, 3) of Mitsuba 3's plastic or
-    roughplastic formulas in float64 (with wrt.plastics' constants)."""
+    roughplastic formulas in float64 (with the constants plastic.bake computes)."""
     table, _ = PLASTICS[name]
     albedo, spec = np.array(table["albedo"]), np.array(table.get("reflectance", [1.0, 1.0, 1.0]))
     eta, rough = table["ior"], table["type"] == "rough_plastic"

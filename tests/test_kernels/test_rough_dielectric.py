@@ -1,4 +1,4 @@
-"""The rough dielectric (``ROUGH_DIELECTRIC`` of kernels/materials.py, ``ggx_dielectric_eval`` and
+"""The rough dielectric (``ROUGH_DIELECTRIC`` of kernels/materials/rough_dielectric.py, ``ggx_dielectric_eval`` and
 ``ggx_dielectric_pdf`` of kernels/microfacet.py): Walter et al.'s GGX reflection and transmission
 against a float64 reference, generalised reciprocity, its own sampling, its density's integral,
 a white furnace (energy conserved but for what single scattering loses) and Mitsuba 3's
@@ -15,16 +15,19 @@ from wrt.kernels.materials import (
     BSDF_SPECULAR,
     BSDF_TRANSMISSION,
     MaterialData,
-    bsdf_eval,
     bsdf_flags,
-    bsdf_pdf,
-    bsdf_sample,
+    make_bsdf,
 )
 from wrt.kernels.sampling import independent_1d as sample_1d
 from wrt_harness.mitsuba_peer import mitsuba_available, variant
 
 import wrt
 from wrt.device import upload_materials
+
+BSDF = make_bsdf()  # every material family's cases
+bsdf_eval = BSDF.eval
+bsdf_pdf = BSDF.pdf
+bsdf_sample = BSDF.sample
 
 pytestmark = pytest.mark.usefixtures("device")  # every test on every available device
 

@@ -8,14 +8,18 @@ import numpy as np
 import pytest
 import warp as wp
 from conftest import make_scene
-from wrt.kernels.materials import MaterialData, specular_lobes
+from wrt.kernels.materials import MaterialData, make_bsdf
+from wrt.kernels.materials.conductor import normal_reflectance
 from wrt_harness.mitsuba_peer import mitsuba_available
 
 import wrt
-from wrt.conductors import METALS, normal_reflectance
+from wrt.conductors import METALS
 from wrt.device import upload_materials
 from wrt.errors import SceneError
 from wrt.renderer import scene_features
+
+BSDF = make_bsdf()  # every material family's cases
+specular_lobes = BSDF.specular_lobes
 
 MITSUBA, MITSUBA_REASON = mitsuba_available()
 needs_mitsuba = pytest.mark.skipif(not MITSUBA, reason=MITSUBA_REASON)

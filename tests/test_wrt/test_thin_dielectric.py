@@ -8,13 +8,17 @@ import pytest
 import warp as wp
 from conftest import fresnel_dielectric64, make_scene
 from test_mitsuba_xml import convert
-from wrt.kernels.materials import BSDF_THIN, BSDF_TRANSMISSION, MaterialData, bsdf_sample, specular_lobes
+from wrt.kernels.materials import BSDF_THIN, BSDF_TRANSMISSION, MaterialData, make_bsdf
 from wrt_harness.mitsuba_peer import mitsuba_available
 
 import wrt
 from wrt.device import upload_materials
 from wrt.errors import SceneError, WrtError
 from wrt.renderer import scene_features
+
+BSDF = make_bsdf()  # every material family's cases
+bsdf_sample = BSDF.sample
+specular_lobes = BSDF.specular_lobes
 
 MITSUBA, MITSUBA_REASON = mitsuba_available()
 THETAS = np.radians([0.0, 20.0, 45.0, 60.0, 75.0, 85.0, 89.0])

@@ -1,0 +1,441 @@
+"""Materials on the device: the registry of material families and the one BSDF interface
+integrators use.
+
+Each module of this package is one family, a plugin (``interface.Family``): its types, its device
+functions and its host description. The registry (``FAMILIES``) derives from them the material
+type names and codes (``TYPES``), the loader's keys (``MaterialType.keys``), the material flags of
+``wrt.kernels.features.Features`` and of the variants (``MATERIAL_FLAGS``: a family compiled in
+only where a scene has one), the scene analysis that picks a variant (``families_for``; the
+host's ``wrt.renderer.scene_features``), the upload (``Family.lobe_flags``, ``base_color``,
+``relative_ior``, ``bake``) and the BSDF dispatch (``make_bsdf``). A new material family is one
+new module here, listed in ``FAMILIES``, with its tests and docs.
+
+Families: ``diffuse`` (Lambert), ``phong``, ``conductor`` (``mirror``, ``glossy``, ``conductor``),
+``dielectric``, ``thin_dielectric``, ``rough_dielectric``, ``plastic`` (``plastic``,
+``rough_plastic``), ``mask``, and ``emitter`` (``EMITTER``, the surface of an area or sphere light:
+it reflects nothing). Any type may emit ``emission`` (W/(m^2 sr)) from its front side.
+``base_color`` is what the raycast integrator shows. A material that is not ``two_sided``
+(one-sided, as Mitsuba 3's diffuse and conductors) reflects nothing on its back side, the side its
+surface's shading normal points away from (``wrt.kernels.hit``).
+
+The BSDF interface (pbrt-v4's ``BSDF::f / Sample_f / PDF / Flags``, Mitsuba 3's ``eval / sample /
+pdf / flags``): integrators ask these functions and never test a material's type.
+
+- ``bsdf_flags(materials, m)``: the lobes, a combination of ``BSDF_REFLECTION``,
+  ``BSDF_TRANSMISSION``, ``BSDF_DIFFUSE``, ``BSDF_GLOSSY``, ``BSDF_SPECULAR`` (a delta lobe) and
+  ``BSDF_THIN`` (the transmission goes straight on and the surface bounds no medium: integrators
+  leave the media stack alone there); 0 for a surface that scatters nothing (``EMITTER``).
+  ``bsdf_flags_from(materials, m, front)``: the same for a ray arriving on the front side or the
+  back, 0 on the back of a one-sided material: what integrators ask at a hit, and then call the
+  functions below only where it is not 0. ``non_specular(flags)``: the BSDF has lobes that
+  ``eval`` sees, so light sampling (next-event estimation) pays there.
+- ``make_bsdf(families, textures)``: the dispatch over the families a scene uses, a ``BSDF`` of
+  - ``eval(materials, m, n, wo, wi, eta, uv, front)``: f (1/sr) of the non-specular lobes, 0 for
+    delta lobes; ``wi`` on ``n``'s side, or across the surface where the BSDF has glossy
+    transmission (a rough dielectric: the only one that needs ``eta``, 1 by default);
+  - ``pdf(...)``: the solid-angle density with which ``sample`` draws ``wi`` from the non-specular lobes;
+  - ``sample(materials, m, n, wo, eta, uc, u, uv, front)``: one direction, as a ``BSDFSample``
+    with ``weight = f |cos| / pdf`` (for a delta lobe: its reflectance or transmittance over the
+    discrete probability of choosing it) and the flags of the lobe chosen; ``pdf == 0`` when the
+    sample is lost;
+  - ``specular_lobes(materials, m, n, wo, eta, uv)``: every delta lobe at once, for integrators
+    that split the ray tree deterministically (Whitted): ``SpecularLobes`` with the reflected and
+    transmitted directions and weights.
+
+Conventions: world space; ``n`` is the unit shading normal on ``wo``'s side (``dot(n, wo) >= 0``;
+``Hit.n_facing``: the geometric normal, or a smooth-shaded mesh's interpolated one); ``wo`` (toward
+the viewer) and ``wi`` (toward the light, or the sampled direction) are unit vectors pointing away
+from the surface; ``eta = n1 / n2`` is the ratio of the indices of refraction on ``wo``'s side and
+across the surface (``wrt.kernels.media``; 1 for opaque materials). ``uc`` chooses a lobe, ``u``
+(2D) samples a direction within it; both uniform in [0, 1). ``uv`` is the hit's texture coordinate
+(textured parameters), ``front`` (``Hit.front``, default true) the side it arrived on: only a mask
+reads it, as its inner material scatters nothing on the back of a one-sided one while its null lobe
+lets the ray through on both sides.
+
+References
+----------
+M. Pharr, W. Jakob, G. Humphreys, pbrt-v4, sec. 9.1 (the BSDF interface and its flags).
+W. Jakob et al., Mitsuba 3, ``src/bsdfs`` (one plugin per BSDF).
+"""
+
+import functools
+from typing import NamedTuple
+
+import warp as wp
+
+from . import conductor, dielectric, diffuse, mask, phong, plastic, rough_dielectric, thin_dielectric
+from .conductor import CONDUCTOR, GLOSSY, MIRROR
+from .data import MaterialData, parameters
+from .dielectric import DIELECTRIC
+from .diffuse import DIFFUSE
+from .interface import (
+    BSDF_DIFFUSE,
+    BSDF_GLOSSY,
+    BSDF_REFLECTION,
+    BSDF_SPECULAR,
+    BSDF_THIN,
+    BSDF_TOTAL_INTERNAL,
+    BSDF_TRANSMISSION,
+    MIN_ALPHA,
+    NULL_LOBE,
+    BSDFSample,
+    Family,
+    MaterialType,
+    SpecularLobes,
+    lost_sample,
+    no_lobes,
+)
+from .mask import MASK, mask_flags
+from .phong import PHONG
+from .plastic import COATING_RES, PLASTIC, ROUGH_PLASTIC
+from .rough_dielectric import ROUGH_DIELECTRIC
+from .thin_dielectric import THIN_DIELECTRIC, thin_transmittance
+
+EMITTER = wp.constant(5)
+
+FAMILIES: tuple[Family, ...] = (
+    diffuse.FAMILY,
+    phong.FAMILY,
+    conductor.FAMILY,
+    dielectric.FAMILY,
+    thin_dielectric.FAMILY,
+    rough_dielectric.FAMILY,
+    plastic.FAMILY,
+    mask.FAMILY,
+    Family(name="emitter", types=(MaterialType("emitter", EMITTER, (), 0),), base_color="emission"),
+)
+"""Every material family, in the order the dispatch tests them."""
+
+TYPES: dict[str, MaterialType] = {t.name: t for family in FAMILIES for t in family.types}
+"""Every material type by name (``emitter``: a light's surface, not a ``[[material]]`` type)."""
+
+FAMILY_OF: dict[str, Family] = {t.name: family for family in FAMILIES for t in family.types}
+"""The family of each material type."""
+
+MATERIAL_FLAGS: tuple[str, ...] = tuple(family.feature for family in FAMILIES if family.feature)
+"""The ``Features`` flags of the families compiled in only where a scene has one."""
+
+ALL_FAMILIES: tuple[str, ...] = tuple(family.name for family in FAMILIES)
+
+__all__ = [
+    "ALL_FAMILIES",
+    "BSDF",
+    "BSDF_DIFFUSE",
+    "BSDF_GLOSSY",
+    "BSDF_REFLECTION",
+    "BSDF_SPECULAR",
+    "BSDF_THIN",
+    "BSDF_TOTAL_INTERNAL",
+    "BSDF_TRANSMISSION",
+    "COATING_RES",
+    "CONDUCTOR",
+    "DIELECTRIC",
+    "DIFFUSE",
+    "EMITTER",
+    "FAMILIES",
+    "FAMILY_OF",
+    "GLOSSY",
+    "MASK",
+    "MATERIAL_FLAGS",
+    "MIN_ALPHA",
+    "MIRROR",
+    "NULL_LOBE",
+    "PHONG",
+    "PLASTIC",
+    "ROUGH_DIELECTRIC",
+    "ROUGH_PLASTIC",
+    "THIN_DIELECTRIC",
+    "TYPES",
+    "BSDFSample",
+    "MaterialData",
+    "SpecularLobes",
+    "bsdf_flags",
+    "bsdf_flags_from",
+    "families_for",
+    "lobe_flags",
+    "make_bsdf",
+    "mask_flags",
+    "non_specular",
+    "thin_transmittance",
+]
+
+
+def lobe_flags(material) -> int:
+    """The lobes (``BSDF_*`` flags) of host material ``material`` (a ``wrt.scene.Material``; a
+    mask's are ``mask_flags``' of its inner material's)."""
+    return FAMILY_OF[material.type].lobe_flags(material)
+
+
+def families_for(features, whitted: bool = False) -> tuple[str, ...]:
+    """The families compiled into the kernels of ``features`` (a ``wrt.kernels.features.Features``):
+    those without a flag, and those whose flag is set; for the Whitted integrator (``whitted``) only
+    those it renders."""
+    return tuple(
+        family.name
+        for family in FAMILIES
+        if (family.feature is None or getattr(features, family.feature)) and (family.whitted or not whitted)
+    )
+
+
+@wp.func
+def bsdf_flags(materials: MaterialData, m: wp.int32) -> wp.int32:
+    """The lobes of material ``m``'s BSDF (``BSDF_*`` bits); 0 if it scatters nothing. One load
+    of a table made on the host (``lobe_flags``): a chain of tests by type, inlined at every hit,
+    cost the path tracer 10% of its time on the CPU."""
+    return materials.flags[m]
+
+
+@wp.func
+def bsdf_flags_from(materials: MaterialData, m: wp.int32, front: bool) -> wp.int32:
+    """``bsdf_flags`` for a ray arriving on the front side of material ``m`` (``front``: travelling
+    against the surface's unflipped shading normal, ``Hit.front``) or on its back: 0 on the back of a
+    one-sided material. A front hit costs a compare more than ``bsdf_flags``, a back hit a load."""
+    if not front:
+        if materials.two_sided[m] == 0:
+            return 0
+    return bsdf_flags(materials, m)
+
+
+@wp.func
+def non_specular(flags: wp.int32) -> bool:
+    """Has lobes that ``eval`` sees (diffuse or glossy)."""
+    return (flags & (BSDF_DIFFUSE | BSDF_GLOSSY)) != 0
+
+
+class BSDF(NamedTuple):
+    """The per-hit functions of the BSDF interface, for the material families a scene has."""
+
+    eval: wp.Function
+    pdf: wp.Function
+    sample: wp.Function
+    specular_lobes: wp.Function
+
+
+@functools.cache
+def make_bsdf(families: tuple[str, ...] = ALL_FAMILIES, textures: bool = True) -> BSDF:
+    """The BSDF interface over ``families`` (names of ``FAMILIES``; ``families_for``), with texture
+    lookups of the parameters (``wrt.kernels.textures``, at the hit's ``uv``) only where
+    ``textures``. A family left out is not in the generated code: a material of it scatters
+    nothing. The dispatch tests the families in ``FAMILIES`` order (``_dispatch``); a wrapping
+    family (a mask) wraps the others'."""
+    at = parameters(textures)
+    chosen = [family for family in FAMILIES if family.name in families and family.make is not None]
+    functions = [family.make(at) for family in chosen if not family.wraps]
+    bsdf = _dispatch(functions)
+    for family in chosen:
+        if family.wraps:
+            wrapped = family.make(at, bsdf)
+            bsdf = BSDF(wrapped.eval, wrapped.pdf, wrapped.sample, wrapped.specular_lobes)
+    return bsdf
+
+
+def _dispatch(functions: list) -> BSDF:
+    """The four functions of the interface, each a chain of cases: the families that have one, in
+    turn, then nothing.
+
+    Each case calls its family's function and the next case as closure values, which Warp hashes
+    with the module. The unrolled form ``for i in range(wp.static(len(fs))): wp.static(fs[i])``
+    resolves its functions only when the module is built, after Warp has hashed a module that
+    calls it from another Python module: an edited family then loaded a stale binary from the
+    kernel cache (measured, Warp 1.19; ``test_material_registry``)."""
+    eval_case = _eval_cases([(f.owns, f.eval) for f in functions if f.eval is not None])
+    pdf_case = _pdf_cases([(f.owns, f.pdf) for f in functions if f.pdf is not None])
+    sample_case = _sample_cases([(f.owns, f.sample) for f in functions if f.sample is not None])
+    lobes_case = _lobes_cases([(f.owns, f.specular_lobes) for f in functions if f.specular_lobes is not None])
+
+    @wp.func
+    def bsdf_eval(
+        materials: MaterialData,
+        m: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        wi: wp.vec3,
+        eta: float = 1.0,
+        uv: wp.vec2 = wp.vec2(0.0, 0.0),
+        front: bool = True,
+    ) -> wp.vec3:
+        """f(wo, wi) (1/sr) of the non-specular lobes for ``wi`` on the side of ``n`` (or across the
+        surface, for glossy transmission); 0 for delta lobes."""
+        return eval_case(materials, m, materials.type[m], n, wo, wi, eta, uv)
+
+    @wp.func
+    def bsdf_pdf(
+        materials: MaterialData,
+        m: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        wi: wp.vec3,
+        eta: float = 1.0,
+        uv: wp.vec2 = wp.vec2(0.0, 0.0),
+        front: bool = True,
+    ) -> float:
+        """Solid-angle density (1/sr) with which ``bsdf_sample`` draws ``wi``; 0 for delta lobes."""
+        return pdf_case(materials, m, materials.type[m], n, wo, wi, eta, uv)
+
+    @wp.func
+    def specular_lobes(
+        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uv: wp.vec2 = wp.vec2(0.0, 0.0)
+    ) -> SpecularLobes:
+        """The delta lobes of material ``m`` (none for a family without them)."""
+        return lobes_case(materials, m, materials.type[m], n, wo, eta, uv)
+
+    @wp.func
+    def bsdf_sample(
+        materials: MaterialData,
+        m: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        eta: float,
+        uc: float,
+        u: wp.vec2,
+        uv: wp.vec2 = wp.vec2(0.0, 0.0),
+        front: bool = True,
+    ) -> BSDFSample:
+        """A direction drawn from material ``m``'s BSDF (lost for a family without lobes)."""
+        return sample_case(materials, m, materials.type[m], n, wo, eta, uc, u, uv)
+
+    return BSDF(bsdf_eval, bsdf_pdf, bsdf_sample, specular_lobes)
+
+
+def _eval_cases(cases: list) -> wp.Function:
+    """``eval`` of the first family of ``cases`` (``(owns, eval)`` pairs) that owns ``kind``, else 0."""
+    if not cases:
+
+        @wp.func
+        def no_eval(
+            materials: MaterialData,
+            m: wp.int32,
+            kind: wp.int32,
+            n: wp.vec3,
+            wo: wp.vec3,
+            wi: wp.vec3,
+            eta: float,
+            uv: wp.vec2,
+        ) -> wp.vec3:
+            return wp.vec3(0.0)
+
+        return no_eval
+    owns, family_eval = cases[0]
+    rest = _eval_cases(cases[1:])
+
+    @wp.func
+    def eval_case(
+        materials: MaterialData,
+        m: wp.int32,
+        kind: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        wi: wp.vec3,
+        eta: float,
+        uv: wp.vec2,
+    ) -> wp.vec3:
+        if owns(kind):
+            return family_eval(materials, m, n, wo, wi, eta, uv)
+        return rest(materials, m, kind, n, wo, wi, eta, uv)
+
+    return eval_case
+
+
+def _pdf_cases(cases: list) -> wp.Function:
+    """``pdf`` of the first family of ``cases`` that owns ``kind``, else 0."""
+    if not cases:
+
+        @wp.func
+        def no_pdf(
+            materials: MaterialData,
+            m: wp.int32,
+            kind: wp.int32,
+            n: wp.vec3,
+            wo: wp.vec3,
+            wi: wp.vec3,
+            eta: float,
+            uv: wp.vec2,
+        ) -> float:
+            return 0.0
+
+        return no_pdf
+    owns, family_pdf = cases[0]
+    rest = _pdf_cases(cases[1:])
+
+    @wp.func
+    def pdf_case(
+        materials: MaterialData,
+        m: wp.int32,
+        kind: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        wi: wp.vec3,
+        eta: float,
+        uv: wp.vec2,
+    ) -> float:
+        if owns(kind):
+            return family_pdf(materials, m, n, wo, wi, eta, uv)
+        return rest(materials, m, kind, n, wo, wi, eta, uv)
+
+    return pdf_case
+
+
+def _sample_cases(cases: list) -> wp.Function:
+    """``sample`` of the first family of ``cases`` that owns ``kind``, else a lost sample."""
+    if not cases:
+
+        @wp.func
+        def no_sample(
+            materials: MaterialData,
+            m: wp.int32,
+            kind: wp.int32,
+            n: wp.vec3,
+            wo: wp.vec3,
+            eta: float,
+            uc: float,
+            u: wp.vec2,
+            uv: wp.vec2,
+        ) -> BSDFSample:
+            return lost_sample()
+
+        return no_sample
+    owns, family_sample = cases[0]
+    rest = _sample_cases(cases[1:])
+
+    @wp.func
+    def sample_case(
+        materials: MaterialData,
+        m: wp.int32,
+        kind: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        eta: float,
+        uc: float,
+        u: wp.vec2,
+        uv: wp.vec2,
+    ) -> BSDFSample:
+        if owns(kind):
+            return family_sample(materials, m, n, wo, eta, uc, u, uv)
+        return rest(materials, m, kind, n, wo, eta, uc, u, uv)
+
+    return sample_case
+
+
+def _lobes_cases(cases: list) -> wp.Function:
+    """``specular_lobes`` of the first family of ``cases`` that owns ``kind``, else none."""
+    if not cases:
+
+        @wp.func
+        def no_specular_lobes(
+            materials: MaterialData, m: wp.int32, kind: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uv: wp.vec2
+        ) -> SpecularLobes:
+            return no_lobes(n, wo)
+
+        return no_specular_lobes
+    owns, family_lobes = cases[0]
+    rest = _lobes_cases(cases[1:])
+
+    @wp.func
+    def lobes_case(
+        materials: MaterialData, m: wp.int32, kind: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uv: wp.vec2
+    ) -> SpecularLobes:
+        if owns(kind):
+            return family_lobes(materials, m, n, wo, eta, uv)
+        return rest(materials, m, kind, n, wo, eta, uv)
+
+    return lobes_case

@@ -1,0 +1,76 @@
+"""The materials' table on the device (``MaterialData``) and the lookups of its parameters at a
+hit (``Parameters``: a texture's value where the parameter is textured, else the constant).
+
+Columns are per material (indexed by ``m``) and shared by the families that read them; a family
+with parameters of its own keeps them in a table of its own (``Family.data``), a field of
+``MaterialData`` named as the family. Colours are linear RGB.
+"""
+
+import functools
+from typing import NamedTuple
+
+import warp as wp
+
+from ..textures import ROUGHNESS, TextureData, material_rgb, texture_float
+from .interface import MIN_ALPHA
+from .plastic import PlasticData
+
+
+@wp.struct
+class MaterialData:
+    shape_material: wp.array(dtype=wp.int32)  # material index of each [[shape]]
+    type: wp.array(dtype=wp.int32)  # MaterialType.code
+    flags: wp.array(dtype=wp.int32)  # the lobes of each material (Family.lobe_flags)
+    base_color: wp.array(dtype=wp.vec3)
+    albedo: wp.array(dtype=wp.vec3)
+    specular: wp.array(dtype=wp.vec3)
+    exponent: wp.array(dtype=float)
+    reflectance: wp.array(dtype=wp.vec3)  # mirror, glossy: the reflectance; conductor: the tint of its Fresnel term
+    ior: wp.array(dtype=float)  # dielectrics: their ior; Family.relative_ior: their ior over the scene's exterior_ior
+    sigma: wp.array(dtype=wp.vec3)  # absorption coefficient per unit length, -ln(transmittance)
+    transmittance: wp.array(dtype=wp.vec3)  # thin dielectric: the tint of its straight transmission
+    priority: wp.array(dtype=wp.int32)
+    roughness: wp.array(dtype=float)  # GGX alpha (conductor: 0 for a smooth one)
+    eta: wp.array(dtype=wp.vec3)  # conductor: real part of the index of refraction, per channel
+    k: wp.array(dtype=wp.vec3)  # conductor: imaginary part (extinction coefficient)
+    emission: wp.array(dtype=wp.vec3)
+    two_sided: wp.array(dtype=wp.int32)  # 1: both sides reflect; 0: the back side reflects nothing
+    textures: TextureData  # the textures of textured parameters (wrt.kernels.textures)
+    inner: wp.array(dtype=wp.int32)  # mask: the index of the material it masks (-1 for other types)
+    opacity: wp.array(dtype=float)  # mask: the probability of its inner material (textured: slot OPACITY)
+    plastic: PlasticData  # the plastics' own table (wrt.kernels.materials.plastic)
+
+
+class Parameters(NamedTuple):
+    """The parameter lookups of a scene's materials at a hit, as ``@wp.func``s:
+    ``rgb(materials, m, slot, uv, constant)``, colour parameter ``slot`` (``wrt.kernels.textures``)
+    of material ``m``; ``alpha(materials, m, uv)``, its GGX alpha. ``textures``: the scene has
+    textures (without them every parameter is its constant and ``uv`` is unused)."""
+
+    rgb: wp.Function
+    alpha: wp.Function
+    textures: bool
+
+
+@functools.cache
+def parameters(textures: bool) -> Parameters:
+    """The lookups, with texture reads compiled in only where ``textures``."""
+
+    @wp.func
+    def rgb_at(materials: MaterialData, m: wp.int32, slot: wp.int32, uv: wp.vec2, constant: wp.vec3) -> wp.vec3:
+        """Colour parameter ``slot`` of material ``m`` at ``uv``: its texture's, or ``constant``."""
+        if wp.static(textures):
+            return material_rgb(materials.textures, m, slot, uv, constant)
+        return constant
+
+    @wp.func
+    def alpha_at(materials: MaterialData, m: wp.int32, uv: wp.vec2) -> float:
+        """GGX alpha of material ``m`` at ``uv``: its roughness texture's (at least ``MIN_ALPHA``),
+        or its ``roughness``."""
+        alpha = materials.roughness[m]
+        if wp.static(textures):
+            if materials.textures.slot[m, ROUGHNESS] >= 0:
+                alpha = wp.max(MIN_ALPHA, texture_float(materials.textures, materials.textures.slot[m, ROUGHNESS], uv))
+        return alpha
+
+    return Parameters(rgb_at, alpha_at, textures)
