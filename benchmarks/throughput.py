@@ -49,6 +49,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import warp as wp
 import wrt.kernels  # noqa: F401  (configures Warp)
+from wrt.kernels import MODULE_OPTIONS
 from wrt.kernels.traverse import KIND_BITS, VisitLog
 
 from wrt.bvh import PLOC_RADIUS, build_bvh
@@ -68,6 +69,8 @@ SEED = 20261125
 ENGINES = ("wrt", "wp.Mesh", "Embree")
 RAY_SETS = ("coherent", "incoherent")
 QUERIES = ("closest", "any")
+
+wp.set_module_options(MODULE_OPTIONS)  # the wp.Mesh kernels below: compiled as wrt's are
 
 
 @wp.kernel

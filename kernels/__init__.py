@@ -12,10 +12,12 @@ Modules, in data-flow order:
 - ``features``      the scene features kernels are specialised on; ``variants``: the variants
 - ``spawn``         the one origin offset for rays leaving a surface
 - ``optics``        reflection, Snell refraction, Fresnel
-- ``materials``     material parameters and the BSDF interface (flags, eval, pdf, sample); ``microfacet``: GGX
+- ``materials``     the material families (one module each) and the BSDF interface (flags, eval, pdf,
+                    sample); ``microfacet``: GGX
 - ``textures``      textured material parameters: checkerboard and bitmap lookups at a hit's uv
 - ``hit``           the surface hit integrators shade (point, normals, material, error bound)
 - ``lights``        light parameters and delta lights; ``emitters``: sampling lights with area
+- ``lighting``      the one light interface integrators use (``sample_li``, ``pdf_li``, ``is_delta``)
 - ``media``         nested and overlapping dielectrics along a ray, Beer-Lambert absorption
 - ``shadow``        the shadow ray (opaque or filtered through dielectrics), recorded or not
 - ``film``          the per-pixel outputs and AOVs
@@ -24,16 +26,20 @@ Modules, in data-flow order:
 - ``stress``        kernels of the numerical stress suite
 - ``cpu_target``    the CPU instruction set modules compile for (portable, so they can be shipped compiled)
 
-This package imports only Warp: it knows nothing of scene files, images or the harness.
-Importing it configures Warp for rendering: no gradients (smaller, faster modules), no
-informational log lines on the console, and CPU code for a portable instruction set
-(``cpu_target``) where this CPU has it.
+This package imports only Warp (and numpy): it knows nothing of scene files, images or the harness.
+Each of its Warp modules is compiled without gradients (``MODULE_OPTIONS``: smaller modules,
+faster compiles), set per module; importing it configures Warp for the process only where the
+setting is the machine's: CPU code for a portable instruction set (``cpu_target``) where this CPU
+has it, which the objects ``wrt.aot`` ships are keyed on, and no informational log lines on the
+console.
 """
 
 import warp as wp
 
 from .cpu_target import cpu_compiler_flags
 
-wp.config.enable_backward = False
+MODULE_OPTIONS = {"enable_backward": False}
+"""The Warp options of every module of wrt's kernels (``wp.set_module_options``)."""
+
 wp.config.log_level = wp.LOG_WARNING
 wp.config.cpu_compiler_flags = cpu_compiler_flags()

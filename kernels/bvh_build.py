@@ -36,8 +36,11 @@ T. Karras, "Maximizing Parallelism in the Construction of BVHs, Octrees, and k-d
 
 import warp as wp
 
+from . import MODULE_OPTIONS
 from .bvh import MAX_LEAF, WideNode, leaf_ref
 from .sampling import pcg_hash
+
+wp.set_module_options(MODULE_OPTIONS)
 
 TRAVERSAL_COST = wp.constant(
     2.0

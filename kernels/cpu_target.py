@@ -40,3 +40,11 @@ def cpu_compiler_flags(cpuinfo: str = "/proc/cpuinfo") -> str:
     except OSError:
         return WARP_FLAGS
     return PORTABLE_FLAGS if X86_64_V3 <= set(flags) else WARP_FLAGS
+
+
+def with_inline_threshold(flags: str, threshold: int) -> str:
+    """``flags`` with LLVM's inline threshold ``threshold`` (Warp's flags set it to 9000)."""
+    return " ".join(
+        f"-mllvm=-inline-threshold={threshold}" if flag.startswith("-mllvm=-inline-threshold=") else flag
+        for flag in flags.split()
+    )

@@ -25,15 +25,14 @@ to a one-pass render.
 also appends every camera ray of a sample to a ``wrt.kernels.record.RayRecord`` and hands its index
 to ``radiance`` as the parent of what follows (the pixel-centre AOV ray of a render with
 ``spp > 1`` is not a sample and is not recorded). The rendering variant compiles the recording
-out. Recording variants go to their own Warp module, ``RECORD_MODULE``, so that loading a render
-kernel never compiles them; build every variant at import, before the first launch, or Warp
-recompiles the module.
+out. Every kernel goes to a Warp module of its own (``module``), so that loading a render kernel
+never compiles another; ``wrt.kernels.MODULE_OPTIONS`` and the integrator's ``options`` are that
+module's Warp options.
 """
-
-import functools
 
 import warp as wp
 
+from . import MODULE_OPTIONS
 from .camera import CameraData, clip_ray, film_position, make_generate_ray, shutter_time, thin_lens_ray
 from .features import ALL, Features
 from .film import Film, luminance, write_aovs
@@ -44,8 +43,6 @@ from .record import CAMERA, RayRecord, record_ray
 from .sample_warps import concentric_disk
 from .sampling import Sampler, sample_1d, sample_2d
 from .traverse import NO_HIT, GeometryData, Traversal, traversal
-
-RECORD_MODULE = "wrt.kernels.record_variants"
 
 
 @wp.struct
@@ -138,7 +135,9 @@ def make_trace_segment(record: bool, trace: Traversal):
     return trace_segment
 
 
-def make_render_kernel(radiance, record: bool = False, features: Features = ALL, module: str | None = None):
+def make_render_kernel(
+    radiance, *, module: str, record: bool = False, features: Features = ALL, options: dict | None = None
+):
     """A render kernel around the ``@wp.func`` ``radiance(geometry: GeometryData, materials: MaterialData,
     lights: LightData, settings: IntegratorSettings, sampler: Sampler, ray: CameraRay, rec: RayRecord) -> vec3``.
 
@@ -152,8 +151,8 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
 
     ``features``: without ``lens`` the camera is taken to be a pinhole, without ``orthographic``
     a perspective camera, and without ``motion`` every sample is at mid-shutter (no lens or time
-    sampling); ``module``: the Warp module to put the kernel in (default: this file's, or
-    ``RECORD_MODULE`` for recording variants).
+    sampling); ``module``: the name of the Warp module to put the kernel in, whose Warp options are
+    ``MODULE_OPTIONS`` and ``options``.
     """
 
     trace = traversal(features)
@@ -186,7 +185,7 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
         ray.record = index
         return ray
 
-    @wp.kernel(module=module or (RECORD_MODULE if record else None))
+    @wp.kernel(module=module)
     def render_pixels(
         geometry: GeometryData,
         materials: MaterialData,
@@ -245,26 +244,5 @@ def make_render_kernel(radiance, record: bool = False, features: Features = ALL,
         film.rejected[pixel] = rejected
         film.rgb[pixel] = total / float(first + launch.pass_spp)
 
+    wp.set_module_options({**MODULE_OPTIONS, **(options or {})}, module=module)
     return render_pixels
-
-
-def all_features_kernels(name: str, make_radiance):
-    """The ``__getattr__`` of integrator module ``wrt.kernels.NAME``: its all-features kernel ``NAME``
-    and its recording kernel ``NAME_record`` (``make_radiance(record)`` gives their radiance
-    functions), each built on first use into a Warp module of its own. A render that uses its
-    scene's own variant (``wrt.kernels.variants``) never builds them: built at import, they cost
-    every process start-up time (docs/performance.md)."""
-
-    @functools.cache
-    def build(record: bool):
-        module = f"wrt_{name}_{'record' if record else 'all'}"
-        return make_render_kernel(make_radiance(record), record=record, module=module)
-
-    def module_getattr(attr: str):
-        if attr == name:
-            return build(False)
-        if attr == f"{name}_record":
-            return build(True)
-        raise AttributeError(f"module 'wrt.kernels.{name}' has no attribute {attr!r}")
-
-    return module_getattr

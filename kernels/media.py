@@ -17,7 +17,7 @@ C. Schmidt, B. Budge, "Simple Nested Dielectrics in Ray Traced Images", JGT 7(2)
 
 import warp as wp
 
-from .materials import MaterialData
+from .materials import BSDF_THIN, BSDF_TRANSMISSION, MaterialData
 
 MEDIA = 8  # nested dielectrics a ray can be inside at once
 MEDIA_OVERFLOW = wp.constant(MEDIA + 1)  # n_media of a ray that entered one dielectric too many
@@ -128,6 +128,43 @@ def dielectric_interface(
         n1 = materials.ior[m]
         n2 = medium_ior(materials, exterior_ior, media_t, current_medium(materials, media_t, n_media_t))
     return real, n1 / n2, media_t, n_media_t
+
+
+@wp.struct
+class Interface:
+    """What a surface separates for a ray arriving at it (``cross_interface``)."""
+
+    real: bool  # False: a false interface, the ray goes straight on and only its media change
+    eta: float  # n1 / n2, the ior on the incident side over that on the far side
+    media: Media  # the media stack of a ray that crosses the surface
+    n_media: wp.int32  # its depth; MEDIA_OVERFLOW: one dielectric too many
+
+
+@wp.func
+def cross_interface(
+    materials: MaterialData,
+    exterior_ior: float,
+    media: Media,
+    n_media: wp.int32,
+    flags: wp.int32,
+    shape: wp.int32,
+    entering: bool,
+) -> Interface:
+    """What a surface of BSDF ``flags`` on ``shape`` separates for a ray with media stack ``media``:
+    a dielectric that bounds a medium (transmission, not thin) its ``dielectric_interface``, any
+    other surface a real interface of ``eta`` 1 with the same media on both sides."""
+    interface = Interface()
+    interface.real = True
+    interface.eta = 1.0
+    interface.media = media
+    interface.n_media = n_media
+    if (flags & (BSDF_TRANSMISSION | BSDF_THIN)) == BSDF_TRANSMISSION:  # a thin dielectric bounds none
+        real, eta, media_t, n_media_t = dielectric_interface(materials, exterior_ior, media, n_media, shape, entering)
+        interface.real = real
+        interface.eta = eta
+        interface.media = media_t
+        interface.n_media = n_media_t
+    return interface
 
 
 @wp.func

@@ -45,23 +45,13 @@ A path's shapes stay at its camera ray's time.
 
 import warp as wp
 
-from .emitters import (
-    emitter_pdf,
-    environment_map_pdf,
-    environment_map_radiance,
-    make_emitting_index,
-    make_emitting_pdf,
-    make_sample_emitting,
-    sample_emitter,
-    sample_emitter_or_map,
-)
 from .features import ALL, Features
 from .hit import Hit, make_surface_hit_for, normal_map_shadowing
-from .integrator import CameraRay, IntegratorSettings, all_features_kernels, make_trace_segment
-from .lights import EMITTING, ENVIRONMENT, ENVIRONMENT_MAP, SPOT, LightData, light_incident
+from .integrator import CameraRay, IntegratorSettings, make_trace_segment
+from .lighting import Lighting, make_lighting
+from .lights import LightData
 from .materials import (
     BSDF_SPECULAR,
-    BSDF_THIN,
     BSDF_TOTAL_INTERNAL,
     BSDF_TRANSMISSION,
     MaterialData,
@@ -70,7 +60,16 @@ from .materials import (
     make_bsdf,
     non_specular,
 )
-from .media import MEDIA_OVERFLOW, current_ior, dielectric_interface, max_component, medium_sigma, medium_transmittance
+from .media import (
+    MEDIA_OVERFLOW,
+    Interface,
+    Media,
+    cross_interface,
+    current_ior,
+    max_component,
+    medium_sigma,
+    medium_transmittance,
+)
 from .record import (
     REFLECTED,
     REFRACTED,
@@ -82,11 +81,10 @@ from .record import (
 from .sample_warps import power_heuristic
 from .sampling import Sampler, sample_1d, sample_2d
 from .shadow import make_shadow_ray
-from .spawn import ray_error, spawn_origin
+from .spawn import past_hit, spawn_origin
 from .traverse import NO_HIT, GeometryData, Traversal, traversal
 
 RR_DEPTH = wp.constant(5)
-SHADOW_MARGIN = wp.constant(1.0e-4)  # shadow rays toward a light's surface stop this fraction short of it
 
 
 @wp.func
@@ -109,13 +107,55 @@ def seen_through(cos_theta: float, flags: wp.int32) -> float:
     return cos_theta
 
 
+@wp.struct
+class PathState:
+    """What a path carries from one segment to the next."""
+
+    o: wp.vec3  # the ray being followed is o + s d for s > t_from (unit d); its segment began at t_last
+    d: wp.vec3
+    t_from: float
+    t_last: float
+    throughput: wp.vec3  # the path's weight so far, including the eta^2 radiance scaling of refractions
+    radiance: wp.vec3  # what the path has gathered (W/(m^2 sr))
+    depth: wp.int32  # segments so far (the camera ray is 1)
+    media: Media  # the dielectrics the ray is inside (wrt.kernels.media)
+    n_media: wp.int32
+    n_camera: float  # the ior where the path started: its eta scale is (current ior / n_camera)^2
+    specular: bool  # the last bounce was specular (or the camera's): emission found takes its full weight
+    prev_pdf: float  # the density of the last non-specular BSDF sample, and where it was taken (MIS)
+    prev_p: wp.vec3
+    segment_kind: wp.int32  # recording: how the next segment to trace was spawned
+    current: wp.int32  # recording: the record index of the segment being followed
+
+
+@wp.func
+def start_path(materials: MaterialData, settings: IntegratorSettings, ray: CameraRay) -> PathState:
+    """A path along camera ray ``ray`` (already traced): the camera may be inside glass or water."""
+    path = PathState()
+    path.o = ray.o
+    path.d = ray.d
+    path.t_from = 0.0
+    path.t_last = 0.0
+    path.throughput = wp.vec3(1.0)
+    path.radiance = wp.vec3(0.0)
+    path.depth = 1
+    path.media = settings.camera_media
+    path.n_media = settings.camera_n_media
+    path.n_camera = current_ior(materials, settings.exterior_ior, path.media, path.n_media)
+    path.specular = True
+    path.prev_pdf = 0.0
+    path.prev_p = ray.o
+    path.segment_kind = SCATTERED
+    path.current = ray.record
+    return path
+
+
 def make_next_event(record: bool, trace: Traversal, features: Features):
     """``next_event``, recording its shadow rays when ``record``, sampling environment maps and
     emissive primitives when the scene has them, and lights across the surface when it has rough
     dielectrics (each compiled out otherwise)."""
     shadow_ray = make_shadow_ray(record, trace)
-    sample_light = sample_emitter_or_map if features.environment_map else sample_emitter
-    sample_emitting = make_sample_emitting(features.smooth, features.emissive_shapes)
+    lighting = lighting_for(features)
     bsdf = make_bsdf(families_for(features), features.textures)
 
     @wp.func
@@ -130,86 +170,55 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
         sigma: wp.vec3,
         rec: RayRecord,
         parent: wp.int32,
-        beta: wp.vec3,
+        throughput: wp.vec3,
         flags: wp.int32,
         eta: float,
         sigma_t: wp.vec3,
     ) -> wp.vec3:
-        """Light reflected toward ``hit.wo`` from one sample of every light and one of the emissive
-        primitives (the last emitter, ``i == lights.type.shape[0]``), MIS-weighted for emitters
-        with area (W/(m^2 sr), before the path's throughput ``beta``); ``sigma`` is the absorption
-        of the medium ``hit`` lies in, applied along the shadow rays as along BSDF-sampled paths.
-        ``flags`` are the BSDF's; a light below a surface with glossy transmission is seen through
-        it (``seen_through``), ``eta`` the ratio of the iors on either side and ``sigma_t`` the
-        absorption beyond it.
+        """Light reflected toward ``hit.wo`` from one sample of every emitter (``wrt.kernels.lighting``),
+        MIS-weighted for those that are not delta lights (W/(m^2 sr), before the path's
+        ``throughput``); ``sigma`` is the absorption of the medium ``hit`` lies in, applied along
+        the shadow rays as along BSDF-sampled paths. ``flags`` are the BSDF's; a light below a
+        surface with glossy transmission is seen through it (``seen_through``), ``eta`` the ratio
+        of the iors on either side and ``sigma_t`` the absorption beyond it.
 
         Recording: each shadow ray is a segment of ``depth + 1`` segments whose parent is record
-        ``parent``, carrying ``beta`` when it reaches its light and 0 when blocked (then ending at
-        the blocker)."""
+        ``parent``, carrying ``throughput`` when it reaches its light and 0 when blocked (then
+        ending at the blocker)."""
         total = wp.vec3(0.0)
         m = hit.material
         n = hit.n_facing
         wo = hit.wo
-        n_lights = lights.type.shape[0]
-        n_emitters = n_lights
-        if wp.static(features.emissive):
-            if lights.emit_cdf.shape[0] > 1:  # not the placeholder of a scene without them
-                n_emitters += 1
-        for i in range(n_emitters):
-            wi = wp.vec3(0.0)
-            t_max = float(0.0)
+        for i in range(wp.static(lighting.count)(lights)):
+            ls = wp.static(lighting.sample_li)(
+                geometry, materials, lights, i, hit.p, ray.time, sampler, ray.pixel, ray.sample, light_dim(depth, i)
+            )
+            cos_theta = wp.dot(n, ls.wi)
+            if wp.static(features.rough_dielectric):
+                cos_theta = seen_through(cos_theta, flags)
             contribution = wp.vec3(0.0)
-            kind = EMITTING
-            if i < n_lights:
-                kind = lights.type[i]
-            if kind <= SPOT:
-                wi, dist, irradiance = light_incident(lights, i, hit.p)
-                t_max = dist
-                cos_theta = wp.dot(n, wi)
-                if wp.static(features.rough_dielectric):
-                    cos_theta = seen_through(cos_theta, flags)
-                if cos_theta > 0.0 and max_component(irradiance) > 0.0:
-                    f = wp.static(bsdf.eval)(materials, m, n, wo, wi, eta, hit.uv, hit.front)
-                    if wp.static(features.normal_map):
-                        f = f * normal_map_shadowing(hit, wi)
-                    contribution = wp.cw_mul(f, irradiance) * cos_theta
-            else:
-                u = sample_2d(sampler, ray.pixel, ray.sample, light_dim(depth, i))
-                dist = float(0.0)
-                radiance = wp.vec3(0.0)
-                pdf = float(0.0)
-                if kind == EMITTING:
-                    if wp.static(features.emissive):
-                        uc = sample_1d(sampler, ray.pixel, ray.sample, light_dim(depth, i + 1))
-                        wi, dist, radiance, pdf = wp.static(sample_emitting)(
-                            geometry, materials, lights, hit.p, ray.time, uc, u[0], u[1]
-                        )
-                else:
-                    wi, dist, radiance, pdf = wp.static(sample_light)(lights, i, hit.p, u[0], u[1])
-                t_max = dist
-                if kind != ENVIRONMENT:
-                    t_max = dist * (1.0 - SHADOW_MARGIN)
-                cos_theta = wp.dot(n, wi)
-                if wp.static(features.rough_dielectric):
-                    cos_theta = seen_through(cos_theta, flags)
-                if pdf > 0.0 and cos_theta > 0.0 and max_component(radiance) > 0.0:
-                    mis = power_heuristic(pdf, wp.static(bsdf.pdf)(materials, m, n, wo, wi, eta, hit.uv, hit.front))
-                    f = wp.static(bsdf.eval)(materials, m, n, wo, wi, eta, hit.uv, hit.front)
-                    if wp.static(features.normal_map):
-                        f = f * normal_map_shadowing(hit, wi)
-                    contribution = wp.cw_mul(f, radiance) * (cos_theta * mis / pdf)
+            if ls.pdf > 0.0 and cos_theta > 0.0 and max_component(ls.radiance) > 0.0:
+                mis = float(1.0)
+                if not wp.static(lighting.is_delta)(lights, i):
+                    mis = power_heuristic(
+                        ls.pdf, wp.static(bsdf.pdf)(materials, m, n, wo, ls.wi, eta, hit.uv, hit.front)
+                    )
+                f = wp.static(bsdf.eval)(materials, m, n, wo, ls.wi, eta, hit.uv, hit.front)
+                if wp.static(features.normal_map):
+                    f = f * normal_map_shadowing(hit, ls.wi)
+                contribution = wp.cw_mul(f, ls.radiance) * (cos_theta * mis / ls.pdf)
             if max_component(contribution) > 0.0:
                 shadow_sigma = sigma
                 if wp.static(features.rough_dielectric):
-                    if wp.dot(n, wi) < 0.0:  # a light seen through the surface: the medium beyond it
+                    if wp.dot(n, ls.wi) < 0.0:  # a light seen through the surface: the medium beyond it
                         shadow_sigma = sigma_t
                 visible = shadow_ray(
                     geometry,
                     materials,
                     False,
-                    spawn_origin(hit.p, hit.n, hit.err, wi),
-                    wi,
-                    t_max,
+                    spawn_origin(hit.p, hit.n, hit.err, ls.wi),
+                    ls.wi,
+                    ls.t_max,
                     ray.time,
                     shadow_sigma,
                     rec,
@@ -217,7 +226,7 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
                     ray.sample,
                     depth + 1,
                     parent,
-                    beta,
+                    throughput,
                 )
                 if max_component(visible) > 0.0:
                     total += wp.cw_mul(contribution, visible)
@@ -226,33 +235,9 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
     return next_event
 
 
-def make_environment_radiance(environment_map: bool):
-    """``environment_radiance``, with environment maps when ``environment_map`` (compiled out
-    otherwise)."""
-
-    @wp.func
-    def environment_radiance(lights: LightData, d: wp.vec3, bsdf_pdf_prev: float, specular: bool) -> wp.vec3:
-        """Radiance of the environment lights along an escaping ray of direction ``d``, MIS-weighted
-        unless the ray came from the camera or a specular bounce."""
-        total = wp.vec3(0.0)
-        for i in range(lights.type.shape[0]):
-            radiance = wp.vec3(0.0)
-            light_pdf = float(0.0)
-            if lights.type[i] == ENVIRONMENT:
-                radiance = lights.power[i]
-                light_pdf = 1.0 / (4.0 * wp.pi)
-            if wp.static(environment_map):
-                if lights.type[i] == ENVIRONMENT_MAP:
-                    radiance = environment_map_radiance(lights, i, d)
-                    light_pdf = environment_map_pdf(lights, d)
-            if max_component(radiance) > 0.0:
-                mis = float(1.0)
-                if not specular:
-                    mis = power_heuristic(bsdf_pdf_prev, light_pdf)
-                total += radiance * mis
-        return total
-
-    return environment_radiance
+def lighting_for(features: Features) -> Lighting:
+    """The light interface of a scene of ``features``."""
+    return make_lighting(features.environment_map, features.emissive, features.emissive_shapes, features.smooth)
 
 
 def make_path_radiance(record: bool, features: Features = ALL):
@@ -261,9 +246,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
     trace = traversal(features)
     trace_segment = make_trace_segment(record, trace)
     next_event = make_next_event(record, trace, features)
-    environment_radiance = make_environment_radiance(features.environment_map)
-    emitting_index = make_emitting_index(features.emissive_shapes)
-    emitting_pdf = make_emitting_pdf(features.emissive_shapes)
+    lighting = lighting_for(features)
     bsdf = make_bsdf(families_for(features), features.textures)
     surface_hit = make_surface_hit_for(features)
 
@@ -278,91 +261,84 @@ def make_path_radiance(record: bool, features: Features = ALL):
         rec: RayRecord,
     ) -> wp.vec3:
         """One path's estimate of the radiance (W/(m^2 sr)) arriving at the camera along ``ray``."""
-        o = ray.o
-        d = ray.d
+        path = start_path(materials, settings, ray)
         t = ray.t
         prim = ray.prim
         inst = ray.inst
-        radiance = wp.vec3(0.0)
-        beta = wp.vec3(1.0)
-        depth = int(1)
-        media = settings.camera_media  # the camera may be inside glass or water
-        n_media = settings.camera_n_media
-        n_camera = float(1.0)  # the ior where the path starts: roulette undoes eta^2 relative to it
-        if wp.static(features.dielectric):
-            n_camera = current_ior(materials, settings.exterior_ior, media, n_media)
-        specular = bool(True)
-        prev_pdf = float(0.0)
-        prev_p = o
-        t_from = float(0.0)
-        t_last = float(0.0)
         traced = bool(True)
-        current = ray.record  # record index of the segment being followed
-        segment_kind = int(SCATTERED)  # how the next segment to trace was spawned (recording)
         for _segment in range(4 * settings.max_depth + 16):
             # Trace the next segment (the camera ray's is traced already)
             if not traced:
                 t, prim, inst, current = trace_segment(
-                    geometry, rec, ray, segment_kind, o, d, t_from, wp.inf, t_last, beta, depth, current
+                    geometry,
+                    rec,
+                    ray,
+                    path.segment_kind,
+                    path.o,
+                    path.d,
+                    path.t_from,
+                    wp.inf,
+                    path.t_last,
+                    path.throughput,
+                    path.depth,
+                    path.current,
                 )
+                path.current = current
             traced = False
 
             # Absorption in the medium the segment crossed
             if wp.static(features.dielectric):
-                beta = wp.cw_mul(beta, medium_transmittance(materials, media, n_media, t - t_last))
+                path.throughput = wp.cw_mul(
+                    path.throughput, medium_transmittance(materials, path.media, path.n_media, t - path.t_last)
+                )
 
             # Escaped: the environment lights
             if prim == NO_HIT:
                 if wp.static(features.lights):
-                    radiance += wp.cw_mul(beta, environment_radiance(lights, d, prev_pdf, specular))
+                    escaped = wp.static(lighting.environment_radiance)(lights, path.d, path.prev_pdf, path.specular)
+                    path.radiance += wp.cw_mul(path.throughput, escaped)
                 break
 
             # Emission at the front of what was hit, MIS-weighted against light sampling
-            hit = surface_hit(geometry, materials, o, d, t, prim, inst, ray.time)
+            hit = surface_hit(geometry, materials, path.o, path.d, t, prim, inst, ray.time)
             emission = materials.emission[hit.material]
             if hit.front and max_component(emission) > 0.0:
                 mis = float(1.0)
-                if not specular and hit.shape >= geometry.num_shapes:
-                    light = hit.shape - geometry.num_shapes
-                    mis = power_heuristic(prev_pdf, emitter_pdf(lights, light, prev_p, d, wp.length(hit.p - prev_p)))
-                if wp.static(features.emissive):
-                    if not specular and inst < 0:
-                        e = wp.static(emitting_index)(lights, prim)
-                        if e >= 0:
-                            light_pdf = wp.static(emitting_pdf)(
-                                geometry, lights, e, prev_p, d, wp.length(hit.p - prev_p)
-                            )
-                            mis = power_heuristic(prev_pdf, light_pdf)
-                radiance += wp.cw_mul(beta, emission) * mis
+                if not path.specular:
+                    light_pdf = wp.static(lighting.pdf_li)(
+                        geometry, lights, hit.shape, prim, inst, path.prev_p, path.d, wp.length(hit.p - path.prev_p)
+                    )
+                    mis = power_heuristic(path.prev_pdf, light_pdf)
+                path.radiance += wp.cw_mul(path.throughput, emission) * mis
             flags = bsdf_flags_from(materials, hit.material, hit.front)
             if flags == 0:
                 break
 
             # The media on either side; a false interface lets the ray go straight on (not a
             # segment of its own: max_depth does not end the path there)
-            eta = float(1.0)
-            media_t = media
-            n_media_t = n_media
+            interface = Interface()
+            interface.real = True
+            interface.eta = 1.0
+            interface.media = path.media
+            interface.n_media = path.n_media
             if wp.static(features.dielectric):
-                if (flags & (BSDF_TRANSMISSION | BSDF_THIN)) == BSDF_TRANSMISSION:  # a thin dielectric bounds none
-                    real = bool(True)
-                    real, eta, media_t, n_media_t = dielectric_interface(
-                        materials, settings.exterior_ior, media, n_media, hit.shape, hit.entering
-                    )
-                    if n_media_t == MEDIA_OVERFLOW:  # no medium to be in: the sample is lost, and counted
-                        radiance = wp.vec3(wp.nan)
-                        break
-                    if not real:
-                        media = media_t
-                        n_media = n_media_t
-                        t_from = t + ray_error(o, hit.p, t)
-                        t_last = t
-                        segment_kind = STRAIGHT
-                        # a shadow ray stops at this surface, so next-event estimation never finds
-                        # what lies beyond it: light found there takes the BSDF sample's full weight
-                        specular = True
-                        continue
-            if depth >= settings.max_depth:
+                interface = cross_interface(
+                    materials, settings.exterior_ior, path.media, path.n_media, flags, hit.shape, hit.entering
+                )
+                if interface.n_media == MEDIA_OVERFLOW:  # no medium to be in: the sample is lost, and counted
+                    path.radiance = wp.vec3(wp.nan)
+                    break
+                if not interface.real:
+                    path.media = interface.media
+                    path.n_media = interface.n_media
+                    path.t_from = past_hit(path.o, hit.p, t)
+                    path.t_last = t
+                    path.segment_kind = STRAIGHT
+                    # a shadow ray stops at this surface, so next-event estimation never finds
+                    # what lies beyond it: light found there takes the BSDF sample's full weight
+                    path.specular = True
+                    continue
+            if path.depth >= settings.max_depth:
                 break
 
             # Next-event estimation at non-specular surfaces
@@ -370,12 +346,12 @@ def make_path_radiance(record: bool, features: Features = ALL):
                 if non_specular(flags):
                     sigma = wp.vec3(0.0)
                     if wp.static(features.dielectric):
-                        sigma = medium_sigma(materials, media, n_media)
+                        sigma = medium_sigma(materials, path.media, path.n_media)
                     sigma_t = sigma
                     if wp.static(features.rough_dielectric):
-                        sigma_t = medium_sigma(materials, media_t, n_media_t)
-                    radiance += wp.cw_mul(
-                        beta,
+                        sigma_t = medium_sigma(materials, interface.media, interface.n_media)
+                    path.radiance += wp.cw_mul(
+                        path.throughput,
                         next_event(
                             geometry,
                             materials,
@@ -383,13 +359,13 @@ def make_path_radiance(record: bool, features: Features = ALL):
                             hit,
                             sampler,
                             ray,
-                            depth,
+                            path.depth,
                             sigma,
                             rec,
-                            current,
-                            beta,
+                            path.current,
+                            path.throughput,
                             flags,
-                            eta,
+                            interface.eta,
                             sigma_t,
                         ),
                     )
@@ -399,55 +375,56 @@ def make_path_radiance(record: bool, features: Features = ALL):
             u = wp.vec2(0.0)
             if wp.static(features.specular):
                 if (flags & BSDF_TRANSMISSION) != 0 or wp.static(features.plastic):  # a plastic: coating or base
-                    uc = sample_1d(sampler, ray.pixel, ray.sample, bounce_dim(depth, 2))
+                    uc = sample_1d(sampler, ray.pixel, ray.sample, bounce_dim(path.depth, 2))
             if non_specular(flags):
-                u = sample_2d(sampler, ray.pixel, ray.sample, bounce_dim(depth, 0))
-            bs = wp.static(bsdf.sample)(materials, hit.material, hit.n_facing, hit.wo, eta, uc, u, hit.uv, hit.front)
+                u = sample_2d(sampler, ray.pixel, ray.sample, bounce_dim(path.depth, 0))
+            bs = wp.static(bsdf.sample)(
+                materials, hit.material, hit.n_facing, hit.wo, interface.eta, uc, u, hit.uv, hit.front
+            )
             if bs.pdf == 0.0:
                 break
             if wp.static(features.normal_map):
                 bs.weight = bs.weight * normal_map_shadowing(hit, bs.wi)
-            beta = wp.cw_mul(beta, bs.weight)
-            d = bs.wi
-            depth += 1
+            path.throughput = wp.cw_mul(path.throughput, bs.weight)
+            path.d = bs.wi
+            path.depth += 1
             straight = bool(False)
             if (bs.flags & BSDF_SPECULAR) != 0:
-                specular = True
-                segment_kind = wp.where((bs.flags & BSDF_TOTAL_INTERNAL) != 0, TOTAL_INTERNAL, REFLECTED)
+                path.specular = True
+                path.segment_kind = wp.where((bs.flags & BSDF_TOTAL_INTERNAL) != 0, TOTAL_INTERNAL, REFLECTED)
                 if (bs.flags & BSDF_TRANSMISSION) != 0:
-                    media = media_t
-                    n_media = n_media_t
-                    straight = eta == 1.0  # index-matched: straight on
-                    segment_kind = wp.where(straight, STRAIGHT, REFRACTED)
+                    path.media = interface.media
+                    path.n_media = interface.n_media
+                    straight = interface.eta == 1.0  # index-matched: straight on
+                    path.segment_kind = wp.where(straight, STRAIGHT, REFRACTED)
             else:
-                prev_pdf = bs.pdf
-                prev_p = hit.p
-                specular = False
-                segment_kind = SCATTERED
+                path.prev_pdf = bs.pdf
+                path.prev_p = hit.p
+                path.specular = False
+                path.segment_kind = SCATTERED
                 if wp.static(features.rough_dielectric):
                     if (bs.flags & BSDF_TRANSMISSION) != 0:  # refracted through a rough dielectric
-                        media = media_t
-                        n_media = n_media_t
+                        path.media = interface.media
+                        path.n_media = interface.n_media
 
             # Spawn the next segment; Russian roulette past RR_DEPTH
             if straight:
-                t_from = t + ray_error(o, hit.p, t)
-                t_last = t
+                path.t_from = past_hit(path.o, hit.p, t)
+                path.t_last = t
             else:
-                o = spawn_origin(hit.p, hit.n, hit.err, d)
-                t_from = 0.0
-                t_last = 0.0
-                if depth > RR_DEPTH:
+                path.o = spawn_origin(hit.p, hit.n, hit.err, path.d)
+                path.t_from = 0.0
+                path.t_last = 0.0
+                if path.depth > RR_DEPTH:
                     n_ratio = float(1.0)  # the throughput without the eta^2 radiance scaling
                     if wp.static(features.dielectric):
-                        n_ratio = current_ior(materials, settings.exterior_ior, media, n_media) / n_camera
-                    q = wp.min(max_component(beta) * n_ratio * n_ratio, 0.95)
-                    if sample_1d(sampler, ray.pixel, ray.sample, bounce_dim(depth, 3)) >= q:
+                        n_ratio = (
+                            current_ior(materials, settings.exterior_ior, path.media, path.n_media) / path.n_camera
+                        )
+                    q = wp.min(max_component(path.throughput) * n_ratio * n_ratio, 0.95)
+                    if sample_1d(sampler, ray.pixel, ray.sample, bounce_dim(path.depth, 3)) >= q:
                         break
-                    beta = beta / q
-        return radiance
+                    path.throughput = path.throughput / q
+        return path.radiance
 
     return path_radiance
-
-
-__getattr__ = all_features_kernels("path", make_path_radiance)  # path, path_record

@@ -13,7 +13,7 @@ import functools
 import warp as wp
 
 from .hit import make_surface_hit
-from .integrator import CameraRay, IntegratorSettings, all_features_kernels
+from .integrator import CameraRay, IntegratorSettings
 from .lights import LightData
 from .materials import MaterialData
 from .record import RayRecord
@@ -47,6 +47,3 @@ def make_raycast_radiance(textures: bool):
         return color * wp.abs(wp.dot(hit.n_facing, ray.d))
 
     return raycast_radiance
-
-
-__getattr__ = all_features_kernels("raycast", lambda record: make_raycast_radiance(True))  # raycast, raycast_record

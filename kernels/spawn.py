@@ -38,6 +38,13 @@ def ray_error(o: wp.vec3, p: wp.vec3, t: float) -> float:
 
 
 @wp.func
+def past_hit(o: wp.vec3, p: wp.vec3, t: float) -> float:
+    """Where a ray from ``o`` that goes straight on through its hit ``p`` at distance ``t`` resumes
+    (its new ``t_from``): ``t + ray_error``."""
+    return t + ray_error(o, p, t)
+
+
+@wp.func
 def spawn_origin(p: wp.vec3, n: wp.vec3, err: float, w: wp.vec3) -> wp.vec3:
     """Origin for a ray leaving ``p`` in direction ``w``: offset by ``err`` along ``n`` toward ``w``'s side."""
     if wp.dot(w, n) < 0.0:

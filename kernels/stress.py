@@ -8,11 +8,13 @@ The suite checks on the host that none of them falls back onto the surface it le
 
 import warp as wp
 
-from . import traverse
+from . import MODULE_OPTIONS, traverse
 from .optics import reflect, refract
 from .sample_warps import frame
 from .spawn import spawn_origin
 from .traverse import NO_HIT, GeometryData, any_hit, closest_hit
+
+wp.set_module_options(MODULE_OPTIONS)
 
 NOT_TRACED = wp.constant(-2)  # a secondary ray that does not exist (no first hit, or total internal reflection)
 

@@ -28,6 +28,7 @@ import functools
 
 import warp as wp
 
+from . import MODULE_OPTIONS
 from .bvh import STACK_SIZE, WideNode, child_entry, leaf_count, leaf_start
 from .features import ALL, Features, geometry_features
 from .intersect import (
@@ -860,6 +861,7 @@ def _trace_kernels(trace: Traversal, module: str | None):
         i = wp.tid()
         trace.closest_hit_logged(geometry, origins[i], directions[i], times[i], 0.0, wp.inf, log, i)
 
+    wp.set_module_options(MODULE_OPTIONS, module=module or __name__)
     return trace_closest, trace_any, trace_visits
 
 

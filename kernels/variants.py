@@ -1,10 +1,10 @@
 """The render kernel of an integrator specialised on a scene's ``Features``, built on first use.
 
 ``render_kernel(integrator, features)`` returns the same kernel object for the same arguments:
-the all-features kernels (``features == ALL``) are the ones each integrator module builds on
-first use (``wrt.kernels.integrator.all_features_kernels``, in Warp modules ``wrt_NAME_all``); any
-other variant is built here into a Warp module of its own, named after the integrator and
-``features.key``, so that adding a variant never recompiles a module that has
+the all-features kernels (``features == ALL``, ``all_features_kernel``, in Warp modules
+``wrt_NAME_all``, and the recording ones in ``wrt_NAME_record``) and every other variant are built
+here on first use, each into a Warp module of its own (a variant's named after the integrator and
+``features.key``), so that adding a variant never recompiles a module that has
 already been loaded, and Warp's kernel cache keeps each compiled variant across processes. An
 integrator's module is imported when its kernel is first asked for: a process pays the start-up
 cost (Warp parses every function's source at import) of the integrator it renders with only.
@@ -15,6 +15,9 @@ from __future__ import annotations
 import functools
 import importlib
 
+import warp as wp
+
+from .cpu_target import with_inline_threshold
 from .features import ALL, GEOMETRY, Features, only
 from .integrator import make_render_kernel
 from .materials import MATERIAL_FLAGS
@@ -22,12 +25,25 @@ from .materials import MATERIAL_FLAGS
 INTEGRATORS = ("raycast", "whitted", "path")
 
 
-def _radiance(integrator: str, features: Features):
-    """The rendering (not recording) radiance function of ``integrator`` for ``features``."""
+def _radiance(integrator: str, features: Features, record: bool = False):
+    """The radiance function of ``integrator`` for ``features``, recording every ray where ``record``."""
     module = importlib.import_module(f"{__package__}.{integrator}")
     if integrator == "raycast":
         return module.make_raycast_radiance(features.textures)  # primary rays: only uv to specialise
-    return getattr(module, f"make_{integrator}_radiance")(False, features)
+    return getattr(module, f"make_{integrator}_radiance")(record, features)
+
+
+PATH_INLINE_THRESHOLD = 30000
+"""LLVM's inline threshold for the path tracer's modules (Warp's is 9000): at 9000 its loop state
+as one struct, its light interface and its media crossing each left a function out of line and
+cost the Cornell box 1.12x; at 30000 they cost nothing. The Whitted integrator keeps Warp's: 30000
+cost it 1.07x (docs/performance.md, "Integrator state")."""
+OPTIONS = {
+    "raycast": {},
+    "whitted": {},
+    "path": {"cpu_compiler_flags": with_inline_threshold(wp.config.cpu_compiler_flags, PATH_INLINE_THRESHOLD)},
+}
+"""The Warp options of each integrator's modules, besides ``wrt.kernels.MODULE_OPTIONS``."""
 
 
 EVERY_INTEGRATOR = ("lens", "orthographic", "motion", *GEOMETRY)
@@ -70,9 +86,22 @@ def render_kernel(integrator: str, features: Features):
 
 
 @functools.cache
+def all_features_kernel(integrator: str, record: bool = False):
+    """``integrator``'s all-features kernel, recording every ray it traces where ``record``, in
+    Warp module ``wrt_NAME_all`` (``wrt_NAME_record``); built on first use."""
+    module = f"wrt_{integrator}_{'record' if record else 'all'}"
+    return make_render_kernel(
+        _radiance(integrator, ALL, record), module=module, record=record, options=OPTIONS[integrator]
+    )
+
+
+@functools.cache
 def _kernel(integrator: str, features: Features):
     if features == ALL:
-        return getattr(importlib.import_module(f"{__package__}.{integrator}"), integrator)
+        return all_features_kernel(integrator)
     return make_render_kernel(
-        _radiance(integrator, features), features=features, module=f"wrt_{integrator}_{features.key}"
+        _radiance(integrator, features),
+        module=f"wrt_{integrator}_{features.key}",
+        features=features,
+        options=OPTIONS[integrator],
     )

@@ -54,12 +54,10 @@ import warp as wp
 
 from .features import ALL, Features
 from .hit import Hit, make_surface_hit_for, normal_map_shadowing
-from .integrator import CameraRay, IntegratorSettings, all_features_kernels, make_trace_segment
+from .integrator import CameraRay, IntegratorSettings, make_trace_segment
 from .lights import LightData, light_incident
 from .materials import (
     BSDF_SPECULAR,
-    BSDF_THIN,
-    BSDF_TRANSMISSION,
     MaterialData,
     bsdf_flags_from,
     families_for,
@@ -69,8 +67,9 @@ from .materials import (
 from .media import (
     MEDIA,
     MEDIA_OVERFLOW,
+    Interface,
+    cross_interface,
     current_ior,
-    dielectric_interface,
     max_component,
     medium_sigma,
     medium_transmittance,
@@ -78,7 +77,7 @@ from .media import (
 from .record import REFLECTED, REFRACTED, STRAIGHT, TOTAL_INTERNAL, RayRecord
 from .sampling import Sampler
 from .shadow import make_shadow_ray
-from .spawn import ray_error, spawn_origin
+from .spawn import past_hit, spawn_origin
 from .textures import ALBEDO, material_rgb
 from .traverse import NO_HIT, GeometryData, Traversal, traversal
 
@@ -274,20 +273,24 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                 # Specular surfaces: the media on either side, then the reflected and refracted branches
                 if wp.static(features.specular):
                     if (flags & BSDF_SPECULAR) != 0:
-                        real = bool(True)
-                        eta = float(1.0)
-                        media_t = media
-                        n_media_t = n_media
+                        interface = Interface()
+                        interface.real = True
+                        interface.eta = 1.0
+                        interface.media = media
+                        interface.n_media = n_media
                         if wp.static(features.dielectric):
-                            if (flags & (BSDF_TRANSMISSION | BSDF_THIN)) == BSDF_TRANSMISSION:  # not a thin one
-                                real, eta, media_t, n_media_t = dielectric_interface(
-                                    materials, settings.exterior_ior, media, n_media, hit.shape, hit.entering
-                                )
-                                if n_media_t == MEDIA_OVERFLOW:  # no medium to be in: the sample is lost, and counted
-                                    radiance = wp.vec3(wp.nan)
-                                    break
+                            interface = cross_interface(
+                                materials, settings.exterior_ior, media, n_media, flags, hit.shape, hit.entering
+                            )
+                            if interface.n_media == MEDIA_OVERFLOW:  # no medium to be in: the sample is lost (counted)
+                                radiance = wp.vec3(wp.nan)
+                                break
+                        real = interface.real
+                        eta = interface.eta
+                        media_t = interface.media
+                        n_media_t = interface.n_media
                         if not real:  # a false interface: straight on
-                            t_from = t + ray_error(o, hit.p, t)
+                            t_from = past_hit(o, hit.p, t)
                             t_last = t
                             media = media_t
                             n_media = n_media_t
@@ -344,7 +347,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                                 media = media_t
                                 n_media = n_media_t
                             if keep_t and eta == 1.0:  # index-matched: straight on (refract returned d)
-                                t_from = t + ray_error(o, hit.p, t)
+                                t_from = past_hit(o, hit.p, t)
                                 t_last = t
                             elif keep_r or keep_t:
                                 o = spawn_origin(hit.p, hit.n, hit.err, d)
@@ -392,6 +395,3 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
         return radiance
 
     return whitted_radiance
-
-
-__getattr__ = all_features_kernels("whitted", make_whitted_radiance)  # whitted, whitted_record

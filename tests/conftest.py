@@ -18,6 +18,8 @@ from wrt.device import init_warp
 from wrt.loader import parse_scene
 from wrt.trace import Tracer as PrimitiveTracer
 
+wp.config.enable_backward = False  # the tests' own kernels need no gradients: they compile faster without
+
 init_warp()
 
 ROOT = Path(__file__).resolve().parent.parent  # the source checkout

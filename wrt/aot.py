@@ -193,10 +193,9 @@ def scene_modules(path: str) -> dict[str, wp.context.Module]:
     A Mitsuba scene counts as imported strictly and with ``--approximate``; a scene that neither
     loads adds nothing."""
     from wrt.kernels.features import ALL
-    from wrt.kernels.variants import render_kernel
+    from wrt.kernels.variants import all_features_kernel, render_kernel
 
     from .loader import load_scene
-    from .rays import RECORD_KERNELS
     from .renderer import scene_features
 
     modules = {}
@@ -210,7 +209,7 @@ def scene_modules(path: str) -> dict[str, wp.context.Module]:
         for kernel in (
             render_kernel(integrator, ALL),
             render_kernel(integrator, scene_features(scene)),
-            RECORD_KERNELS[integrator],
+            all_features_kernel(integrator, record=True),
         ):
             modules[kernel.module.name] = kernel.module
     return modules

@@ -734,6 +734,25 @@ def _check_ply_header(formats, elements, body_size):
     one; a ``face`` element without exactly one
     ``vertex_indices`` (or ``vertex_index``) list; a binary body too short for the counts.
     """
+    encoding = _check_ply_format(formats)
+    checked = {}
+    for name, count, declared in elements:
+        if name in checked:
+            raise _PlyError(f"element '{shorten(name)}' is declared twice")
+        checked[name] = _check_ply_element(name, count, declared)
+    _check_ply_vertex_and_face(checked)
+    if encoding != "ascii":
+        least = sum(element.count * _ply_entry_bytes(element) for element in checked.values())
+        if least > body_size:
+            raise _PlyError(
+                f"truncated: the header's element counts ({_ply_counts(checked.values())}) need at least {least} "
+                f"bytes, the body has {body_size}"
+            )
+    return encoding, tuple(checked.values())
+
+
+def _check_ply_format(formats) -> str:
+    """The encoding of the one ``format`` line (of encoding and version 1.0) in ``formats``."""
     if not formats:
         raise _PlyError("no 'format' line")
     if len(formats) > 1:
@@ -743,28 +762,34 @@ def _check_ply_header(formats, elements, body_size):
         raise _PlyError(f"unknown format {token(encoding)} (known: {', '.join(_PLY_ENCODINGS)})")
     if version != "1.0":
         raise _PlyError(f"unsupported PLY version {token(version)} (only 1.0 exists)")
-    checked = {}
-    for name, count, declared in elements:
-        if name in checked:
-            raise _PlyError(f"element '{shorten(name)}' is declared twice")
-        if count and not declared:
-            raise _PlyError(f"element '{shorten(name)}' has {count} entries but no properties")
-        properties = {}
-        for words in declared:
-            prop, types = words[-1], words[1:-1] if words[0] == "list" else words[:-1]
-            where = f"property '{shorten(prop)}' of element '{shorten(name)}'"
-            if prop in properties:
-                raise _PlyError(f"{where} is declared twice")
-            for kind in types:
-                if kind not in _PLY_TYPES:
-                    raise _PlyError(f"{where} has unknown type {token(kind)} (known: {', '.join(_PLY_TYPES)})")
-            if words[0] != "list":
-                properties[prop] = _PlyProperty(prop, _PLY_TYPES[types[0]])
-            elif np.dtype(_PLY_TYPES[types[0]]).kind not in "iu":
-                raise _PlyError(f"{where}: list length type {token(types[0])} is not an integer type")
-            else:
-                properties[prop] = _PlyProperty(prop, _PLY_TYPES[types[1]], _PLY_TYPES[types[0]])
-        checked[name] = _PlyElement(name, count, tuple(properties.values()))
+    return encoding
+
+
+def _check_ply_element(name, count, declared):
+    """The ``_PlyElement`` of an ``element`` line and its property words (see ``_check_ply_header``)."""
+    if count and not declared:
+        raise _PlyError(f"element '{shorten(name)}' has {count} entries but no properties")
+    properties = {}
+    for words in declared:
+        prop, types = words[-1], words[1:-1] if words[0] == "list" else words[:-1]
+        where = f"property '{shorten(prop)}' of element '{shorten(name)}'"
+        if prop in properties:
+            raise _PlyError(f"{where} is declared twice")
+        for kind in types:
+            if kind not in _PLY_TYPES:
+                raise _PlyError(f"{where} has unknown type {token(kind)} (known: {', '.join(_PLY_TYPES)})")
+        if words[0] != "list":
+            properties[prop] = _PlyProperty(prop, _PLY_TYPES[types[0]])
+        elif np.dtype(_PLY_TYPES[types[0]]).kind not in "iu":
+            raise _PlyError(f"{where}: list length type {token(types[0])} is not an integer type")
+        else:
+            properties[prop] = _PlyProperty(prop, _PLY_TYPES[types[1]], _PLY_TYPES[types[0]])
+    return _PlyElement(name, count, tuple(properties.values()))
+
+
+def _check_ply_vertex_and_face(checked) -> None:
+    """The ``vertex`` element's scalar x, y, z (and all of nx, ny, nz or none), and the ``face``
+    element's one list of vertex indices."""
     if "vertex" not in checked:
         raise _PlyError("no 'vertex' element with x, y and z properties")
     vertex = {p.name: p for p in checked["vertex"].properties}
@@ -786,14 +811,6 @@ def _check_ply_header(formats, elements, body_size):
             raise _PlyError("element 'face' has no vertex_indices list")
         if lists and not lists[0].count_type:
             raise _PlyError(f"property '{lists[0].name}' of element 'face' is not a list")
-    if encoding != "ascii":
-        least = sum(element.count * _ply_entry_bytes(element) for element in checked.values())
-        if least > body_size:
-            raise _PlyError(
-                f"truncated: the header's element counts ({_ply_counts(checked.values())}) need at least {least} "
-                f"bytes, the body has {body_size}"
-            )
-    return encoding, tuple(checked.values())
 
 
 def _ply_entry_bytes(element):

@@ -1,9 +1,9 @@
 """Trace chosen pixels with the scene's integrator and return every ray it traced: the ray trees.
 
 The rays come from the render kernels themselves, in their recording variant
-(``RECORD_KERNELS``, see ``wrt.kernels.record``), launched over the chosen pixels with
-the same set-up as ``wrt.render``: same camera rays, same samples for the same seed, same
-decisions. Nothing is re-implemented in Python.
+(``wrt.kernels.variants.all_features_kernel(integrator, record=True)``, see
+``wrt.kernels.record``), launched over the chosen pixels with the same set-up as ``wrt.render``:
+same camera rays, same samples for the same seed, same decisions. Nothing is re-implemented in Python.
 
 >>> import wrt
 >>> from wrt.rays import trace_rays
@@ -19,8 +19,6 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
-from wrt.kernels.path import path_record
-from wrt.kernels.raycast import raycast_record
 from wrt.kernels.record import (
     ENTERING,
     ESCAPED,
@@ -32,7 +30,7 @@ from wrt.kernels.record import (
     Segment,
 )
 from wrt.kernels.traverse import VisitLog, trace_visits
-from wrt.kernels.whitted import whitted_record
+from wrt.kernels.variants import all_features_kernel
 
 from .aot import load
 from .bvh import node_bounds
@@ -42,11 +40,6 @@ from .loader import override_render
 from .renderer import prepare
 from .scene import Scene
 
-RECORD_KERNELS = {
-    "raycast": raycast_record,
-    "whitted": whitted_record,
-    "path": path_record,
-}  # all three, before any launch
 DEFAULT_CAPACITY = 1 << 18  # segments (about 30 MB); a whitted camera ray is at most 512 plus its shadow rays
 MAX_VISITS = 512  # BVH nodes logged per replayed ray (--show-bvh)
 
@@ -200,7 +193,7 @@ def trace_rays(
     if capacity < 1:
         raise WrtError(f"capacity must be >= 1, got {capacity}")
     dev = resolve_device(device)
-    kernel = RECORD_KERNELS[scene.render.integrator]
+    kernel = all_features_kernel(scene.render.integrator, record=True)
     load(kernel.module, dev)
     device_scene = prepare(scene, dev)
     rec = RayRecord()

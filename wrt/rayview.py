@@ -650,7 +650,7 @@ def export(tree: RayTree, path: str) -> None:
             )
 
 
-def run(
+def run(  # noqa: PLR0913 (the options of wrt rays, keyword-only)
     scene_file: str,
     pixels: list[tuple[int, int]],
     *,

@@ -238,8 +238,8 @@ def _dispatch(functions: list) -> BSDF:
     resolves its functions only when the module is built, after Warp has hashed a module that
     calls it from another Python module: an edited family then loaded a stale binary from the
     kernel cache (measured, Warp 1.19; ``test_material_registry``)."""
-    eval_case = _eval_cases([(f.owns, f.eval) for f in functions if f.eval is not None])
-    pdf_case = _pdf_cases([(f.owns, f.pdf) for f in functions if f.pdf is not None])
+    eval_case = _eval_cases([(f.owns, f.eval) for f in functions if f.eval is not None], no_eval)
+    pdf_case = _eval_cases([(f.owns, f.pdf) for f in functions if f.pdf is not None], no_pdf)
     sample_case = _sample_cases([(f.owns, f.sample) for f in functions if f.sample is not None])
     lobes_case = _lobes_cases([(f.owns, f.specular_lobes) for f in functions if f.specular_lobes is not None])
 
@@ -297,26 +297,28 @@ def _dispatch(functions: list) -> BSDF:
     return BSDF(bsdf_eval, bsdf_pdf, bsdf_sample, specular_lobes)
 
 
-def _eval_cases(cases: list) -> wp.Function:
-    """``eval`` of the first family of ``cases`` (``(owns, eval)`` pairs) that owns ``kind``, else 0."""
+@wp.func
+def no_eval(
+    materials: MaterialData, m: wp.int32, kind: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float, uv: wp.vec2
+) -> wp.vec3:
+    return wp.vec3(0.0)
+
+
+@wp.func
+def no_pdf(
+    materials: MaterialData, m: wp.int32, kind: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float, uv: wp.vec2
+) -> float:
+    return 0.0
+
+
+def _eval_cases(cases: list, otherwise: wp.Function) -> wp.Function:
+    """``eval`` (or ``pdf``: the same arguments) of the first family of ``cases`` (``(owns,
+    function)`` pairs) that owns ``kind``, else ``otherwise``'s (``no_eval``, ``no_pdf``); the
+    return type is the families' (Warp infers it)."""
     if not cases:
-
-        @wp.func
-        def no_eval(
-            materials: MaterialData,
-            m: wp.int32,
-            kind: wp.int32,
-            n: wp.vec3,
-            wo: wp.vec3,
-            wi: wp.vec3,
-            eta: float,
-            uv: wp.vec2,
-        ) -> wp.vec3:
-            return wp.vec3(0.0)
-
-        return no_eval
-    owns, family_eval = cases[0]
-    rest = _eval_cases(cases[1:])
+        return otherwise
+    owns, family_function = cases[0]
+    rest = _eval_cases(cases[1:], otherwise)
 
     @wp.func
     def eval_case(
@@ -328,51 +330,12 @@ def _eval_cases(cases: list) -> wp.Function:
         wi: wp.vec3,
         eta: float,
         uv: wp.vec2,
-    ) -> wp.vec3:
+    ):
         if owns(kind):
-            return family_eval(materials, m, n, wo, wi, eta, uv)
+            return family_function(materials, m, n, wo, wi, eta, uv)
         return rest(materials, m, kind, n, wo, wi, eta, uv)
 
     return eval_case
-
-
-def _pdf_cases(cases: list) -> wp.Function:
-    """``pdf`` of the first family of ``cases`` that owns ``kind``, else 0."""
-    if not cases:
-
-        @wp.func
-        def no_pdf(
-            materials: MaterialData,
-            m: wp.int32,
-            kind: wp.int32,
-            n: wp.vec3,
-            wo: wp.vec3,
-            wi: wp.vec3,
-            eta: float,
-            uv: wp.vec2,
-        ) -> float:
-            return 0.0
-
-        return no_pdf
-    owns, family_pdf = cases[0]
-    rest = _pdf_cases(cases[1:])
-
-    @wp.func
-    def pdf_case(
-        materials: MaterialData,
-        m: wp.int32,
-        kind: wp.int32,
-        n: wp.vec3,
-        wo: wp.vec3,
-        wi: wp.vec3,
-        eta: float,
-        uv: wp.vec2,
-    ) -> float:
-        if owns(kind):
-            return family_pdf(materials, m, n, wo, wi, eta, uv)
-        return rest(materials, m, kind, n, wo, wi, eta, uv)
-
-    return pdf_case
 
 
 def _sample_cases(cases: list) -> wp.Function:
