@@ -1,7 +1,8 @@
-"""Upload host data to a Warp device: the scene geometry and BVH, materials, camera.
+"""Upload host data to a Warp device: the scene geometry and BVH, materials, lights, camera.
 
 This is the one place where numpy arrays become ``wp.array``s; kernels receive the structs
-built here. float64 host values are rounded to float32 once, here.
+built here. What is computed rather than copied from the scene comes from the bake stage
+(``wrt.bake``); float64 host values are rounded to float32 once, here.
 """
 
 from __future__ import annotations
@@ -15,42 +16,19 @@ import warp as wp
 
 from wrt.kernels.camera import BOX, GAUSSIAN, TENT, CameraData
 from wrt.kernels.integrator import IntegratorSettings
-from wrt.kernels.lights import (
-    AREA,
-    DIRECTIONAL,
-    ENVIRONMENT,
-    ENVIRONMENT_MAP,
-    POINT,
-    SPHERE_LIGHT,
-    SPOT,
-    LightData,
-)
-from wrt.kernels.materials import FAMILIES, FAMILY_OF, TYPES, MaterialData, lobe_flags, mask_flags
+from wrt.kernels.lights import LightData
+from wrt.kernels.materials import FAMILIES, MaterialData
 from wrt.kernels.media import MEDIA, Media
 from wrt.kernels.sampling import INDEPENDENT, SOBOL, STRATIFIED, Sampler
 from wrt.kernels.textures import TextureData
 from wrt.kernels.traverse import GeometryData, mat24
 
 from .aot import install
-from .emitting import emitting_primitives
-from .envmap import environment_distribution
+from .bake import bake_lights, bake_materials, camera_media, surface_materials
+from .emitting import EmittingPrimitives
 from .errors import WrtError
 from .geometry import Primitives
-from .scene import (
-    SURFACE_LIGHTS,
-    AreaLight,
-    Camera,
-    DirectionalLight,
-    EnvironmentLight,
-    Material,
-    Mesh,
-    PointLight,
-    RenderSettings,
-    Scene,
-    Sphere,
-    SphereLight,
-    SpotLight,
-)
+from .scene import Camera, RenderSettings, Scene
 from .textures import texture_table
 
 SAMPLER_CODES = {"independent": INDEPENDENT, "stratified": STRATIFIED, "sobol": SOBOL}
@@ -154,58 +132,24 @@ def upload_geometry(p: Primitives, device) -> GeometryData:
     return s
 
 
-def _opaque(mask: Material) -> bool:
-    """A mask of constant opacity 1: it has no null lobe."""
-    return mask.opacity == 1.0 and not any(name == "opacity" for name, _ in mask.textures)
-
-
-def _base_color(mat: Material) -> tuple:
-    """The colour the raycast integrator shows for a material (``Family.base_color``)."""
-    base = FAMILY_OF[mat.type].base_color
-    return base(mat) if callable(base) else getattr(mat, base)
-
-
-def surface_materials(scene: Scene) -> tuple[list[int], list[Material]]:
-    """Material index of every surface (the shapes, the surfaces of area and sphere lights, then
-    the shapes of the groups, group by group: ``wrt.geometry``'s numbering) and the material list
-    they index: the scene's, then one black emitter per surface light, emitting the light's
-    radiance from its front."""
-    materials = list(scene.materials)
-    surfaces = [shape.material for shape in scene.shapes]
-    for k, light in enumerate(scene.lights):
-        surfaces.append(len(materials) if isinstance(light, SURFACE_LIGHTS) else -1)
-        if isinstance(light, SURFACE_LIGHTS):
-            materials.append(
-                Material(name=f"light[{k}]", type="emitter", albedo=(0.0, 0.0, 0.0), emission=light.radiance)
-            )
-    surfaces += [shape.material for group in scene.groups for shape in group.shapes]
-    return surfaces, materials
-
-
 def upload_materials(scene: Scene, device) -> MaterialData:
-    """Per-surface material index and every material's parameters (linear RGB colours)."""
-    surfaces, mats = surface_materials(scene)
+    """``MaterialData`` of ``scene`` (its bake, ``wrt.bake.bake_materials``), on ``device``."""
+    baked = bake_materials(scene)
+    mats = baked.materials
     m = MaterialData()
-    m.shape_material = _int(surfaces or [0], device)
-    m.type = _int([TYPES[mat.type].code for mat in mats], device)
+    m.shape_material = _int(baked.shape_material, device)
+    m.type = _int(baked.type, device)
     m.textures = upload_textures(scene, device)
-    index = {mat.name: i for i, mat in enumerate(scene.materials)}
-    inner = [index[mat.material] if mat.type == "mask" else -1 for mat in mats]  # a mask's is no mask
-    m.flags = _int(
-        [lobe_flags(mat) if j < 0 else mask_flags(lobe_flags(mats[j]), _opaque(mat)) for mat, j in zip(mats, inner)],
-        device,
-    )
-    m.inner = _int(inner, device)
+    m.flags = _int(baked.flags, device)
+    m.inner = _int(baked.inner, device)
     m.opacity = _float([mat.opacity for mat in mats], device)
-    m.base_color = _vec3([_base_color(mats[j] if j >= 0 else mat) for mat, j in zip(mats, inner)], device)
+    m.base_color = _vec3(baked.base_color, device)
     m.albedo = _vec3([mat.albedo for mat in mats], device)
     m.specular = _vec3([mat.specular for mat in mats], device)
     m.exponent = _float([mat.exponent for mat in mats], device)
     m.reflectance = _vec3([mat.reflectance for mat in mats], device)
-    exterior = scene.render.exterior_ior  # a thin dielectric or a plastic sits in it: its ior is relative to it
-    m.ior = _float([mat.ior / exterior if FAMILY_OF[mat.type].relative_ior else mat.ior for mat in mats], device)
-    with np.errstate(divide="ignore"):
-        m.sigma = _vec3([np.minimum(-np.log(mat.transmittance), 1e30) for mat in mats], device)
+    m.ior = _float(baked.ior, device)
+    m.sigma = _vec3(baked.sigma, device)
     m.transmittance = _vec3([mat.transmittance for mat in mats], device)
     m.priority = _int([mat.priority for mat in mats], device)
     m.roughness = _float([mat.roughness for mat in mats], device)
@@ -215,7 +159,7 @@ def upload_materials(scene: Scene, device) -> MaterialData:
     m.two_sided = _int([mat.two_sided for mat in mats], device)
     for family in FAMILIES:
         if family.data is not None:
-            setattr(m, family.name, _table(family.data, family.bake(mats, exterior), device))
+            setattr(m, family.name, _table(family.data, baked.tables[family.name], device))
     return m
 
 
@@ -249,60 +193,33 @@ def _table(struct, columns: dict, device):
 
 
 def upload_lights(scene: Scene, device, prims: Primitives | None = None) -> LightData:
-    """Every light of the scene, one row each in file order (see ``wrt.kernels.lights.LightData``):
-    the surface of light k is surface ``num_shapes + k`` of the geometry; and the emitting
-    primitives of ``prims`` (the scene flattened; none without it)."""
-    rows = []
-    for light in scene.lights:
-        row = {
-            "position": (0.0, 0.0, 0.0),
-            "direction": (0.0, 0.0, 1.0),
-            "edge_u": (0.0, 0.0, 0.0),
-            "edge_v": (0.0, 0.0, 0.0),
-            "radius": 0.0,
-            "cutoff": 180.0,
-            "beam": 180.0,
-        }
-        if isinstance(light, PointLight):
-            row.update(type=POINT, position=light.position, power=light.intensity)
-        elif isinstance(light, DirectionalLight):
-            row.update(type=DIRECTIONAL, direction=light.direction, power=light.irradiance)
-        elif isinstance(light, SpotLight):
-            row.update(
-                type=SPOT,
-                position=light.position,
-                direction=light.direction,
-                power=light.intensity,
-                cutoff=light.cutoff_angle,
-                beam=light.beam_width,
-            )
-        elif isinstance(light, AreaLight):
-            row.update(type=AREA, position=light.corner, edge_u=light.edge_u, edge_v=light.edge_v, power=light.radiance)
-        elif isinstance(light, SphereLight):
-            row.update(type=SPHERE_LIGHT, position=light.center, radius=light.radius, power=light.radiance)
-        elif isinstance(light, EnvironmentLight):
-            row.update(type=ENVIRONMENT if light.image is None else ENVIRONMENT_MAP, power=light.radiance)
-        rows.append(row)
-    cutoff = np.radians([r["cutoff"] for r in rows])
+    """``LightData`` of ``scene`` (its bake, ``wrt.bake.bake_lights``: one row per light in file
+    order, the environment map, and the emitting primitives of ``prims``), on ``device``; a
+    column that would be empty is a 1-element placeholder."""
+    baked = bake_lights(scene, prims)
+    rows = baked.rows
     lights = LightData()
-    lights.type = _int([r["type"] for r in rows], device)
-    lights.position = _vec3([r["position"] for r in rows], device)
-    lights.direction = _vec3([r["direction"] for r in rows], device)
-    lights.power = _vec3([r["power"] for r in rows], device)
-    lights.edge_u = _vec3([r["edge_u"] for r in rows], device)
-    lights.edge_v = _vec3([r["edge_v"] for r in rows], device)
-    lights.radius = _float([r["radius"] for r in rows], device)
-    lights.cos_cutoff = _float(np.cos(cutoff), device)
-    lights.cutoff = _float(cutoff, device)
-    lights.beam = _float(np.radians([r["beam"] for r in rows]), device)
-    upload_environment_map(lights, scene, device)
-    upload_emitting_primitives(lights, scene, prims, device)
+    lights.type = _int(rows["type"], device)
+    lights.position = _vec3(rows["position"], device)
+    lights.direction = _vec3(rows["direction"], device)
+    lights.power = _vec3(rows["power"], device)
+    lights.edge_u = _vec3(rows["edge_u"], device)
+    lights.edge_v = _vec3(rows["edge_v"], device)
+    lights.radius = _float(rows["radius"], device)
+    lights.cos_cutoff = _float(rows["cos_cutoff"], device)
+    lights.cutoff = _float(rows["cutoff"], device)
+    lights.beam = _float(rows["beam"], device)
+    lights.env_radiance = wp.array(np.asarray(baked.env_radiance, dtype=np.float32), dtype=wp.vec3, device=device)
+    lights.env_to_world = wp.mat33(*np.asarray(baked.env_to_world, dtype=np.float32).ravel())
+    lights.env_cdf = _float(baked.env_cdf, device)
+    lights.env_pdf = wp.array(np.asarray(baked.env_pdf, dtype=np.float32), dtype=wp.float32, device=device)
+    _upload_emitting(lights, baked.emitting, device)
     return lights
 
 
-def upload_emitting_primitives(lights: LightData, scene: Scene, prims: Primitives | None, device) -> None:
+def _upload_emitting(lights: LightData, emitting: EmittingPrimitives | None, device) -> None:
     """The ``emit_*`` and ``*_emitter`` fields of ``lights`` (``wrt.emitting``), 1-element
-    placeholders when ``prims`` is None or an array would be empty."""
+    placeholders when ``emitting`` is None or an array would be empty."""
 
     def ints(a, fill):
         return _int(a if len(a) else np.full(1, fill), device)
@@ -310,13 +227,12 @@ def upload_emitting_primitives(lights: LightData, scene: Scene, prims: Primitive
     def floats(a):
         return _float(a if len(a) else np.zeros(1), device)
 
-    if prims is None:
+    if emitting is None:
         lights.emit_kind = lights.emit_prim = lights.emit_first = ints([], 0)
         lights.emit_cdf = lights.emit_area = lights.emit_area_cdf = floats([])
         lights.tri_emitter = lights.poly_emitter = lights.sphere_emitter = ints([], -1)
         lights.emit_corner = wp.zeros(1, dtype=wp.vec3, device=device)
         return
-    emitting = emitting_primitives(scene, prims)
     lights.emit_kind, lights.emit_prim = ints(emitting.kind, 0), ints(emitting.prim, 0)
     lights.emit_cdf, lights.emit_area = floats(emitting.cdf), floats(emitting.area)
     lights.emit_first, lights.emit_area_cdf = ints(emitting.first, 0), floats(emitting.area_cdf)
@@ -325,62 +241,6 @@ def upload_emitting_primitives(lights: LightData, scene: Scene, prims: Primitive
     lights.tri_emitter = ints(emitting.of_triangle, -1)
     lights.poly_emitter = ints(emitting.of_polygon, -1)
     lights.sphere_emitter = ints(emitting.of_sphere, -1)
-
-
-def upload_environment_map(lights: LightData, scene: Scene, device) -> None:
-    """The ``env_*`` fields of ``lights``: the scene's environment map (at most one) with its
-    sampling distribution (``wrt.envmap``), or 1-element placeholders when it has none."""
-    maps = [light for light in scene.lights if isinstance(light, EnvironmentLight) and light.image is not None]
-    if maps:
-        image, to_world = maps[0].image, maps[0].to_world
-        distribution = environment_distribution(image)
-        cdf, pdf = distribution.cdf, distribution.pdf
-    else:
-        image, to_world = np.zeros((1, 1, 3)), np.eye(3)
-        cdf, pdf = np.zeros(1), np.zeros((1, 1))
-    lights.env_radiance = wp.array(np.asarray(image, dtype=np.float32), dtype=wp.vec3, device=device)
-    lights.env_to_world = wp.mat33(*np.asarray(to_world, dtype=np.float32).ravel())
-    lights.env_cdf = _float(cdf, device)
-    lights.env_pdf = wp.array(np.asarray(pdf, dtype=np.float32), dtype=wp.float32, device=device)
-
-
-def camera_media(scene: Scene) -> list[int]:
-    """The dielectric spheres and meshes the camera rays start inside (shape indices, the largest
-    first, as a ray from outside would have entered them): their absorption applies from the
-    first segment on. They are found at one point, where the image's central ray starts,
-    ``origin + near_clip forward``, and taken for every camera ray (those of an orthographic camera
-    or a thin lens start elsewhere on the camera plane, or its near clip plane). A mesh holds the
-    point when a ray from it crosses the mesh an odd number of times (float64). Triangles,
-    polygons, disks and (open) cylinders bound no volume alone; a moving shape is taken at time 0."""
-    forward, _, _ = scene.camera.basis()
-    o = np.asarray(scene.camera.origin, dtype=np.float64) + scene.camera.near_clip * forward
-    inside = []
-    for index, shape in enumerate(scene.shapes):
-        if scene.materials[shape.material].type not in ("dielectric", "rough_dielectric"):
-            continue
-        if isinstance(shape, Sphere):
-            if np.linalg.norm(o - np.asarray(shape.center)) < shape.radius:
-                inside.append((shape.radius, index))
-        elif isinstance(shape, Mesh) and _crossings(o, shape.vertices[shape.faces]) % 2 == 1:
-            inside.append((float(np.ptp(shape.vertices, axis=0).max()), index))
-    return [index for _, index in sorted(inside, reverse=True)]
-
-
-def _crossings(o: np.ndarray, triangles: np.ndarray) -> int:
-    """How many of ``triangles`` (F, 3, 3) a ray from ``o`` along a fixed generic direction crosses
-    (Moller-Trumbore, float64)."""
-    d = np.array([0.5773502691, 0.5773672691, 0.5773332691])
-    e1, e2 = triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]
-    p = np.cross(d, e2)
-    det = np.einsum("ij,ij->i", e1, p)
-    ok = np.abs(det) > 1e-300
-    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-    s = o - triangles[:, 0]
-    u = np.einsum("ij,ij->i", s, p) * inv
-    q = np.cross(s, e1)
-    v = (q @ d) * inv
-    t = np.einsum("ij,ij->i", e2, q) * inv
-    return int(np.count_nonzero(ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)))
 
 
 def integrator_settings(scene: Scene) -> IntegratorSettings:

@@ -398,7 +398,7 @@ def _build_tree(p: Primitives, shutter: tuple[float, float], device) -> None:
 
 def _build_groups(scene: Scene, device) -> list[Primitives]:
     """Each group's primitives (object space) with its BVH, in leaf order; their surfaces are
-    numbered after the shapes' and lights', group by group (``wrt.device.surface_materials``)."""
+    numbered after the shapes' and lights', group by group (``wrt.bake.surface_materials``)."""
     groups = []
     first = len(scene.shapes) + len(scene.lights)
     for group in scene.groups:

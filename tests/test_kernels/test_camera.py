@@ -203,7 +203,7 @@ def test_clip_planes_cut_the_camera_rays(kind, spp):
 
 
 def test_camera_media_are_found_where_the_central_ray_starts():
-    """``wrt.device.camera_media`` tests ``origin + near_clip forward``: a near clip plane inside
+    """``wrt.bake.camera_media`` tests ``origin + near_clip forward``: a near clip plane inside
     a glass sphere starts the rays in the glass; one beyond it, outside."""
     from wrt.device import camera_media
 

@@ -161,7 +161,7 @@ def test_nesting_deeper_than_the_media_stack_is_counted_not_silent():
 def test_camera_media_are_the_dielectric_volumes_holding_the_camera():
     """A camera inside a glass cube mesh inside a water sphere starts in both, outermost first;
     a diffuse sphere, a glass sphere elsewhere and an open triangle do not count."""
-    from wrt.device import camera_media
+    from wrt.bake import camera_media
     from wrt.stress.common import make_scene as scene_with_meshes
     from wrt.stress.common import split_cube
 

@@ -22,7 +22,7 @@ def camera_in_water_case(integrator, transmittance=1.0) -> CaseResult:
     to the opposite side, 2 units on: every pixel is ``n^2 (1 - F) T (1 - r^K) / (1 - r)``,
     ``T = transmittance``, ``r = F T^2``, with ``K`` infinite for the path integrator (``max_depth``
     64) and 7 for whitted's tree of depth 8. The absorption starts at the camera: it is inside the
-    water (``wrt.device.camera_media``)."""
+    water (``wrt.bake.camera_media``)."""
     water = {"name": "water", "type": "dielectric", "ior": WATER_IOR, "transmittance": [transmittance] * 3}
     scene = make_scene(
         shapes=[{"type": "sphere", "center": [0.0, 0.0, 0.0], "radius": 1.0, "material": "water"}],

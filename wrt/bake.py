@@ -1,0 +1,236 @@
+"""The bake stage between the host scene and the upload: everything the kernels read that is
+computed rather than copied from the scene, as numpy columns (float64 where computed; the
+upload, ``wrt.device``, rounds to float32 and converts to Warp arrays, nothing more).
+
+- ``bake_materials``: the material list the kernels index (the scene's, then one emitter per
+  surface light), each material's type code, lobes, base colour, relative ior and absorption, a
+  mask's inner material, and each family's own table (``Family.bake``: the plastics' coating
+  tables).
+- ``bake_lights``: one row per light (``wrt.kernels.lights.LightData``), the environment map's
+  sampling distribution (``wrt.envmap``) and the pool of emissive primitives (``wrt.emitting``).
+- ``camera_media``: the dielectric volumes the camera starts inside, found with a float64 twin of
+  the kernels' watertight triangle test (``watertight_crossings``, held against the kernel by a test).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from wrt.kernels.lights import AREA, DIRECTIONAL, ENVIRONMENT, ENVIRONMENT_MAP, POINT, SPHERE_LIGHT, SPOT
+from wrt.kernels.materials import FAMILIES, FAMILY_OF, TYPES, lobe_flags, mask_flags
+
+from .emitting import EmittingPrimitives, emitting_primitives
+from .envmap import environment_distribution
+from .geometry import Primitives
+from .scene import (
+    SURFACE_LIGHTS,
+    AreaLight,
+    DirectionalLight,
+    EnvironmentLight,
+    Material,
+    Mesh,
+    PointLight,
+    Scene,
+    Sphere,
+    SphereLight,
+    SpotLight,
+)
+
+
+@dataclass
+class BakedMaterials:
+    """``MaterialData``'s columns (one row per material, ``materials``' order) and the index of
+    each surface's material (``wrt.geometry``'s numbering of surfaces)."""
+
+    materials: list[Material]
+    shape_material: np.ndarray
+    type: np.ndarray
+    flags: np.ndarray
+    inner: np.ndarray
+    base_color: np.ndarray
+    ior: np.ndarray
+    sigma: np.ndarray
+    tables: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)  # Family.bake's, by family name
+
+
+def surface_materials(scene: Scene) -> tuple[list[int], list[Material]]:
+    """Material index of every surface (the shapes, the surfaces of area and sphere lights, then
+    the shapes of the groups, group by group: ``wrt.geometry``'s numbering) and the material list
+    they index: the scene's, then one black emitter per surface light, emitting the light's
+    radiance from its front."""
+    materials = list(scene.materials)
+    surfaces = [shape.material for shape in scene.shapes]
+    for k, light in enumerate(scene.lights):
+        surfaces.append(len(materials) if isinstance(light, SURFACE_LIGHTS) else -1)
+        if isinstance(light, SURFACE_LIGHTS):
+            materials.append(
+                Material(name=f"light[{k}]", type="emitter", albedo=(0.0, 0.0, 0.0), emission=light.radiance)
+            )
+    surfaces += [shape.material for group in scene.groups for shape in group.shapes]
+    return surfaces, materials
+
+
+def _opaque(mask: Material) -> bool:
+    """A mask of constant opacity 1: it has no null lobe."""
+    return mask.opacity == 1.0 and not any(name == "opacity" for name, _ in mask.textures)
+
+
+def _base_color(material: Material) -> tuple:
+    """The colour the raycast integrator shows for a material (``Family.base_color``)."""
+    base = FAMILY_OF[material.type].base_color
+    return base(material) if callable(base) else getattr(material, base)
+
+
+def bake_materials(scene: Scene) -> BakedMaterials:
+    """The materials' computed columns (see the module's docstring)."""
+    surfaces, materials = surface_materials(scene)
+    index = {material.name: i for i, material in enumerate(scene.materials)}
+    inner = [index[m.material] if m.type == "mask" else -1 for m in materials]  # a mask's is no mask
+    flags = [
+        lobe_flags(m) if j < 0 else mask_flags(lobe_flags(materials[j]), _opaque(m)) for m, j in zip(materials, inner)
+    ]
+    exterior = scene.render.exterior_ior  # a thin dielectric or a plastic sits in it: its ior is relative to it
+    with np.errstate(divide="ignore"):
+        sigma = [np.minimum(-np.log(m.transmittance), 1e30) for m in materials]
+    return BakedMaterials(
+        materials=materials,
+        shape_material=np.array(surfaces or [0], dtype=np.int32),
+        type=np.array([TYPES[m.type].code for m in materials], dtype=np.int32),
+        flags=np.array(flags, dtype=np.int32),
+        inner=np.array(inner, dtype=np.int32),
+        base_color=np.array([_base_color(materials[j] if j >= 0 else m) for m, j in zip(materials, inner)]),
+        ior=np.array([m.ior / exterior if FAMILY_OF[m.type].relative_ior else m.ior for m in materials]),
+        sigma=np.array(sigma).reshape(-1, 3),
+        tables={family.name: family.bake(materials, exterior) for family in FAMILIES if family.data is not None},
+    )
+
+
+@dataclass
+class BakedLights:
+    """``LightData``'s columns: one row per light (angles in radians), the environment map (at
+    most one: its image, frame and sampling distribution, 1-element placeholders without), and
+    the emissive primitives (None: not asked for)."""
+
+    rows: dict[str, np.ndarray]
+    env_radiance: np.ndarray
+    env_to_world: np.ndarray
+    env_cdf: np.ndarray
+    env_pdf: np.ndarray
+    emitting: EmittingPrimitives | None
+
+
+def _light_row(light) -> dict:
+    row = {
+        "position": (0.0, 0.0, 0.0),
+        "direction": (0.0, 0.0, 1.0),
+        "edge_u": (0.0, 0.0, 0.0),
+        "edge_v": (0.0, 0.0, 0.0),
+        "radius": 0.0,
+        "cutoff": 180.0,
+        "beam": 180.0,
+    }
+    if isinstance(light, PointLight):
+        row.update(type=POINT, position=light.position, power=light.intensity)
+    elif isinstance(light, DirectionalLight):
+        row.update(type=DIRECTIONAL, direction=light.direction, power=light.irradiance)
+    elif isinstance(light, SpotLight):
+        row.update(
+            type=SPOT,
+            position=light.position,
+            direction=light.direction,
+            power=light.intensity,
+            cutoff=light.cutoff_angle,
+            beam=light.beam_width,
+        )
+    elif isinstance(light, AreaLight):
+        row.update(type=AREA, position=light.corner, edge_u=light.edge_u, edge_v=light.edge_v, power=light.radiance)
+    elif isinstance(light, SphereLight):
+        row.update(type=SPHERE_LIGHT, position=light.center, radius=light.radius, power=light.radiance)
+    elif isinstance(light, EnvironmentLight):
+        row.update(type=ENVIRONMENT if light.image is None else ENVIRONMENT_MAP, power=light.radiance)
+    return row
+
+
+def bake_lights(scene: Scene, prims: Primitives | None = None) -> BakedLights:
+    """The lights' columns in file order (the surface of light k is surface ``num_shapes + k`` of
+    the geometry), and the emitting primitives of ``prims`` (the scene flattened; none without it)."""
+    rows = [_light_row(light) for light in scene.lights]
+    cutoff = np.radians([r["cutoff"] for r in rows])
+    columns = {name: np.array([r[name] for r in rows]) for name in ("type", "position", "direction", "power", "edge_u")}
+    columns.update(
+        edge_v=np.array([r["edge_v"] for r in rows]),
+        radius=np.array([r["radius"] for r in rows]),
+        cos_cutoff=np.cos(cutoff),
+        cutoff=cutoff,
+        beam=np.radians([r["beam"] for r in rows]),
+    )
+    maps = [light for light in scene.lights if isinstance(light, EnvironmentLight) and light.image is not None]
+    if maps:
+        image, to_world = maps[0].image, maps[0].to_world
+        distribution = environment_distribution(image)
+        cdf, pdf = distribution.cdf, distribution.pdf
+    else:
+        image, to_world = np.zeros((1, 1, 3)), np.eye(3)
+        cdf, pdf = np.zeros(1), np.zeros((1, 1))
+    emitting = None if prims is None else emitting_primitives(scene, prims)
+    return BakedLights(columns, np.asarray(image), np.asarray(to_world), cdf, pdf, emitting)
+
+
+def camera_media(scene: Scene) -> list[int]:
+    """The dielectric spheres and meshes the camera rays start inside (shape indices, the largest
+    first, as a ray from outside would have entered them): their absorption applies from the
+    first segment on. They are found at one point, where the image's central ray starts,
+    ``origin + near_clip forward``, and taken for every camera ray (those of an orthographic camera
+    or a thin lens start elsewhere on the camera plane, or its near clip plane). A mesh holds the
+    point when a ray from it crosses the mesh an odd number of times, counted by the kernels'
+    watertight test (``watertight_crossings``). Triangles, polygons, disks and (open) cylinders
+    bound no volume alone; a moving shape is taken at time 0."""
+    forward, _, _ = scene.camera.basis()
+    o = np.asarray(scene.camera.origin, dtype=np.float64) + scene.camera.near_clip * forward
+    inside = []
+    for index, shape in enumerate(scene.shapes):
+        if not FAMILY_OF[scene.materials[shape.material].type].medium:
+            continue
+        if isinstance(shape, Sphere):
+            if np.linalg.norm(o - np.asarray(shape.center)) < shape.radius:
+                inside.append((shape.radius, index))
+        elif isinstance(shape, Mesh) and watertight_crossings(o, CROSSING_DIRECTION, shape.vertices[shape.faces]) % 2:
+            inside.append((float(np.ptp(shape.vertices, axis=0).max()), index))
+    return [index for _, index in sorted(inside, reverse=True)]
+
+
+CROSSING_DIRECTION = np.array([0.5773502691, 0.5773672691, 0.5773332691])
+"""The direction ``camera_media`` counts crossings along: generic, so that it meets no edge of a
+mesh built on axis-aligned or diagonal grids."""
+
+
+def watertight_hits(o: np.ndarray, d: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Which of ``triangles`` (F, 3, 3) the ray ``o + t d`` (t > 0) hits, by the kernels'
+    watertight test (``wrt.kernels.intersect.intersect_triangle``) on the same float32 inputs:
+    the ray sheared along its largest axis, the edge functions of the sheared vertices with
+    their exact signs (float64 products of float32 values), edges inclusive, ``U + V + W == 0`` a
+    miss, ``t`` from the triangle's plane in float64, rounded once."""
+    o32, d32 = np.asarray(o, dtype=np.float32), np.asarray(d, dtype=np.float32)
+    v = np.asarray(triangles, dtype=np.float32).astype(np.float64)
+    kz = int(np.argmax(np.abs(d32)))
+    kx, ky = (kz + 1) % 3, (kz + 2) % 3
+    sx, sy = np.float64(d32[kx] / d32[kz]), np.float64(d32[ky] / d32[kz])
+    rel = (v - o32.astype(np.float64)).astype(np.float32).astype(np.float64)  # v - o, rounded as in float32
+    x = (rel[..., kx] - sx * rel[..., kz]).astype(np.float32).astype(np.float64)
+    y = (rel[..., ky] - sy * rel[..., kz]).astype(np.float32).astype(np.float64)
+    u = x[:, 2] * y[:, 1] - y[:, 2] * x[:, 1]
+    v_ = x[:, 0] * y[:, 2] - y[:, 0] * x[:, 2]
+    w = x[:, 1] * y[:, 0] - y[:, 1] * x[:, 0]
+    mixed = ((u < 0) | (v_ < 0) | (w < 0)) & ((u > 0) | (v_ > 0) | (w > 0))
+    normal = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    denom = normal @ d32.astype(np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (np.einsum("ij,ij->i", normal, v[:, 0] - o32.astype(np.float64)) / denom).astype(np.float32)
+    return ~mixed & (u + v_ + w != 0) & (denom != 0) & (t > 0) & (t < np.inf)
+
+
+def watertight_crossings(o: np.ndarray, d: np.ndarray, triangles: np.ndarray) -> int:
+    """How many of ``triangles`` the ray ``o + t d`` (t > 0) crosses (``watertight_hits``)."""
+    return int(np.count_nonzero(watertight_hits(o, d, triangles)))
