@@ -138,11 +138,11 @@ LAMP_MATERIALS = [
 ]
 
 
-def render_lamp_scene(shapes, camera, size, spp, groups=None, **settings):
-    """A path-traced render (max_depth 2: direct light) of ``shapes`` made of ``LAMP_MATERIALS``."""
+def render_lamp_scene(shapes, camera, size, spp, groups=None, device="cpu", **settings):
+    """A path-traced render (max_depth 2: direct light) of ``shapes`` made of ``LAMP_MATERIALS``, on ``device``."""
     settings = {"width": size[0], "height": size[1], "integrator": "path", "spp": spp, "max_depth": 2, **settings}
     scene = make_scene(shapes, materials=LAMP_MATERIALS, camera=camera, render=settings, groups=groups)
-    return wrt.render(scene, device="cpu")
+    return wrt.render(scene, device=device)
 
 
 # --- file systems that refuse writes: a small full tmpfs, a read-only one ----------------------

@@ -24,13 +24,13 @@ def expected_directions(origin, look_at, up, fov, w, h):
     return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 
-def test_primary_ray_directions_follow_the_formula():
+def test_primary_ray_directions_follow_the_formula(device):
     """(position - origin) / depth recovers each pixel's ray; it must equal the documented formula."""
     cam = {"origin": [1.0, 2.0, 3.0], "look_at": [-2.0, 0.5, -4.0], "up": [0.2, 1.0, 0.1], "fov": 50.0}
     scene = make_scene(
         [{"type": "sphere", "center": cam["origin"], "radius": 100.0}], camera=cam, render={"width": 64, "height": 40}
     )
-    r = wrt.render(scene)
+    r = wrt.render(scene, device=device)
     d = (r.aovs["position"] - np.array(cam["origin"])) / r.aovs["depth"][..., None]
     np.testing.assert_allclose(
         d, expected_directions(cam["origin"], cam["look_at"], cam["up"], 50.0, 64, 40), atol=2e-5
@@ -38,7 +38,7 @@ def test_primary_ray_directions_follow_the_formula():
     np.testing.assert_allclose(r.aovs["depth"], 100.0, rtol=1e-5)  # from the centre of the sphere
 
 
-def test_sphere_projects_where_the_formula_says():
+def test_sphere_projects_where_the_formula_says(device):
     """A small sphere up and to the right of the view axis lands on the pixel the formula predicts."""
     w, h, fov = 200, 100, 40.0
     centre = np.array([0.9, 0.6, -10.0])
@@ -47,7 +47,7 @@ def test_sphere_projects_where_the_formula_says():
         camera={"origin": [0, 0, 0], "look_at": [0, 0, -1], "up": [0, 1, 0], "fov": fov},
         render={"width": w, "height": h},
     )
-    ids = wrt.render(scene).aovs["object_id"]
+    ids = wrt.render(scene, device=device).aovs["object_id"]
     th = math.tan(math.radians(fov) / 2)
     sx = (centre[0] / -centre[2]) / (th * w / h)
     sy = (centre[1] / -centre[2]) / th
@@ -58,7 +58,7 @@ def test_sphere_projects_where_the_formula_says():
     assert py < h / 2 and px > w / 2  # row 0 is the top: above the axis means small y
 
 
-def test_aspect_and_vertical_fov():
+def test_aspect_and_vertical_fov(device):
     """The vertical fov spans the image height: a sphere subtending fov/2 half-angle touches top and bottom."""
     fov = 30.0
     dist = 10.0
@@ -68,7 +68,7 @@ def test_aspect_and_vertical_fov():
         camera={"origin": [0, 0, 0], "look_at": [0, 0, -1], "fov": fov},
         render={"width": 120, "height": 60},
     )
-    ids = wrt.render(scene).aovs["object_id"]
+    ids = wrt.render(scene, device=device).aovs["object_id"]
     column = ids[:, 60]
     # half-angle of the sphere 14.69 deg; pixel-centre rays of rows 0 and 1 leave at 14.76 and 14.27 deg
     assert column[0] == -1 and column[-1] == -1
@@ -114,7 +114,7 @@ def sphere_roots(o, d, centre, radius):
     return -b - q, -b + q
 
 
-def test_orthographic_rays_follow_the_formula():
+def test_orthographic_rays_follow_the_formula(device):
     """Every pixel's hit, minus depth times forward, lies where the formula starts its ray, and
     the depth is the closed-form distance along ``forward`` to a sphere ahead."""
     cam = {**TILTED, "type": "orthographic", "width": 3.0}
@@ -124,7 +124,7 @@ def test_orthographic_rays_follow_the_formula():
     scene = make_scene(
         [{"type": "sphere", "center": centre.tolist(), "radius": radius}], camera=cam, render={"width": w, "height": h}
     )
-    r = wrt.render(scene)
+    r = wrt.render(scene, device=device)
     o, d = expected_rays(cam, w, h)
     near, _ = sphere_roots(o, d, centre, radius)
     np.testing.assert_allclose(r.aovs["depth"], near, rtol=2e-6)
@@ -141,7 +141,7 @@ def test_orthographic_rays_follow_the_formula():
     np.testing.assert_allclose(tree.direction, np.broadcast_to(forward, tree.direction.shape), atol=1e-6)
 
 
-def test_orthographic_sphere_silhouette_is_a_circle_of_known_radius():
+def test_orthographic_sphere_silhouette_is_a_circle_of_known_radius(device):
     """An orthographic view of a sphere off the view axis: its silhouette is the circle of the
     sphere's radius (19.5 pixels here: 15 pixels per unit) around the projection of its centre,
     whatever its distance."""
@@ -153,7 +153,7 @@ def test_orthographic_sphere_silhouette_is_a_circle_of_known_radius():
     scene = make_scene(
         [{"type": "sphere", "center": centre.tolist(), "radius": radius}], camera=cam, render={"width": w, "height": h}
     )
-    ids = wrt.render(scene).aovs["object_id"]
+    ids = wrt.render(scene, device=device).aovs["object_id"]
     x, y = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
     plane = np.stack([(2 * x / w - 1) * 3.0, (1 - 2 * y / h) * 2.0], axis=-1)  # camera-plane coordinates
     distance = np.linalg.norm(plane - offset, axis=-1)
@@ -170,7 +170,7 @@ CLIPPED = {
 
 @pytest.mark.parametrize("spp", [1, 4], ids=["centre ray is the sample", "separate AOV ray"])
 @pytest.mark.parametrize("kind", list(CLIPPED))
-def test_clip_planes_cut_the_camera_rays(kind, spp):
+def test_clip_planes_cut_the_camera_rays(device, kind, spp):
     """Near and far clip planes cutting a sphere: a ray starts where its distance along forward
     from the camera plane is near_clip (inside the sphere for the central pixels, which see its
     back) and misses what lies beyond far_clip; depth is measured from where the ray starts."""
@@ -184,7 +184,7 @@ def test_clip_planes_cut_the_camera_rays(kind, spp):
         camera=cam,
         render={"width": w, "height": h, "spp": spp},
     )
-    r = wrt.render(scene)
+    r = wrt.render(scene, device=device)
     o, d = expected_rays(cam, w, h)
     cos = d @ forward
     t_near, t_far = 7.0 / cos, 9.2 / cos

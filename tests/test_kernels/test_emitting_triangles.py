@@ -34,21 +34,24 @@ def test_distribution_is_by_power_and_skips_other_shapes():
     assert not scene_features(make_scene([FLOOR], materials=LAMP_MATERIALS)).emissive
 
 
-def test_emissive_quad_over_a_corner_matches_the_form_factor():
+def test_emissive_quad_over_a_corner_matches_the_form_factor(device):
     """Floor point under a corner of a parallel a x b emissive rectangle at height h: albedo L F."""
-    r = render([FLOOR, *QUAD], CORNER, (1, 1), 4000)
+    r = render([FLOOR, *QUAD], CORNER, (1, 1), 4000, device=device)
     assert r.rgb[0, 0, 0] == pytest.approx(ALBEDO * L * corner_form_factor(A, B, H), rel=0.01)
 
 
-def test_mis_matches_bsdf_sampling_alone_with_far_less_noise():
+def test_mis_matches_bsdf_sampling_alone_with_far_less_noise(device):
     """Same expectation as BSDF sampling alone (means within noise), per-pixel variance far lower."""
     camera = {"origin": [1, 1.2, -2.5], "look_at": [1, 0.3, 0.5], "fov": 50}
     shapes = [FLOOR, *QUAD]
     # the same lamp placed by an instance of a group: BSDF-sampled only
     instanced = [FLOOR, {"type": "instance", "group": "lamp"}]
     groups = [{"name": "lamp", "shape": QUAD}]
-    a = [render(shapes, camera, (16, 12), 16, seed=s).rgb[..., 1].astype(np.float64) for s in range(4)]
-    b = [render(instanced, camera, (16, 12), 16, groups, seed=s).rgb[..., 1].astype(np.float64) for s in range(4)]
+    a = [render(shapes, camera, (16, 12), 16, seed=s, device=device).rgb[..., 1].astype(np.float64) for s in range(4)]
+    b = [
+        render(instanced, camera, (16, 12), 16, groups, seed=s, device=device).rgb[..., 1].astype(np.float64)
+        for s in range(4)
+    ]
     a, b = np.stack(a), np.stack(b)
     lit = (a.mean(axis=0) > 0.01) & (a.mean(axis=0) < 1.0)  # the floor, not the lamp seen directly
     ratio = np.median(b.var(axis=0, ddof=1)[lit] / np.maximum(a.var(axis=0, ddof=1)[lit], 1e-12))
@@ -59,7 +62,7 @@ def test_mis_matches_bsdf_sampling_alone_with_far_less_noise():
     assert abs(ma - mb) < 4 * se + 1e-4
 
 
-def test_furnace_inside_a_closed_emissive_mesh():
+def test_furnace_inside_a_closed_emissive_mesh(device):
     """Inside a closed mesh of albedo a emitting E inward everywhere, every ray sees E / (1 - a)
     (the sum over bounces), whichever triangle each next-event sample picks."""
     emission, albedo = 0.5, 0.6
@@ -77,6 +80,6 @@ def test_furnace_inside_a_closed_emissive_mesh():
         render={"width": 8, "height": 8, "integrator": "path", "spp": 64, "max_depth": 200},
         scene_dir=".",
     )
-    r = wrt.render(scene, device="cpu")
+    r = wrt.render(scene, device=device)
     values = r.rgb[..., 0].astype(np.float64)
     assert values.mean() == pytest.approx(emission / (1 - albedo), rel=0.02)

@@ -57,7 +57,7 @@ SIDES = {
 @pytest.mark.parametrize("integrator", ["path", "whitted"])
 @pytest.mark.parametrize("specialize", [False, True], ids=["all-features", "smooth variant"])
 @pytest.mark.parametrize("case", list(SIDES))
-def test_diffuse_quad_shades_with_the_interpolated_normal(tmp_path, integrator, specialize, case):
+def test_diffuse_quad_shades_with_the_interpolated_normal(device, tmp_path, integrator, specialize, case):
     """The BSDF's frame, cosines and sides are the shading normal's; flat shading keeps the face."""
     camera, light, two_sided, cosine = SIDES[case]
     albedo, irradiance = 0.5, 2.0
@@ -71,7 +71,7 @@ def test_diffuse_quad_shades_with_the_interpolated_normal(tmp_path, integrator, 
             camera={"type": "orthographic", "origin": list(5 * view), "look_at": [0, 0, 0], "width": 0.5},
             render={"width": 4, "height": 4, "integrator": integrator, "max_depth": 2},
         )
-        images[shading] = wrt.render(scene, spp=1, specialize=specialize).rgb
+        images[shading] = wrt.render(scene, spp=1, specialize=specialize, device=device).rgb
     expected = albedo / np.pi * irradiance * max(cosine, 0.0)
     np.testing.assert_allclose(images["smooth"], expected, rtol=1e-5, atol=1e-7)
     flat = albedo / np.pi * irradiance * max(toward(light)[2], 0.0) if toward(camera)[2] > 0 else 0.0
@@ -145,7 +145,7 @@ def interpolated_normal(point, vertices, faces, normals):
     return n / np.linalg.norm(n), m[k]
 
 
-def test_normal_aov_is_the_interpolated_vertex_normal(tmp_path, rng):
+def test_normal_aov_is_the_interpolated_vertex_normal(device, tmp_path, rng):
     """Each pixel's normal AOV is the float64 barycentric interpolation of the hit triangle's
     vertex normals at its hit point, normalised, on the side the camera sees: on a mesh placed by
     a shear (normals by the inverse transpose) and moving (the AOVs show mid-shutter), and on an
@@ -164,7 +164,7 @@ def test_normal_aov_is_the_interpolated_vertex_normal(tmp_path, rng):
         camera={"type": "orthographic", "origin": [0, 0, 5], "look_at": [0, 0, 0], "width": 4.0, "shutter": [0, 1]},
         render={"width": 40, "height": 30},
     )
-    aovs = wrt.render(scene, spp=1).aovs
+    aovs = wrt.render(scene, spp=1, device=device).aovs
     ids, points, shown = aovs["object_id"].ravel(), aovs["position"].reshape(-1, 3), aovs["normal"].reshape(-1, 3)
     placed = scene.shapes[0]
     member, to_world = scene.groups[0].shapes[0], scene.shapes[1].matrix
@@ -213,7 +213,7 @@ PLACEMENTS = """
 
 
 @pytest.mark.skipif(not AVAILABLE, reason=REASON)
-def test_hit_normals_are_mitsubas(tmp_path):
+def test_hit_normals_are_mitsubas(device, tmp_path):
     """Through the Mitsuba importer: each pixel's normal AOV is Mitsuba's ``si.sh_frame.n`` of the
     same ray, turned to the geometric side the camera sees, for computed normals under a mirroring
     shear, the file's normals under flip_normals and a rotation, and an instance's."""
@@ -232,7 +232,7 @@ def test_hit_normals_are_mitsubas(tmp_path):
     xml.write_text(f'<scene version="3.0.0">{sensor}{shapes}</scene>')
     scene = wrt.load_scene(xml)
     assert [getattr(s, "normals", None) is not None for s in scene.shapes] == [True, True, False]
-    aovs = wrt.render(scene, spp=1).aovs
+    aovs = wrt.render(scene, spp=1, device=device).aovs
     theirs = mi.load_file(str(xml))
     d = mi.Vector3f(0, 0, -1)
     checked = 0

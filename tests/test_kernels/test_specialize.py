@@ -242,7 +242,7 @@ GROUPS = [  # what the instance scenes place; unused by the others
 
 
 @pytest.mark.parametrize("name", list(SCENES))
-def test_specialised_kernel_renders_the_same_image(name):
+def test_specialised_kernel_renders_the_same_image(device, name):
     shapes, materials, lights, camera, integrator = SCENES[name]
     render = {"width": 24, "height": 18, "spp": 4, "integrator": integrator, "ambient": [0.1, 0.1, 0.1]}
     scene = make_scene(
@@ -253,7 +253,8 @@ def test_specialised_kernel_renders_the_same_image(name):
         render=render,
         groups=GROUPS if any(shape["type"] == "instance" for shape in shapes) else None,
     )
-    special, general = wrt.render(scene, specialize=True), wrt.render(scene, specialize=False)
+    special = wrt.render(scene, specialize=True, device=device)
+    general = wrt.render(scene, specialize=False, device=device)
     assert np.array_equal(special.rgb, general.rgb)
     assert special.rgb.max() > 0  # something was rendered
 
