@@ -55,7 +55,7 @@ class IntegratorSettings:
     exterior_ior: float
     filtered_shadows: wp.int32  # 1: shadow rays pass dielectrics with Beer-Lambert attenuation
     min_throughput: float
-    camera_media: Media  # the dielectrics the camera is inside, outermost first (wrt.device.camera_media)
+    camera_media: Media  # the dielectrics the camera is inside, outermost first (wrt.bake.camera_media)
     camera_n_media: wp.int32
 
 

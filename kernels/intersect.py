@@ -20,7 +20,7 @@ import warp as wp
 # 1 + 2 gamma(3) for float32: widens a slab interval so rounding never culls a box a ray touches.
 SLAB_WIDEN = wp.constant(1.0 + 2.0 * 3.0 * 5.9604645e-08 / (1.0 - 3.0 * 5.9604645e-08))
 # 1/d of a direction component too small to invert in float32 (0, -0, denormals): the ray does not
-# move along that axis (see safe_inverse, intersect_box).
+# move along that axis (see safe_inverse and the BVH's box test, wrt.kernels.bvh.slab_exact).
 INV_ZERO = wp.constant(float("inf"))
 FLOAT32_MIN_NORMAL = wp.constant(1.17549435e-38)
 
@@ -341,39 +341,11 @@ def safe_inverse(d: wp.vec3) -> wp.vec3:
     """Componentwise 1/d for the slab test: finite where ``|d[k]|`` is a normal float32, else
     ``INV_ZERO`` (+0.0, -0.0 and denormals, whose inverse overflows): "does not move along k".
 
-    ``intersect_box`` handles those axes apart, so ``(lo - o) * inv_d`` never reaches
-    ``0 * inf = NaN`` (which would cull a box the ray starts on).
+    The BVH's box test (``wrt.kernels.bvh.slab_exact``) handles those axes apart, so
+    ``(lo - o) * inv_d`` never reaches ``0 * inf = NaN`` (which would cull a box the ray starts on).
     """
     inv = wp.vec3(INV_ZERO, INV_ZERO, INV_ZERO)
     for k in range(3):
         if wp.abs(d[k]) >= FLOAT32_MIN_NORMAL:
             inv[k] = 1.0 / d[k]
     return inv
-
-
-@wp.func
-def intersect_box(o: wp.vec3, inv_d: wp.vec3, lo: wp.vec3, hi: wp.vec3, t_max: float) -> float:
-    """Entry distance of the ray into the box [lo, hi] (clamped to >= 0), or ``t_max`` if it misses.
-
-    Slab test with the far distance widened by ``SLAB_WIDEN`` (pbrt-v4) so a box is never culled
-    by rounding; ``inv_d`` comes from ``safe_inverse``. Along an axis the ray does not move
-    (``inv_d == INV_ZERO``) the slab is all or nothing: the ray is in it for every t when its
-    origin lies in [lo, hi], boundary included (a ray running exactly along a box face keeps the
-    box), and never otherwise. A box the ray enters exactly at ``t_max`` counts as missed.
-    """
-    near = wp.vec3(0.0)
-    far = wp.vec3(wp.inf)
-    for k in range(3):
-        if inv_d[k] == INV_ZERO:
-            if o[k] < lo[k] or o[k] > hi[k]:
-                return t_max
-        else:
-            t0 = (lo[k] - o[k]) * inv_d[k]
-            t1 = (hi[k] - o[k]) * inv_d[k]
-            near[k] = wp.min(t0, t1)
-            far[k] = wp.max(t0, t1)
-    t_near = wp.max(wp.max(near[0], near[1]), wp.max(near[2], 0.0))
-    t_far = wp.min(wp.min(far[0], far[1]), far[2]) * SLAB_WIDEN
-    if t_near <= t_far and t_near < t_max:
-        return t_near
-    return t_max

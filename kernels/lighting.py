@@ -100,10 +100,10 @@ def make_lighting(environment_map: bool, emissive: bool, emissive_shapes: bool, 
         dim: wp.int32,
     ) -> LightSample:
         ls = LightSample()
-        kind = EMITTING
+        light_type = EMITTING
         if i < lights.type.shape[0]:
-            kind = lights.type[i]
-        if kind <= SPOT:
+            light_type = lights.type[i]
+        if light_type <= SPOT:
             wi, dist, irradiance = light_incident(lights, i, p)
             ls.wi = wi
             ls.radiance = irradiance
@@ -115,7 +115,7 @@ def make_lighting(environment_map: bool, emissive: bool, emissive_shapes: bool, 
         dist = float(0.0)
         radiance = wp.vec3(0.0)
         pdf = float(0.0)
-        if kind == EMITTING:
+        if light_type == EMITTING:
             if wp.static(emissive):
                 uc = sample_1d(sampler, pixel, sample, dim + 2)
                 wi, dist, radiance, pdf = wp.static(sample_emitting)(
@@ -127,7 +127,7 @@ def make_lighting(environment_map: bool, emissive: bool, emissive_shapes: bool, 
         ls.radiance = radiance
         ls.pdf = pdf
         ls.t_max = dist
-        if kind != ENVIRONMENT:
+        if light_type != ENVIRONMENT:
             ls.t_max = dist * (1.0 - SHADOW_MARGIN)
         return ls
 

@@ -299,21 +299,35 @@ def _dispatch(functions: list) -> BSDF:
 
 @wp.func
 def no_eval(
-    materials: MaterialData, m: wp.int32, kind: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float, uv: wp.vec2
+    materials: MaterialData,
+    m: wp.int32,
+    material_type: wp.int32,
+    n: wp.vec3,
+    wo: wp.vec3,
+    wi: wp.vec3,
+    eta: float,
+    uv: wp.vec2,
 ) -> wp.vec3:
     return wp.vec3(0.0)
 
 
 @wp.func
 def no_pdf(
-    materials: MaterialData, m: wp.int32, kind: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float, uv: wp.vec2
+    materials: MaterialData,
+    m: wp.int32,
+    material_type: wp.int32,
+    n: wp.vec3,
+    wo: wp.vec3,
+    wi: wp.vec3,
+    eta: float,
+    uv: wp.vec2,
 ) -> float:
     return 0.0
 
 
 def _eval_cases(cases: list, otherwise: wp.Function) -> wp.Function:
     """``eval`` (or ``pdf``: the same arguments) of the first family of ``cases`` (``(owns,
-    function)`` pairs) that owns ``kind``, else ``otherwise``'s (``no_eval``, ``no_pdf``); the
+    function)`` pairs) that owns ``material_type``, else ``otherwise``'s (``no_eval``, ``no_pdf``); the
     return type is the families' (Warp infers it)."""
     if not cases:
         return otherwise
@@ -324,29 +338,29 @@ def _eval_cases(cases: list, otherwise: wp.Function) -> wp.Function:
     def eval_case(
         materials: MaterialData,
         m: wp.int32,
-        kind: wp.int32,
+        material_type: wp.int32,
         n: wp.vec3,
         wo: wp.vec3,
         wi: wp.vec3,
         eta: float,
         uv: wp.vec2,
     ):
-        if owns(kind):
+        if owns(material_type):
             return family_function(materials, m, n, wo, wi, eta, uv)
-        return rest(materials, m, kind, n, wo, wi, eta, uv)
+        return rest(materials, m, material_type, n, wo, wi, eta, uv)
 
     return eval_case
 
 
 def _sample_cases(cases: list) -> wp.Function:
-    """``sample`` of the first family of ``cases`` that owns ``kind``, else a lost sample."""
+    """``sample`` of the first family of ``cases`` that owns ``material_type``, else a lost sample."""
     if not cases:
 
         @wp.func
         def no_sample(
             materials: MaterialData,
             m: wp.int32,
-            kind: wp.int32,
+            material_type: wp.int32,
             n: wp.vec3,
             wo: wp.vec3,
             eta: float,
@@ -364,7 +378,7 @@ def _sample_cases(cases: list) -> wp.Function:
     def sample_case(
         materials: MaterialData,
         m: wp.int32,
-        kind: wp.int32,
+        material_type: wp.int32,
         n: wp.vec3,
         wo: wp.vec3,
         eta: float,
@@ -372,20 +386,26 @@ def _sample_cases(cases: list) -> wp.Function:
         u: wp.vec2,
         uv: wp.vec2,
     ) -> BSDFSample:
-        if owns(kind):
+        if owns(material_type):
             return family_sample(materials, m, n, wo, eta, uc, u, uv)
-        return rest(materials, m, kind, n, wo, eta, uc, u, uv)
+        return rest(materials, m, material_type, n, wo, eta, uc, u, uv)
 
     return sample_case
 
 
 def _lobes_cases(cases: list) -> wp.Function:
-    """``specular_lobes`` of the first family of ``cases`` that owns ``kind``, else none."""
+    """``specular_lobes`` of the first family of ``cases`` that owns ``material_type``, else none."""
     if not cases:
 
         @wp.func
         def no_specular_lobes(
-            materials: MaterialData, m: wp.int32, kind: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uv: wp.vec2
+            materials: MaterialData,
+            m: wp.int32,
+            material_type: wp.int32,
+            n: wp.vec3,
+            wo: wp.vec3,
+            eta: float,
+            uv: wp.vec2,
         ) -> SpecularLobes:
             return no_lobes(n, wo)
 
@@ -395,10 +415,10 @@ def _lobes_cases(cases: list) -> wp.Function:
 
     @wp.func
     def lobes_case(
-        materials: MaterialData, m: wp.int32, kind: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uv: wp.vec2
+        materials: MaterialData, m: wp.int32, material_type: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uv: wp.vec2
     ) -> SpecularLobes:
-        if owns(kind):
+        if owns(material_type):
             return family_lobes(materials, m, n, wo, eta, uv)
-        return rest(materials, m, kind, n, wo, eta, uv)
+        return rest(materials, m, material_type, n, wo, eta, uv)
 
     return lobes_case

@@ -55,8 +55,8 @@ def base_color(material) -> tuple:
 
 def make(at: Parameters) -> Functions:
     @wp.func
-    def owns(kind: wp.int32) -> bool:
-        return kind == MIRROR or kind == GLOSSY or kind == CONDUCTOR
+    def owns(material_type: wp.int32) -> bool:
+        return material_type == MIRROR or material_type == GLOSSY or material_type == CONDUCTOR
 
     @wp.func
     def specular_reflectance(materials: MaterialData, m: wp.int32, reflectance: wp.vec3, cos_theta: float) -> wp.vec3:
@@ -114,8 +114,8 @@ def make(at: Parameters) -> Functions:
     ) -> BSDFSample:
         """A mirror's or a smooth conductor's reflection; glossy and rough conductors by GGX visible normals."""
         s = lost_sample()
-        kind = materials.type[m]
-        if kind == MIRROR or (kind == CONDUCTOR and materials.roughness[m] == 0.0):
+        material_type = materials.type[m]
+        if material_type == MIRROR or (material_type == CONDUCTOR and materials.roughness[m] == 0.0):
             lobes = specular_lobes(materials, m, n, wo, eta, uv)
             s.wi = lobes.wr
             s.flags = BSDF_REFLECTION | BSDF_SPECULAR

@@ -27,8 +27,8 @@ DIELECTRIC = wp.constant(3)
 
 def make(at: Parameters) -> Functions:
     @wp.func
-    def owns(kind: wp.int32) -> bool:
-        return kind == DIELECTRIC
+    def owns(material_type: wp.int32) -> bool:
+        return material_type == DIELECTRIC
 
     @wp.func
     def specular_lobes(

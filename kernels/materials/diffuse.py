@@ -48,8 +48,8 @@ def cosine_pdf(
 
 def make(at: Parameters) -> Functions:
     @wp.func
-    def owns(kind: wp.int32) -> bool:
-        return kind == DIFFUSE
+    def owns(material_type: wp.int32) -> bool:
+        return material_type == DIFFUSE
 
     @wp.func
     def eval(

@@ -9,7 +9,7 @@ in, the Mitsuba plugins converted to it, whether it bounds a medium, its base co
 bakes into its own table). ``make(at)`` takes the parameter lookups of a scene (``Parameters``,
 ``wrt.kernels.materials.data``) and returns ``Functions``:
 
-- ``owns(kind)``: the material type code ``kind`` is one of the family's;
+- ``owns(material_type)``: the code ``material_type`` (``MaterialData.type``) is one of the family's;
 - ``eval(materials, m, n, wo, wi, eta, uv)``: f (1/sr) of its non-specular lobes;
 - ``pdf(materials, m, n, wo, wi, eta, uv)``: the solid-angle density of ``sample``'s non-specular lobes;
 - ``sample(materials, m, n, wo, eta, uc, u, uv)``: one ``BSDFSample``;

@@ -27,8 +27,8 @@ def make(at: Parameters, bsdf) -> Functions:
     every material, a mask or not (the dispatch of a scene with masks is this family's)."""
 
     @wp.func
-    def owns(kind: wp.int32) -> bool:
-        return kind == MASK
+    def owns(material_type: wp.int32) -> bool:
+        return material_type == MASK
 
     @wp.func
     def opacity_at(materials: MaterialData, m: wp.int32, uv: wp.vec2) -> float:

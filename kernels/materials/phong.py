@@ -21,8 +21,8 @@ PHONG = wp.constant(1)
 
 def make(at: Parameters) -> Functions:
     @wp.func
-    def owns(kind: wp.int32) -> bool:
-        return kind == PHONG
+    def owns(material_type: wp.int32) -> bool:
+        return material_type == PHONG
 
     @wp.func
     def eval(

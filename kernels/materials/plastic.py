@@ -71,8 +71,8 @@ def make(at) -> Functions:
     from .data import MaterialData  # noqa: PLC0415 (MaterialData holds PlasticData: the one import cycle of the family)
 
     @wp.func
-    def owns(kind: wp.int32) -> bool:
-        return kind == PLASTIC or kind == ROUGH_PLASTIC
+    def owns(material_type: wp.int32) -> bool:
+        return material_type == PLASTIC or material_type == ROUGH_PLASTIC
 
     @wp.func
     def coating_transmittance(materials: MaterialData, m: wp.int32, cos_theta: float) -> float:

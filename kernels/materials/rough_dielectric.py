@@ -63,8 +63,8 @@ def rough_dielectric_sample(alpha: float, n: wp.vec3, wo: wp.vec3, eta: float, u
 
 def make(at: Parameters) -> Functions:
     @wp.func
-    def owns(kind: wp.int32) -> bool:
-        return kind == ROUGH_DIELECTRIC
+    def owns(material_type: wp.int32) -> bool:
+        return material_type == ROUGH_DIELECTRIC
 
     @wp.func
     def eval(

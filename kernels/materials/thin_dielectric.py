@@ -68,8 +68,8 @@ def thin_dielectric_sample(
 
 def make(at: Parameters) -> Functions:
     @wp.func
-    def owns(kind: wp.int32) -> bool:
-        return kind == THIN_DIELECTRIC
+    def owns(material_type: wp.int32) -> bool:
+        return material_type == THIN_DIELECTRIC
 
     @wp.func
     def specular_lobes(
