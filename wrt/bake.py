@@ -4,7 +4,7 @@ upload, ``wrt.device``, rounds to float32 and converts to Warp arrays, nothing m
 
 - ``bake_materials``: the material list the kernels index (the scene's, then one emitter per
   surface light), each material's type code, lobes, base colour, relative ior and absorption, a
-  mask's inner material, and each family's own table (``Family.bake``: the plastics' coating
+  mask's inner material, their textures' table, and each family's own table (``Family.bake``: the plastics' coating
   tables).
 - ``bake_lights``: one row per light (``wrt.kernels.lights.LightData``), the environment map's
   sampling distribution (``wrt.envmap``) and the pool of emissive primitives (``wrt.emitting``).
@@ -37,6 +37,7 @@ from .scene import (
     SphereLight,
     SpotLight,
 )
+from .textures import TextureTable, texture_table
 
 
 @dataclass
@@ -52,6 +53,7 @@ class BakedMaterials:
     base_color: np.ndarray
     ior: np.ndarray
     sigma: np.ndarray
+    textures: TextureTable  # the textures of textured parameters (wrt.textures.texture_table)
     tables: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)  # Family.bake's, by family name
 
 
@@ -103,6 +105,7 @@ def bake_materials(scene: Scene) -> BakedMaterials:
         base_color=np.array([_base_color(materials[j] if j >= 0 else m) for m, j in zip(materials, inner)]),
         ior=np.array([m.ior / exterior if FAMILY_OF[m.type].relative_ior else m.ior for m in materials]),
         sigma=np.array(sigma).reshape(-1, 3),
+        textures=texture_table(materials),
         tables={family.name: family.bake(materials, exterior) for family in FAMILIES if family.data is not None},
     )
 
@@ -158,14 +161,9 @@ def bake_lights(scene: Scene, prims: Primitives | None = None) -> BakedLights:
     the geometry), and the emitting primitives of ``prims`` (the scene flattened; none without it)."""
     rows = [_light_row(light) for light in scene.lights]
     cutoff = np.radians([r["cutoff"] for r in rows])
-    columns = {name: np.array([r[name] for r in rows]) for name in ("type", "position", "direction", "power", "edge_u")}
-    columns.update(
-        edge_v=np.array([r["edge_v"] for r in rows]),
-        radius=np.array([r["radius"] for r in rows]),
-        cos_cutoff=np.cos(cutoff),
-        cutoff=cutoff,
-        beam=np.radians([r["beam"] for r in rows]),
-    )
+    names = ("type", "position", "direction", "power", "edge_u", "edge_v", "radius")
+    columns = {name: np.array([r[name] for r in rows]) for name in names}
+    columns.update(cos_cutoff=np.cos(cutoff), cutoff=cutoff, beam=np.radians([r["beam"] for r in rows]))
     maps = [light for light in scene.lights if isinstance(light, EnvironmentLight) and light.image is not None]
     if maps:
         image, to_world = maps[0].image, maps[0].to_world

@@ -29,7 +29,7 @@ from .emitting import EmittingPrimitives
 from .errors import WrtError
 from .geometry import Primitives
 from .scene import Camera, RenderSettings, Scene
-from .textures import texture_table
+from .textures import TextureTable, texture_table
 
 SAMPLER_CODES = {"independent": INDEPENDENT, "stratified": STRATIFIED, "sobol": SOBOL}
 FILTER_CODES = {"box": BOX, "tent": TENT, "gaussian": GAUSSIAN}
@@ -139,7 +139,7 @@ def upload_materials(scene: Scene, device) -> MaterialData:
     m = MaterialData()
     m.shape_material = _int(baked.shape_material, device)
     m.type = _int(baked.type, device)
-    m.textures = upload_textures(scene, device)
+    m.textures = _texture_data(baked.textures, device)
     m.flags = _int(baked.flags, device)
     m.inner = _int(baked.inner, device)
     m.opacity = _float([mat.opacity for mat in mats], device)
@@ -166,7 +166,10 @@ def upload_materials(scene: Scene, device) -> MaterialData:
 def upload_textures(scene: Scene, device) -> TextureData:
     """Every texture of the scene's materials and which material parameter each gives
     (``wrt.kernels.textures``; materials numbered as ``surface_materials``)."""
-    table = texture_table(surface_materials(scene)[1])
+    return _texture_data(texture_table(surface_materials(scene)[1]), device)
+
+
+def _texture_data(table: TextureTable, device) -> TextureData:
     t = TextureData()
     t.slot = wp.array(table.slot, dtype=wp.int32, device=device)
     t.kind = _int(table.kind, device)
