@@ -141,6 +141,17 @@ class Interface:
 
 
 @wp.func
+def no_interface(media: Media, n_media: wp.int32) -> Interface:
+    """A surface that separates nothing: real, ``eta`` 1, the same media on both sides."""
+    interface = Interface()
+    interface.real = True
+    interface.eta = 1.0
+    interface.media = media
+    interface.n_media = n_media
+    return interface
+
+
+@wp.func
 def cross_interface(
     materials: MaterialData,
     exterior_ior: float,
@@ -152,12 +163,8 @@ def cross_interface(
 ) -> Interface:
     """What a surface of BSDF ``flags`` on ``shape`` separates for a ray with media stack ``media``:
     a dielectric that bounds a medium (transmission, not thin) its ``dielectric_interface``, any
-    other surface a real interface of ``eta`` 1 with the same media on both sides."""
-    interface = Interface()
-    interface.real = True
-    interface.eta = 1.0
-    interface.media = media
-    interface.n_media = n_media
+    other surface ``no_interface``."""
+    interface = no_interface(media, n_media)
     if (flags & (BSDF_TRANSMISSION | BSDF_THIN)) == BSDF_TRANSMISSION:  # a thin dielectric bounds none
         real, eta, media_t, n_media_t = dielectric_interface(materials, exterior_ior, media, n_media, shape, entering)
         interface.real = real

@@ -62,13 +62,13 @@ from .materials import (
 )
 from .media import (
     MEDIA_OVERFLOW,
-    Interface,
     Media,
     cross_interface,
     current_ior,
     max_component,
     medium_sigma,
     medium_transmittance,
+    no_interface,
 )
 from .record import (
     REFLECTED,
@@ -316,11 +316,7 @@ def make_path_radiance(record: bool, features: Features = ALL):
 
             # The media on either side; a false interface lets the ray go straight on (not a
             # segment of its own: max_depth does not end the path there)
-            interface = Interface()
-            interface.real = True
-            interface.eta = 1.0
-            interface.media = path.media
-            interface.n_media = path.n_media
+            interface = no_interface(path.media, path.n_media)
             if wp.static(features.dielectric):
                 interface = cross_interface(
                     materials, settings.exterior_ior, path.media, path.n_media, flags, hit.shape, hit.entering

@@ -67,12 +67,12 @@ from .materials import (
 from .media import (
     MEDIA,
     MEDIA_OVERFLOW,
-    Interface,
     cross_interface,
     current_ior,
     max_component,
     medium_sigma,
     medium_transmittance,
+    no_interface,
 )
 from .record import REFLECTED, REFRACTED, STRAIGHT, TOTAL_INTERNAL, RayRecord
 from .sampling import Sampler
@@ -273,11 +273,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL):
                 # Specular surfaces: the media on either side, then the reflected and refracted branches
                 if wp.static(features.specular):
                     if (flags & BSDF_SPECULAR) != 0:
-                        interface = Interface()
-                        interface.real = True
-                        interface.eta = 1.0
-                        interface.media = media
-                        interface.n_media = n_media
+                        interface = no_interface(media, n_media)
                         if wp.static(features.dielectric):
                             interface = cross_interface(
                                 materials, settings.exterior_ior, media, n_media, flags, hit.shape, hit.entering

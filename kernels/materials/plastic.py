@@ -47,6 +47,7 @@ from .interface import (
     Functions,
     MaterialType,
     SpecularLobes,
+    lost_sample,
     no_lobes,
 )
 
@@ -184,9 +185,7 @@ def make(at) -> Functions:
         albedo = at.rgb(materials, m, ALBEDO, uv, materials.albedo[m])
         reflectance = at.rgb(materials, m, REFLECTANCE, uv, materials.reflectance[m])
         alpha = at.alpha(materials, m, uv)
-        s = BSDFSample()
-        s.weight = wp.vec3(0.0)
-        s.pdf = 0.0
+        s = lost_sample()
         to_world = frame(n)
         transmittance = coating_transmittance(materials, m, wp.dot(n, wo))
         coating = coating_probability(materials, m, transmittance)

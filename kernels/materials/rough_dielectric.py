@@ -21,6 +21,7 @@ from .interface import (
     Family,
     Functions,
     MaterialType,
+    lost_sample,
 )
 
 ROUGH_DIELECTRIC = wp.constant(8)
@@ -32,9 +33,7 @@ def rough_dielectric_sample(alpha: float, n: wp.vec3, wo: wp.vec3, eta: float, u
     probability F (at ``wo.h``; weight ``G1(wi)``) or refraction through it (weight ``eta^2
     G1(wi)``), as Mitsuba 3's ``roughdielectric``; index-matched (``eta == 1``) a straight pass,
     a delta lobe of weight 1."""
-    s = BSDFSample()
-    s.weight = wp.vec3(0.0)
-    s.pdf = 0.0
+    s = lost_sample()
     if eta == 1.0:
         s.wi = -wo
         s.weight = wp.vec3(1.0)
