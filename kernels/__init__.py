@@ -16,8 +16,9 @@ Modules, in data-flow order:
                     sample); ``microfacet``: GGX
 - ``textures``      textured material parameters: checkerboard and bitmap lookups at a hit's uv
 - ``hit``           the surface hit integrators shade (point, normals, material, error bound)
-- ``lights``        light parameters and delta lights; ``emitters``: sampling lights with area
-- ``lighting``      the one light interface integrators use (``sample_li``, ``pdf_li``, ``is_delta``)
+- ``lights``        the light families (one module each: delta, area, sphere, environment, the
+                    emissive primitives) and the one light interface (``sample_li``, ``pdf_li``,
+                    ``is_delta``, the environment's radiance)
 - ``media``         nested and overlapping dielectrics along a ray, Beer-Lambert absorption
 - ``shadow``        the shadow ray (opaque or filtered through dielectrics), recorded or not
 - ``film``          the per-pixel outputs and AOVs

@@ -5,7 +5,7 @@ Per camera sample one path is traced:
 
 - at diffuse, Phong and glossy surfaces, every light is sampled once (next-event estimation):
   delta lights (point, directional, spot) with a shadow ray; area, sphere and environment lights
-  (a constant one uniformly, a map by its luminance) by ``wrt.kernels.emitters`` with a shadow
+  (a constant one uniformly, a map by its luminance) by ``wrt.kernels.lights`` with a shadow
   ray, weighted against BSDF sampling by the power heuristic; and one emissive primitive of the
   scene's own meshes, triangles, polygons and spheres (``wrt.emitting``: chosen by power, a
   uniform point on a triangle or polygon, a direction in a sphere's cone), weighted likewise;
@@ -24,7 +24,7 @@ Per camera sample one path is traced:
 - the back side of a one-sided material (``two_sided = false``) reflects nothing: the path ends
   there, without next-event estimation;
 - emission is added where the path hits an emitter's front: fully after the camera or a specular
-  bounce, MIS-weighted after a BSDF sample when the emitter is a light or an emissive primitive
+  bounce, MIS-weighted after a BSDF sample when the emitter is a light's surface or an emissive primitive
   that NEE also samples (other emissive shapes, and shapes seen through instances, are found by
   BSDF sampling only); paths leaving the scene see the
   environment lights, MIS-weighted likewise;
@@ -48,8 +48,7 @@ import warp as wp
 from .features import ALL, Features
 from .hit import Hit, make_surface_hit_for, normal_map_shadowing
 from .integrator import CameraRay, IntegratorSettings, make_trace_segment
-from .lighting import Lighting, make_lighting
-from .lights import LightData
+from .lights import LightData, lighting_for
 from .materials import (
     BSDF_SPECULAR,
     BSDF_TOTAL_INTERNAL,
@@ -175,7 +174,7 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
         eta: float,
         sigma_t: wp.vec3,
     ) -> wp.vec3:
-        """Light reflected toward ``hit.wo`` from one sample of every emitter (``wrt.kernels.lighting``),
+        """Light reflected toward ``hit.wo`` from one sample of every light (``wrt.kernels.lights``),
         MIS-weighted for those that are not delta lights (W/(m^2 sr), before the path's
         ``throughput``); ``sigma`` is the absorption of the medium ``hit`` lies in, applied along
         the shadow rays as along BSDF-sampled paths. ``flags`` are the BSDF's; a light below a
@@ -233,11 +232,6 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
         return total
 
     return next_event
-
-
-def lighting_for(features: Features) -> Lighting:
-    """The light interface of a scene of ``features``."""
-    return make_lighting(features.environment_map, features.emissive, features.emissive_shapes, features.smooth)
 
 
 def make_path_radiance(record: bool, features: Features = ALL):

@@ -94,3 +94,18 @@ def power_heuristic(pdf_a: float, pdf_b: float) -> float:
         return 1.0 / (1.0 + r * r)
     r = pdf_a / pdf_b
     return r * r / (1.0 + r * r)
+
+
+@wp.func
+def find_interval(cdf: wp.array(dtype=float), start: wp.int32, n: wp.int32, x: float) -> wp.int32:
+    """The interval ``k`` in [0, n - 2] of the ``n`` CDF values from ``cdf[start]`` (0 to 1) holding
+    ``x`` in [0, 1): ``cdf[start + k] <= x < cdf[start + k + 1]``, never an empty one."""
+    lo = int(0)
+    hi = n - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if cdf[start + mid] <= x:
+            lo = mid
+        else:
+            hi = mid
+    return lo

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from wrt.kernels.lights import AREA, DIRECTIONAL, ENVIRONMENT, ENVIRONMENT_MAP, POINT, SPHERE_LIGHT, SPOT
+from wrt.kernels.lights import light_row
 from wrt.kernels.materials import FAMILIES, FAMILY_OF, TYPES, lobe_flags, mask_flags
 
 from .emitting import EmittingPrimitives, emitting_primitives
@@ -26,16 +26,11 @@ from .envmap import environment_distribution
 from .geometry import Primitives
 from .scene import (
     SURFACE_LIGHTS,
-    AreaLight,
-    DirectionalLight,
     EnvironmentLight,
     Material,
     Mesh,
-    PointLight,
     Scene,
     Sphere,
-    SphereLight,
-    SpotLight,
 )
 from .textures import TextureTable, texture_table
 
@@ -124,42 +119,10 @@ class BakedLights:
     emitting: EmittingPrimitives | None
 
 
-def _light_row(light) -> dict:
-    row = {
-        "position": (0.0, 0.0, 0.0),
-        "direction": (0.0, 0.0, 1.0),
-        "edge_u": (0.0, 0.0, 0.0),
-        "edge_v": (0.0, 0.0, 0.0),
-        "radius": 0.0,
-        "cutoff": 180.0,
-        "beam": 180.0,
-    }
-    if isinstance(light, PointLight):
-        row.update(type=POINT, position=light.position, power=light.intensity)
-    elif isinstance(light, DirectionalLight):
-        row.update(type=DIRECTIONAL, direction=light.direction, power=light.irradiance)
-    elif isinstance(light, SpotLight):
-        row.update(
-            type=SPOT,
-            position=light.position,
-            direction=light.direction,
-            power=light.intensity,
-            cutoff=light.cutoff_angle,
-            beam=light.beam_width,
-        )
-    elif isinstance(light, AreaLight):
-        row.update(type=AREA, position=light.corner, edge_u=light.edge_u, edge_v=light.edge_v, power=light.radiance)
-    elif isinstance(light, SphereLight):
-        row.update(type=SPHERE_LIGHT, position=light.center, radius=light.radius, power=light.radiance)
-    elif isinstance(light, EnvironmentLight):
-        row.update(type=ENVIRONMENT if light.image is None else ENVIRONMENT_MAP, power=light.radiance)
-    return row
-
-
 def bake_lights(scene: Scene, prims: Primitives | None = None) -> BakedLights:
     """The lights' columns in file order (the surface of light k is surface ``num_shapes + k`` of
     the geometry), and the emitting primitives of ``prims`` (the scene flattened; none without it)."""
-    rows = [_light_row(light) for light in scene.lights]
+    rows = [light_row(light) for light in scene.lights]
     cutoff = np.radians([r["cutoff"] for r in rows])
     names = ("type", "position", "direction", "power", "edge_u", "edge_v", "radius")
     columns = {name: np.array([r[name] for r in rows]) for name in names}

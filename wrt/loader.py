@@ -20,6 +20,7 @@ from .conductors import METALS
 from .envmap import EnvironmentMapError, read_environment_map
 from .errors import MeshFileError, SceneError, listed
 from .files import TomlError, read_toml
+from .kernels.lights import LIGHT_TYPES
 from .kernels.materials import TYPES
 from .limits import MAX_DEPTH, MAX_IMAGE_SIDE, MAX_MAGNITUDE, MAX_SEED, MAX_SPP
 from .meshio import apply_transform, load_mesh, transform_matrix, transform_normals, vertex_normals
@@ -57,7 +58,6 @@ TOP_LEVEL = ("render", "camera", "material", "group", "shape", "light")
 SHAPE_TYPES = ("sphere", "plane", "triangle", "polygon", "mesh", "disk", "cylinder", "instance")
 GROUP_SHAPE_TYPES = ("sphere", "triangle", "polygon", "mesh", "disk", "cylinder")  # bounded: what a [[group]] holds
 MESH_SHADING = ("flat", "smooth")  # a mesh's shading normals: its face normals, or interpolated vertex normals
-LIGHT_TYPES = ("point", "directional", "spot", "area", "sphere", "environment")
 DEFAULT_MATERIAL = Material(name="default", type="diffuse", albedo=(0.5, 0.5, 0.5))
 FLOAT32_TINY = float(np.finfo(np.float32).tiny)  # the smallest normal float32
 BEYOND_FLOAT32 = f"must be at most {MAX_MAGNITUDE:g} in magnitude (so that float32 products of it stay finite)"
@@ -667,12 +667,12 @@ def _environment(t: _Table, scene_dir: str) -> EnvironmentLight:
 
 def _light(file: str, index: int, data, scene_dir: str):
     t = _Table(file, f"light[{index}]", data)
-    kind = t.string("type", choices=LIGHT_TYPES)
-    if kind == "point":
+    light_type = t.string("type", choices=LIGHT_TYPES)
+    if light_type == "point":
         light = PointLight(position=t.vec3("position"), intensity=t.vec3("intensity", lo=0.0))
-    elif kind == "directional":
+    elif light_type == "directional":
         light = DirectionalLight(direction=_unit(t, "direction"), irradiance=t.vec3("irradiance", lo=0.0))
-    elif kind == "spot":
+    elif light_type == "spot":
         cutoff = t.number("cutoff_angle", SpotLight.cutoff_angle, lo=0.0, hi=90.0, lo_open=True)
         light = SpotLight(
             position=t.vec3("position"),
@@ -681,7 +681,7 @@ def _light(file: str, index: int, data, scene_dir: str):
             cutoff_angle=cutoff,
             beam_width=t.number("beam_width", 0.75 * cutoff, lo=0.0, hi=cutoff),
         )
-    elif kind == "area":
+    elif light_type == "area":
         light = AreaLight(
             corner=t.vec3("corner"),
             edge_u=t.vec3("edge_u", nonzero=True),
@@ -694,7 +694,7 @@ def _light(file: str, index: int, data, scene_dir: str):
             raise t.error(
                 "edge_v", "spans with edge_u an area float32 cannot resolve (it underflows)", list(light.edge_v)
             )
-    elif kind == "sphere":
+    elif light_type == "sphere":
         light = SphereLight(
             center=t.vec3("center"),
             radius=t.number("radius", lo=0.0, lo_open=True),

@@ -1,12 +1,14 @@
-"""Emitter sampling (kernels/emitters.py, kernels/sample_warps.py) against closed-form irradiance."""
+"""Light sampling (kernels/lights/, kernels/sample_warps.py) against closed-form irradiance."""
 
 import numpy as np
 import pytest
 import warp as wp
 import wrt.kernels  # noqa: F401
 from conftest import corner_form_factor
-from wrt.kernels.emitters import emitter_pdf, sample_emitter
 from wrt.kernels.lights import AREA, ENVIRONMENT, SPHERE_LIGHT, LightData
+from wrt.kernels.lights.area import area_pdf, sample_area
+from wrt.kernels.lights.environment import make_sample_environment
+from wrt.kernels.lights.sphere import sample_sphere, sphere_pdf
 from wrt.kernels.sample_warps import concentric_disk, cosine_hemisphere, frame, power_heuristic
 from wrt.kernels.sampling import independent_1d as sample_1d
 
@@ -24,15 +26,39 @@ def one_light(kind, position=(0, 0, 0), edge_u=(0, 0, 0), edge_v=(0, 0, 0), radi
     return lights
 
 
+sample_environment = make_sample_environment(False)
+
+
+@wp.func
+def sample_light(lights: LightData, i: wp.int32, p: wp.vec3, u1: float, u2: float):
+    """The sampling of light ``i``'s family: ``(wi, distance, radiance, pdf)``."""
+    if lights.type[i] == AREA:
+        return sample_area(lights, i, p, u1, u2)
+    if lights.type[i] == SPHERE_LIGHT:
+        return sample_sphere(lights, i, p, u1, u2)
+    wi, radiance, pdf = sample_environment(lights, i, u1, u2)
+    return wi, wp.inf, radiance, pdf
+
+
+@wp.func
+def light_pdf(lights: LightData, i: wp.int32, p: wp.vec3, wi: wp.vec3, dist: float) -> float:
+    """The density of ``sample_light`` (the environment's: uniform on the sphere)."""
+    if lights.type[i] == AREA:
+        return area_pdf(lights, i, wi, dist)
+    if lights.type[i] == SPHERE_LIGHT:
+        return sphere_pdf(lights, i, p)
+    return 1.0 / (4.0 * wp.pi)
+
+
 @wp.kernel
 def irradiance_samples(
     lights: LightData, p: wp.vec3, n: wp.vec3, out: wp.array(dtype=float), pdf_error: wp.array(dtype=float)
 ):
     k = wp.tid()
-    wi, dist, radiance, pdf = sample_emitter(lights, 0, p, sample_1d(5, k, 0, 0), sample_1d(5, k, 0, 1))
+    wi, dist, radiance, pdf = sample_light(lights, 0, p, sample_1d(5, k, 0, 0), sample_1d(5, k, 0, 1))
     if pdf > 0.0:
         out[k] = radiance[0] * wp.max(0.0, wp.dot(n, wi)) / pdf
-        pdf_error[k] = wp.abs(emitter_pdf(lights, 0, p, wi, dist) - pdf) / pdf
+        pdf_error[k] = wp.abs(light_pdf(lights, 0, p, wi, dist) - pdf) / pdf
     else:
         out[k] = 0.0
         pdf_error[k] = 0.0

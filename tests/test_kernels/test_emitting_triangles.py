@@ -1,4 +1,4 @@
-"""Emissive triangles sampled by next-event estimation (wrt.emitting, kernels/emitters.py): a
+"""Emissive triangles sampled by next-event estimation (wrt.emitting, kernels/lights/emitting.py): a
 closed form, the MIS-combined estimator against BSDF sampling alone, and their noise."""
 
 import numpy as np

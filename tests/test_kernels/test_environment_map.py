@@ -1,4 +1,4 @@
-"""Environment maps (wrt/envmap.py, kernels/emitters.py): Mitsuba 3's lookup and orientation, the
+"""Environment maps (wrt/envmap.py, kernels/lights/environment.py): Mitsuba 3's lookup and orientation, the
 sampling density against its histogram, and importance sampling against uniform sampling."""
 
 from types import SimpleNamespace
@@ -8,13 +8,13 @@ import pytest
 import warp as wp
 import wrt.kernels  # noqa: F401
 from envmap_reference import bilinear_irradiance, rotation, sun_sky
-from wrt.kernels.emitters import (
+from wrt.kernels.lights import LightData
+from wrt.kernels.lights.environment import (
     environment_map_cell,
     environment_map_pdf,
     environment_map_radiance,
-    sample_emitter_or_map,
+    make_sample_environment,
 )
-from wrt.kernels.lights import LightData
 from wrt.kernels.sampling import independent_1d as sample_1d
 from wrt_harness.mitsuba_peer import mitsuba_available, variant
 
@@ -24,6 +24,7 @@ from wrt.scene import EnvironmentLight
 
 pytestmark = pytest.mark.usefixtures("device")  # every test on every available device
 AVAILABLE, REASON = mitsuba_available()
+sample_environment = make_sample_environment(True)
 
 
 def map_lights(image, to_world=np.eye(3), scale=1.0):
@@ -85,7 +86,7 @@ def draw(
     cell: wp.array(dtype=wp.vec2i),
 ):
     k = wp.tid()
-    wi, dist, radiance, p = sample_emitter_or_map(lights, 0, wp.vec3(0.0), sample_1d(3, k, 0, 0), sample_1d(3, k, 0, 1))
+    wi, radiance, p = sample_environment(lights, 0, sample_1d(3, k, 0, 0), sample_1d(3, k, 0, 1))
     w[k] = wi
     pdf[k] = p
     pdf_at[k] = environment_map_pdf(lights, wi)
@@ -141,7 +142,7 @@ def irradiance(
     """Irradiance estimates at normal n: by the map's sampling, and by uniform sphere sampling."""
     k = wp.tid()
     u1, u2 = sample_1d(seed, k, 0, 0), sample_1d(seed, k, 0, 1)
-    wi, dist, radiance, p = sample_emitter_or_map(lights, 0, wp.vec3(0.0), u1, u2)
+    wi, radiance, p = sample_environment(lights, 0, u1, u2)
     if p > 0.0:
         importance[k] = radiance[1] * wp.max(0.0, wp.dot(n, wi)) / p
     z = 1.0 - 2.0 * u1

@@ -1,4 +1,4 @@
-"""Emissive polygons and spheres sampled by next-event estimation (wrt.emitting, kernels/emitters.py):
+"""Emissive polygons and spheres sampled by next-event estimation (wrt.emitting, kernels/lights/emitting.py):
 the pool's power distribution, the sampled density against its evaluation and its integral,
 closed forms on a diffuse floor, and the MIS-combined estimator against BSDF sampling alone."""
 
@@ -7,8 +7,8 @@ import pytest
 import warp as wp
 from conftest import LAMP_ALBEDO, LAMP_MATERIALS, LAMP_RADIANCE, corner_form_factor, make_scene
 from conftest import render_lamp_scene as render
-from wrt.kernels.emitters import make_emitting_pdf, make_sample_emitting
 from wrt.kernels.lights import LightData
+from wrt.kernels.lights.emitting import make_emitting_pdf, make_sample_emitting
 from wrt.kernels.materials import MaterialData
 from wrt.kernels.traverse import POLYGON, SPHERE, GeometryData
 

@@ -10,7 +10,7 @@ import pyvista as pv
 import tomllib
 from conftest import EXAMPLES, make_scene
 from skimage.io import imread
-from wrt.kernels.lighting import SHADOW_MARGIN
+from wrt.kernels.lights import SHADOW_MARGIN
 from wrt.kernels.record import (
     CAMERA,
     REFLECTED,

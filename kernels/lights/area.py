@@ -1,0 +1,110 @@
+"""``area``: a parallelogram light (``corner``, ``edge_u``, ``edge_v``) emitting ``radiance``
+(W/(m^2 sr)) from the side of ``cross(edge_u, edge_v)`` only, sampled by a uniform point on it.
+
+Its surface is surface ``num_shapes + k`` of the geometry for light row ``k`` (``wrt.geometry``'s
+numbering), a polygon that reflects nothing.
+"""
+
+import warp as wp
+
+from ..materials import MaterialData
+from ..sampling import Sampler, sample_2d
+from ..traverse import GeometryData
+from .data import LightData, LightSample, surface_sample
+from .interface import Family, Functions, Options
+
+AREA = wp.constant(3)
+
+
+@wp.func
+def area_normal_and_size(lights: LightData, i: wp.int32):
+    """Unit emitting normal and area of parallelogram light ``i``."""
+    n = wp.cross(lights.edge_u[i], lights.edge_v[i])
+    area = wp.length(n)
+    return n / area, area
+
+
+@wp.func
+def sample_area(lights: LightData, i: wp.int32, p: wp.vec3, u1: float, u2: float):
+    """Direction toward parallelogram light ``i`` from ``p``: ``(wi, distance, radiance, pdf)``,
+    a uniform point on it (density 1/area converted to solid angle, ``d^2 / (area cos)``), zero
+    where its back faces ``p``."""
+    q = lights.position[i] + u1 * lights.edge_u[i] + u2 * lights.edge_v[i]
+    to_q = q - p
+    dist2 = wp.dot(to_q, to_q)
+    dist = wp.sqrt(dist2)
+    wi = to_q / dist
+    n, area = area_normal_and_size(lights, i)
+    cos_light = -wp.dot(wi, n)
+    if cos_light <= 0.0 or dist2 == 0.0:
+        return wi, dist, wp.vec3(0.0), 0.0
+    return wi, dist, lights.power[i], dist2 / (area * cos_light)
+
+
+@wp.func
+def area_pdf(lights: LightData, i: wp.int32, wi: wp.vec3, dist: float) -> float:
+    """Solid-angle density with which ``sample_area`` picks ``wi``, given that the ray along it
+    meets light ``i`` at ``dist`` (0 on its back)."""
+    n, area = area_normal_and_size(lights, i)
+    cos_light = -wp.dot(wi, n)
+    if cos_light <= 0.0:
+        return 0.0
+    return dist * dist / (area * cos_light)
+
+
+@wp.func
+def owns(light_type: wp.int32) -> bool:
+    return light_type == AREA
+
+
+@wp.func
+def sample_li(
+    geometry: GeometryData,
+    materials: MaterialData,
+    lights: LightData,
+    i: wp.int32,
+    p: wp.vec3,
+    time: float,
+    sampler: Sampler,
+    pixel: wp.int32,
+    sample: wp.int32,
+    dim: wp.int32,
+) -> LightSample:
+    u = sample_2d(sampler, pixel, sample, dim)
+    wi, dist, radiance, pdf = sample_area(lights, i, p, u[0], u[1])
+    return surface_sample(wi, dist, radiance, pdf)
+
+
+@wp.func
+def pdf_li(
+    geometry: GeometryData,
+    lights: LightData,
+    shape: wp.int32,
+    prim: wp.int32,
+    inst: wp.int32,
+    p: wp.vec3,
+    wi: wp.vec3,
+    dist: float,
+) -> float:
+    k = shape - geometry.num_shapes
+    if k >= 0:
+        if lights.type[k] == AREA:
+            return area_pdf(lights, k, wi, dist)
+    return 0.0
+
+
+def row(light) -> dict:
+    return {
+        "type": AREA,
+        "position": light.corner,
+        "edge_u": light.edge_u,
+        "edge_v": light.edge_v,
+        "power": light.radiance,
+    }
+
+
+def make(options: Options) -> Functions:
+    return Functions(owns, sample_li, pdf_li)
+
+
+FAMILY = Family(name="area", codes=(AREA,), make=make, light_types=("area",), row=row)

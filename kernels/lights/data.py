@@ -1,0 +1,62 @@
+"""The lights' table on the device and what a light family's sample returns.
+
+Every light of the scene is one row of ``LightData`` (``type`` is its family's code; ``wrt.bake``
+fills the columns from ``Family.row``). An environment light with a map (at most one per scene)
+keeps its image, frame and sampling distribution in the ``env_*`` fields (``wrt.envmap``
+describes their layout); the emissive primitives (``wrt.emitting``) in the ``emit_*`` and
+``*_emitter`` fields; 1-element placeholders in scenes without them.
+Units: point and spot ``intensity`` in W/sr, directional ``irradiance`` in W/m^2,
+area/sphere/environment ``radiance`` in W/(m^2 sr) (RGB).
+"""
+
+import warp as wp
+
+SHADOW_MARGIN = wp.constant(1.0e-4)  # shadow rays toward a light's surface stop this fraction short of it
+
+
+@wp.struct
+class LightData:
+    type: wp.array(dtype=wp.int32)
+    position: wp.array(dtype=wp.vec3)  # point/spot position, parallelogram corner, sphere centre
+    direction: wp.array(dtype=wp.vec3)  # unit, the way the light travels
+    power: wp.array(dtype=wp.vec3)  # intensity (W/sr), irradiance (W/m^2) or radiance (W/(m^2 sr))
+    edge_u: wp.array(dtype=wp.vec3)  # parallelogram edges from the corner
+    edge_v: wp.array(dtype=wp.vec3)
+    radius: wp.array(dtype=float)  # sphere light
+    cos_cutoff: wp.array(dtype=float)  # spot: cos of the cone's half-angle
+    cutoff: wp.array(dtype=float)  # spot: half-angle, radians
+    beam: wp.array(dtype=float)  # spot: half-angle of full intensity, radians
+    env_radiance: wp.array2d(dtype=wp.vec3)  # (H, W) the map's pixels, W/(m^2 sr) before ``power``
+    env_to_world: wp.mat33  # the map's frame (a rotation) to world space
+    env_cdf: wp.array(dtype=float)  # marginal CDF over cell rows, then each row's conditional CDF
+    env_pdf: wp.array2d(dtype=float)  # (H - 1, W) solid-angle density of each cell, 1/sr
+    emit_kind: wp.array(dtype=wp.int32)  # the emitting primitives (wrt.emitting): TRIANGLE, POLYGON or SPHERE
+    emit_prim: wp.array(dtype=wp.int32)  # their indices in GeometryData's arrays of that kind
+    emit_cdf: wp.array(dtype=float)  # (E + 1) their selection CDF by emitted power, 0 to 1
+    emit_area: wp.array(dtype=float)  # their areas, m^2
+    emit_first: wp.array(dtype=wp.int32)  # (E + 1) a polygon's triangles: emit_first[e] to emit_first[e + 1]
+    emit_corner: wp.array(dtype=wp.vec3)  # those triangles' corners, three each
+    emit_area_cdf: wp.array(dtype=float)  # per polygon its triangles' running area fractions, the last 1
+    tri_emitter: wp.array(dtype=wp.int32)  # per triangle of GeometryData its index in the pool, -1 if none
+    poly_emitter: wp.array(dtype=wp.int32)  # per polygon likewise
+    sphere_emitter: wp.array(dtype=wp.int32)  # per sphere likewise
+
+
+@wp.struct
+class LightSample:
+    wi: wp.vec3  # unit direction toward the light
+    radiance: wp.vec3  # W/(m^2 sr) arriving along wi; a delta light's: the irradiance (W/m^2) it delivers
+    pdf: float  # solid-angle density of wi; 1 for a delta light; 0: no light from it
+    t_max: float  # how far the shadow ray goes: short of the light's surface, inf toward the environment
+
+
+@wp.func
+def surface_sample(wi: wp.vec3, dist: float, radiance: wp.vec3, pdf: float) -> LightSample:
+    """The sample of a light with a surface (or none: the environment, ``dist`` inf) at ``dist``
+    along ``wi``: its shadow ray stops ``SHADOW_MARGIN`` of the way short of it."""
+    ls = LightSample()
+    ls.wi = wi
+    ls.radiance = radiance
+    ls.pdf = pdf
+    ls.t_max = dist * (1.0 - SHADOW_MARGIN)
+    return ls

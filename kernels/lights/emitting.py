@@ -1,0 +1,224 @@
+"""The emissive primitives (``wrt.emitting``: the triangles, polygons and spheres of emitting,
+unmoving ``[[shape]]``s), sampled together as one more light after the light rows: a primitive
+chosen by emitted power, then a uniform point on a triangle or polygon, a direction uniform in a
+sphere's cone. They emit their material's ``emission`` from their shading front (a sphere's
+outside), as a path hitting them sees it. Scenes whose emissive primitives are all triangles
+compile the triangles' code only (``Options.emissive_shapes``).
+"""
+
+import functools
+
+import warp as wp
+
+from ..materials import MaterialData
+from ..sample_warps import find_interval
+from ..sampling import Sampler, sample_1d, sample_2d
+from ..traverse import KIND_BITS, KIND_MASK, POLYGON, SPHERE, TRIANGLE, GeometryData, shading_normal
+from .data import LightData, LightSample, surface_sample
+from .interface import Family, Functions, Options
+from .sphere import sample_sphere_cone, sphere_solid_angle
+
+EMITTING = wp.constant(7)  # not a row's type: the pool, light ``lights.type.shape[0]``
+
+
+@functools.cache
+def make_emitting_index(shapes: bool):
+    """``emitting_index``; with ``shapes``, of polygons and spheres too (else triangles only)."""
+
+    @wp.func
+    def emitting_index(lights: LightData, prim: wp.int32) -> wp.int32:
+        """Index in the pool of emitting primitives of packed primitive id ``prim``, -1 if none."""
+        kind = prim & KIND_MASK
+        i = prim >> KIND_BITS
+        if kind == TRIANGLE and i < lights.tri_emitter.shape[0]:
+            return lights.tri_emitter[i]
+        if wp.static(shapes):
+            if kind == POLYGON and i < lights.poly_emitter.shape[0]:
+                return lights.poly_emitter[i]
+            if kind == SPHERE and i < lights.sphere_emitter.shape[0]:
+                return lights.sphere_emitter[i]
+        return -1
+
+    return emitting_index
+
+
+@functools.cache
+def make_emitting_pdf(shapes: bool):
+    """``emitting_pdf``; with ``shapes``, of polygons and spheres too (else triangles only)."""
+
+    @wp.func
+    def emitting_pdf(
+        geometry: GeometryData, lights: LightData, e: wp.int32, p: wp.vec3, wi: wp.vec3, dist: float
+    ) -> float:
+        """Solid-angle density with which ``sample_emitting`` picks direction ``wi`` from ``p``,
+        given that the ray along ``wi`` meets emitting primitive ``e`` at ``dist``: its selection
+        probability times, for a triangle or polygon, ``dist^2 / (area |cos|)`` at it (either side;
+        emission is judged apart), for a sphere ``1 / (2 pi (1 - cos_max))`` (0 from inside)."""
+        selection = lights.emit_cdf[e + 1] - lights.emit_cdf[e]
+        i = lights.emit_prim[e]
+        if wp.static(shapes):
+            kind = lights.emit_kind[e]
+            if kind == SPHERE:
+                solid_angle = sphere_solid_angle(geometry.sphere_center[i], geometry.sphere_radius[i], p)
+                return wp.where(solid_angle == 0.0, 0.0, selection / solid_angle)
+            if kind == POLYGON:
+                cos_light = wp.abs(wp.dot(wi, geometry.poly_normal[i]))
+                if cos_light <= 0.0:
+                    return 0.0
+                return selection * dist * dist / (lights.emit_area[e] * cos_light)
+        a = geometry.tri_verts[3 * i]
+        m = wp.cross(geometry.tri_verts[3 * i + 1] - a, geometry.tri_verts[3 * i + 2] - a)
+        twice_area = wp.length(m)
+        cos_light = wp.abs(wp.dot(wi, m)) / twice_area
+        if cos_light <= 0.0:
+            return 0.0
+        return selection * dist * dist / (0.5 * twice_area * cos_light)
+
+    return emitting_pdf
+
+
+@wp.func
+def polygon_triangle(lights: LightData, e: wp.int32, x: float) -> wp.int32:
+    """The triangle of emitting polygon ``e`` (an index into ``emit_corner`` / 3) that ``x`` in
+    [0, 1) picks by area: the first whose running area fraction exceeds ``x``."""
+    lo = lights.emit_first[e]
+    hi = lights.emit_first[e + 1] - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if lights.emit_area_cdf[mid] <= x:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@functools.cache
+def make_sample_emitting(smooth: bool, shapes: bool):
+    """``sample_emitting``; with ``smooth``, the emitting side of a smooth-shaded triangle is its
+    interpolated shading normal's, as for a path that hits it; with ``shapes``, polygons and
+    spheres are in the pool too (else triangles only)."""
+    emitting_pdf = make_emitting_pdf(shapes)
+
+    @wp.func
+    def sample_emitting(
+        geometry: GeometryData,
+        materials: MaterialData,
+        lights: LightData,
+        p: wp.vec3,
+        time: float,
+        uc: float,
+        u1: float,
+        u2: float,
+    ):
+        """Direction toward an emitting primitive from ``p``: ``(wi, distance, radiance, pdf)``,
+        the primitive chosen by ``uc`` with its power probability; on a triangle a uniform point
+        by ``(u1, u2)``, on a polygon likewise in one of its triangles chosen by area with what is
+        left of ``uc``, toward a sphere a direction uniform in its cone (none from inside);
+        radiance zero where a back faces ``p``."""
+        e = find_interval(lights.emit_cdf, 0, lights.emit_cdf.shape[0], uc)
+        i = lights.emit_prim[e]
+        kind = int(TRIANGLE)
+        if wp.static(shapes):
+            kind = lights.emit_kind[e]
+            if kind == SPHERE:
+                wi, dist, solid_angle = sample_sphere_cone(
+                    geometry.sphere_center[i], geometry.sphere_radius[i], p, u1, u2
+                )
+                if solid_angle == 0.0:
+                    return wi, dist, wp.vec3(0.0), 0.0
+                radiance = materials.emission[materials.shape_material[geometry.sphere_shape[i]]]
+                selection = lights.emit_cdf[e + 1] - lights.emit_cdf[e]
+                return wi, dist, radiance, selection / solid_angle
+        a = wp.vec3(0.0)
+        b = wp.vec3(0.0)
+        c = wp.vec3(0.0)
+        shape = int(0)
+        if kind == TRIANGLE:
+            a = geometry.tri_verts[3 * i]
+            b = geometry.tri_verts[3 * i + 1]
+            c = geometry.tri_verts[3 * i + 2]
+            shape = geometry.tri_shape[i]
+        if wp.static(shapes):
+            if kind == POLYGON:
+                below = lights.emit_cdf[e]
+                x = wp.clamp((uc - below) / (lights.emit_cdf[e + 1] - below), 0.0, 1.0)
+                k = polygon_triangle(lights, e, x)
+                a = lights.emit_corner[3 * k]
+                b = lights.emit_corner[3 * k + 1]
+                c = lights.emit_corner[3 * k + 2]
+                shape = geometry.poly_shape[i]
+        su = wp.sqrt(u1)
+        q = a + su * (1.0 - u2) * (b - a) + su * u2 * (c - a)
+        to_q = q - p
+        dist2 = wp.dot(to_q, to_q)
+        if dist2 == 0.0:
+            return wp.vec3(0.0, 0.0, 1.0), 0.0, wp.vec3(0.0), 0.0
+        dist = wp.sqrt(dist2)
+        wi = to_q / dist
+        ns = wp.vec3(0.0)
+        if kind == TRIANGLE:
+            ns = wp.normalize(wp.cross(b - a, c - a))
+            if wp.static(smooth):
+                ns = shading_normal(geometry, (i << KIND_BITS) | TRIANGLE, -1, q, ns, time)
+        if wp.static(shapes):
+            if kind == POLYGON:
+                ns = geometry.poly_normal[i]
+        if wp.dot(wi, ns) >= 0.0:
+            return wi, dist, wp.vec3(0.0), 0.0
+        radiance = materials.emission[materials.shape_material[shape]]
+        return wi, dist, radiance, emitting_pdf(geometry, lights, e, p, wi, dist)
+
+    return sample_emitting
+
+
+@functools.cache
+def make(options: Options) -> Functions:
+    emitting_index = make_emitting_index(options.emissive_shapes)
+    emitting_pdf = make_emitting_pdf(options.emissive_shapes)
+    sample_emitting = make_sample_emitting(options.smooth, options.emissive_shapes)
+
+    @wp.func
+    def owns(light_type: wp.int32) -> bool:
+        return light_type == EMITTING
+
+    @wp.func
+    def sample_li(
+        geometry: GeometryData,
+        materials: MaterialData,
+        lights: LightData,
+        i: wp.int32,
+        p: wp.vec3,
+        time: float,
+        sampler: Sampler,
+        pixel: wp.int32,
+        sample: wp.int32,
+        dim: wp.int32,
+    ) -> LightSample:
+        """The primitive chosen at dimension ``dim + 2``, the point or direction on it at ``dim``."""
+        u = sample_2d(sampler, pixel, sample, dim)
+        uc = sample_1d(sampler, pixel, sample, dim + 2)
+        wi, dist, radiance, pdf = sample_emitting(geometry, materials, lights, p, time, uc, u[0], u[1])
+        return surface_sample(wi, dist, radiance, pdf)
+
+    @wp.func
+    def pdf_li(
+        geometry: GeometryData,
+        lights: LightData,
+        shape: wp.int32,
+        prim: wp.int32,
+        inst: wp.int32,
+        p: wp.vec3,
+        wi: wp.vec3,
+        dist: float,
+    ) -> float:
+        """Primitives outside instances only: those seen through an instance are not in the pool."""
+        if inst < 0:
+            e = emitting_index(lights, prim)
+            if e >= 0:
+                return emitting_pdf(geometry, lights, e, p, wi, dist)
+        return 0.0
+
+    return Functions(owns, sample_li, pdf_li)
+
+
+FAMILY = Family(name="emitting", codes=(EMITTING,), make=make, feature="emissive")

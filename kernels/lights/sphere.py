@@ -1,0 +1,116 @@
+"""``sphere``: a sphere light emitting ``radiance`` (W/(m^2 sr)) outward, sampled uniformly in the
+cone it subtends; and that cone's sampling, which emissive spheres share (``emitting``).
+
+Its surface is surface ``num_shapes + k`` of the geometry for light row ``k``, a sphere that
+reflects nothing.
+"""
+
+import warp as wp
+
+from ..intersect import intersect_sphere
+from ..materials import MaterialData
+from ..sample_warps import cone_one_minus_cos, frame, uniform_cone
+from ..sampling import Sampler, sample_2d
+from ..traverse import GeometryData
+from .data import LightData, LightSample, surface_sample
+from .interface import Family, Functions, Options
+
+SPHERE_LIGHT = wp.constant(4)
+
+
+@wp.func
+def sphere_solid_angle(center: wp.vec3, r: float, p: wp.vec3) -> float:
+    """Solid angle ``2 pi (1 - cos_max)`` that a sphere subtends from ``p``; 0 from inside it."""
+    to_c = center - p
+    dist2 = wp.dot(to_c, to_c)
+    if dist2 <= r * r:
+        return 0.0
+    return 2.0 * wp.pi * cone_one_minus_cos(r * r / dist2)
+
+
+@wp.func
+def sample_sphere_cone(center: wp.vec3, r: float, p: wp.vec3, u1: float, u2: float):
+    """A direction from ``p`` uniform in the cone a sphere subtends: ``(wi, distance to the sphere
+    along wi, the cone's solid angle)`` (the density is its inverse); from inside the sphere
+    ``((0, 0, 1), 0, 0)``. ``1 - cos_max`` comes from ``r^2 / d^2`` without cancellation, so a
+    sphere of 1e-7 of its distance keeps its irradiance."""
+    to_c = center - p
+    dist2 = wp.dot(to_c, to_c)
+    if dist2 <= r * r:
+        return wp.vec3(0.0, 0.0, 1.0), 0.0, 0.0
+    one_minus_cos = cone_one_minus_cos(r * r / dist2)
+    wi = frame(to_c / wp.sqrt(dist2)) * uniform_cone(u1, u2, one_minus_cos)
+    tangent = wp.sqrt(wp.max(0.0, dist2 - r * r))
+    dist = intersect_sphere(p, wi, center, r, 0.0, tangent * 2.0)
+    if dist >= tangent * 2.0:  # grazing the silhouette: rounding missed it
+        dist = tangent
+    return wi, dist, 2.0 * wp.pi * one_minus_cos
+
+
+@wp.func
+def sample_sphere(lights: LightData, i: wp.int32, p: wp.vec3, u1: float, u2: float):
+    """Direction toward sphere light ``i`` from ``p``: ``(wi, distance, radiance, pdf)``, uniform
+    in its cone (``1 / (2 pi (1 - cos_max))``), zero from inside."""
+    wi, dist, solid_angle = sample_sphere_cone(lights.position[i], lights.radius[i], p, u1, u2)
+    if solid_angle == 0.0:
+        return wi, dist, wp.vec3(0.0), 0.0
+    return wi, dist, lights.power[i], 1.0 / solid_angle
+
+
+@wp.func
+def sphere_pdf(lights: LightData, i: wp.int32, p: wp.vec3) -> float:
+    """Solid-angle density with which ``sample_sphere`` picks any direction toward light ``i``."""
+    solid_angle = sphere_solid_angle(lights.position[i], lights.radius[i], p)
+    return wp.where(solid_angle == 0.0, 0.0, 1.0 / solid_angle)
+
+
+@wp.func
+def owns(light_type: wp.int32) -> bool:
+    return light_type == SPHERE_LIGHT
+
+
+@wp.func
+def sample_li(
+    geometry: GeometryData,
+    materials: MaterialData,
+    lights: LightData,
+    i: wp.int32,
+    p: wp.vec3,
+    time: float,
+    sampler: Sampler,
+    pixel: wp.int32,
+    sample: wp.int32,
+    dim: wp.int32,
+) -> LightSample:
+    u = sample_2d(sampler, pixel, sample, dim)
+    wi, dist, radiance, pdf = sample_sphere(lights, i, p, u[0], u[1])
+    return surface_sample(wi, dist, radiance, pdf)
+
+
+@wp.func
+def pdf_li(
+    geometry: GeometryData,
+    lights: LightData,
+    shape: wp.int32,
+    prim: wp.int32,
+    inst: wp.int32,
+    p: wp.vec3,
+    wi: wp.vec3,
+    dist: float,
+) -> float:
+    k = shape - geometry.num_shapes
+    if k >= 0:
+        if lights.type[k] == SPHERE_LIGHT:
+            return sphere_pdf(lights, k, p)
+    return 0.0
+
+
+def row(light) -> dict:
+    return {"type": SPHERE_LIGHT, "position": light.center, "radius": light.radius, "power": light.radiance}
+
+
+def make(options: Options) -> Functions:
+    return Functions(owns, sample_li, pdf_li)
+
+
+FAMILY = Family(name="sphere", codes=(SPHERE_LIGHT,), make=make, light_types=("sphere",), row=row)
