@@ -7,11 +7,8 @@ numbering), a polygon that reflects nothing.
 
 import warp as wp
 
-from ..materials import MaterialData
-from ..sampling import Sampler, sample_2d
-from ..traverse import GeometryData
-from .data import LightData, LightSample, surface_sample
-from .interface import Family, Functions, Options
+from .data import LightData
+from .interface import Family, Functions, Options, surface_light
 
 AREA = wp.constant(3)
 
@@ -42,7 +39,7 @@ def sample_area(lights: LightData, i: wp.int32, p: wp.vec3, u1: float, u2: float
 
 
 @wp.func
-def area_pdf(lights: LightData, i: wp.int32, wi: wp.vec3, dist: float) -> float:
+def area_pdf(lights: LightData, i: wp.int32, p: wp.vec3, wi: wp.vec3, dist: float) -> float:
     """Solid-angle density with which ``sample_area`` picks ``wi``, given that the ray along it
     meets light ``i`` at ``dist`` (0 on its back)."""
     n, area = area_normal_and_size(lights, i)
@@ -50,47 +47,6 @@ def area_pdf(lights: LightData, i: wp.int32, wi: wp.vec3, dist: float) -> float:
     if cos_light <= 0.0:
         return 0.0
     return dist * dist / (area * cos_light)
-
-
-@wp.func
-def owns(light_type: wp.int32) -> bool:
-    return light_type == AREA
-
-
-@wp.func
-def sample_li(
-    geometry: GeometryData,
-    materials: MaterialData,
-    lights: LightData,
-    i: wp.int32,
-    p: wp.vec3,
-    time: float,
-    sampler: Sampler,
-    pixel: wp.int32,
-    sample: wp.int32,
-    dim: wp.int32,
-) -> LightSample:
-    u = sample_2d(sampler, pixel, sample, dim)
-    wi, dist, radiance, pdf = sample_area(lights, i, p, u[0], u[1])
-    return surface_sample(wi, dist, radiance, pdf)
-
-
-@wp.func
-def pdf_li(
-    geometry: GeometryData,
-    lights: LightData,
-    shape: wp.int32,
-    prim: wp.int32,
-    inst: wp.int32,
-    p: wp.vec3,
-    wi: wp.vec3,
-    dist: float,
-) -> float:
-    k = shape - geometry.num_shapes
-    if k >= 0:
-        if lights.type[k] == AREA:
-            return area_pdf(lights, k, wi, dist)
-    return 0.0
 
 
 def row(light) -> dict:
@@ -104,7 +60,7 @@ def row(light) -> dict:
 
 
 def make(options: Options) -> Functions:
-    return Functions(owns, sample_li, pdf_li)
+    return surface_light(AREA, sample_area, area_pdf)
 
 
 FAMILY = Family(name="area", codes=(AREA,), make=make, light_types=("area",), row=row)

@@ -29,6 +29,11 @@ from typing import NamedTuple
 
 import warp as wp
 
+from ..materials import MaterialData
+from ..sampling import Sampler, sample_2d
+from ..traverse import GeometryData
+from .data import LightData, LightSample, surface_sample
+
 
 class Options(NamedTuple):
     """How a scene's features shape the families' code (``wrt.kernels.features.Features``)."""
@@ -67,3 +72,50 @@ class Family:
     row: Callable[[object], dict] | None = None
     delta: bool = False
     feature: str | None = None
+
+
+def surface_light(code: int, sample_light: wp.Function, light_pdf: wp.Function) -> Functions:
+    """The functions of a family of one code whose lights have a surface of their own (surface
+    ``num_shapes + k`` of the geometry for row ``k``, ``wrt.geometry``'s numbering), from its
+    ``sample_light(lights, i, p, u1, u2) -> (wi, distance, radiance, pdf)`` and ``light_pdf(lights,
+    i, p, wi, dist)``, the density of a direction ``wi`` that meets light ``i`` at ``dist``."""
+
+    @wp.func
+    def owns(light_type: wp.int32) -> bool:
+        return light_type == wp.static(code)
+
+    @wp.func
+    def sample_li(
+        geometry: GeometryData,
+        materials: MaterialData,
+        lights: LightData,
+        i: wp.int32,
+        p: wp.vec3,
+        time: float,
+        sampler: Sampler,
+        pixel: wp.int32,
+        sample: wp.int32,
+        dim: wp.int32,
+    ) -> LightSample:
+        u = sample_2d(sampler, pixel, sample, dim)
+        wi, dist, radiance, density = sample_light(lights, i, p, u[0], u[1])
+        return surface_sample(wi, dist, radiance, density)
+
+    @wp.func
+    def pdf_li(
+        geometry: GeometryData,
+        lights: LightData,
+        shape: wp.int32,
+        prim: wp.int32,
+        inst: wp.int32,
+        p: wp.vec3,
+        wi: wp.vec3,
+        dist: float,
+    ) -> float:
+        k = shape - geometry.num_shapes
+        if k >= 0:
+            if lights.type[k] == wp.static(code):
+                return light_pdf(lights, k, p, wi, dist)
+        return 0.0
+
+    return Functions(owns, sample_li, pdf_li)

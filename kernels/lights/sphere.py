@@ -8,12 +8,9 @@ reflects nothing.
 import warp as wp
 
 from ..intersect import intersect_sphere
-from ..materials import MaterialData
 from ..sample_warps import cone_one_minus_cos, frame, uniform_cone
-from ..sampling import Sampler, sample_2d
-from ..traverse import GeometryData
-from .data import LightData, LightSample, surface_sample
-from .interface import Family, Functions, Options
+from .data import LightData
+from .interface import Family, Functions, Options, surface_light
 
 SPHERE_LIGHT = wp.constant(4)
 
@@ -58,51 +55,10 @@ def sample_sphere(lights: LightData, i: wp.int32, p: wp.vec3, u1: float, u2: flo
 
 
 @wp.func
-def sphere_pdf(lights: LightData, i: wp.int32, p: wp.vec3) -> float:
+def sphere_pdf(lights: LightData, i: wp.int32, p: wp.vec3, wi: wp.vec3, dist: float) -> float:
     """Solid-angle density with which ``sample_sphere`` picks any direction toward light ``i``."""
     solid_angle = sphere_solid_angle(lights.position[i], lights.radius[i], p)
     return wp.where(solid_angle == 0.0, 0.0, 1.0 / solid_angle)
-
-
-@wp.func
-def owns(light_type: wp.int32) -> bool:
-    return light_type == SPHERE_LIGHT
-
-
-@wp.func
-def sample_li(
-    geometry: GeometryData,
-    materials: MaterialData,
-    lights: LightData,
-    i: wp.int32,
-    p: wp.vec3,
-    time: float,
-    sampler: Sampler,
-    pixel: wp.int32,
-    sample: wp.int32,
-    dim: wp.int32,
-) -> LightSample:
-    u = sample_2d(sampler, pixel, sample, dim)
-    wi, dist, radiance, pdf = sample_sphere(lights, i, p, u[0], u[1])
-    return surface_sample(wi, dist, radiance, pdf)
-
-
-@wp.func
-def pdf_li(
-    geometry: GeometryData,
-    lights: LightData,
-    shape: wp.int32,
-    prim: wp.int32,
-    inst: wp.int32,
-    p: wp.vec3,
-    wi: wp.vec3,
-    dist: float,
-) -> float:
-    k = shape - geometry.num_shapes
-    if k >= 0:
-        if lights.type[k] == SPHERE_LIGHT:
-            return sphere_pdf(lights, k, p)
-    return 0.0
 
 
 def row(light) -> dict:
@@ -110,7 +66,7 @@ def row(light) -> dict:
 
 
 def make(options: Options) -> Functions:
-    return Functions(owns, sample_li, pdf_li)
+    return surface_light(SPHERE_LIGHT, sample_sphere, sphere_pdf)
 
 
 FAMILY = Family(name="sphere", codes=(SPHERE_LIGHT,), make=make, light_types=("sphere",), row=row)

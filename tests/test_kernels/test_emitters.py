@@ -44,9 +44,9 @@ def sample_light(lights: LightData, i: wp.int32, p: wp.vec3, u1: float, u2: floa
 def light_pdf(lights: LightData, i: wp.int32, p: wp.vec3, wi: wp.vec3, dist: float) -> float:
     """The density of ``sample_light`` (the environment's: uniform on the sphere)."""
     if lights.type[i] == AREA:
-        return area_pdf(lights, i, wi, dist)
+        return area_pdf(lights, i, p, wi, dist)
     if lights.type[i] == SPHERE_LIGHT:
-        return sphere_pdf(lights, i, p)
+        return sphere_pdf(lights, i, p, wi, dist)
     return 1.0 / (4.0 * wp.pi)
 
 
