@@ -14,7 +14,7 @@ AOVs (arbitrary output variables) describe the primary ray through the pixel CEN
 
 import warp as wp
 
-from .traverse import NO_HIT, GeometryData, hit_point, hit_shape, shading_normal
+from .traverse import NO_HIT, GeometryData, RayHit, hit_point, hit_shape, shading_normal
 
 LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)  # Y of linear Rec. 709 RGB (host code reads them too)
 
@@ -46,25 +46,21 @@ def write_aovs(
     film: Film,
     geometry: GeometryData,
     pixel: wp.int32,
-    o: wp.vec3,
-    d: wp.vec3,
-    t: float,
-    prim: wp.int32,
-    inst: wp.int32,
-    time: float,
+    found: RayHit,
 ):
-    """Record the AOVs of the pixel-centre ray ``o + t d`` (unit ``d``, at ray time ``time``) that hit
-    ``(prim, inst)`` (or missed)."""
+    """Record the AOVs of the pixel-centre ray and what it hit (or that it missed), ``found``."""
+    prim = found.prim
+    inst = found.inst
     if prim == NO_HIT:
         film.depth[pixel] = wp.inf
         film.normal[pixel] = wp.vec3(0.0)
         film.object_id[pixel] = -1
         film.position[pixel] = wp.vec3(0.0)
     else:
-        p, n, _err = hit_point(geometry, prim, inst, o, d, t, time)
-        ns = shading_normal(geometry, prim, inst, p, n, time)
-        film.depth[pixel] = t
-        film.normal[pixel] = wp.where(wp.dot(n, d) > 0.0, -ns, ns)  # on the side the camera sees
+        p, n, _err = hit_point(geometry, found)
+        ns = shading_normal(geometry, prim, inst, p, n, found.time)
+        film.depth[pixel] = found.t
+        film.normal[pixel] = wp.where(wp.dot(n, found.d) > 0.0, -ns, ns)  # on the side the camera sees
         surface = hit_shape(geometry, prim, inst)
         if surface >= geometry.num_shapes:  # the surface of light k is not a shape: -2 - k
             surface = geometry.num_shapes - 2 - surface

@@ -28,6 +28,7 @@ from .sample_warps import frame
 from .textures import NORMAL_MAP, texture_rgb
 from .traverse import (
     GeometryData,
+    RayHit,
     hit_point,
     hit_shape,
     make_surface_dpdu,
@@ -112,21 +113,19 @@ def make_surface_hit(smooth: bool, instances: bool, quadrics: bool, textures: bo
     def surface_hit(
         geometry: GeometryData,
         materials: MaterialData,
-        o: wp.vec3,
-        d: wp.vec3,
-        t: float,
-        prim: wp.int32,
-        inst: wp.int32,
-        time: float,
+        found: RayHit,
     ) -> Hit:
-        """The hit of unit ray ``o + s d`` (at ray time ``time``) at ``t`` on primitive ``prim`` (not
-        ``NO_HIT``), through instance ``inst`` (-1: none), as ``closest_hit`` returns them. The
-        material is the primitive's own (a group member's); the shape is the instance's."""
+        """The hit of ray ``found`` (not ``NO_HIT``), as ``closest_hit`` returned it. The material
+        is the primitive's own (a group member's); the shape is the instance's."""
         hit = Hit()
+        prim = found.prim
+        inst = found.inst
+        time = found.time
+        d = found.d
         if wp.static(instances):
-            p, n, err = hit_point(geometry, prim, inst, o, d, t, time)
+            p, n, err = hit_point(geometry, found)
         else:
-            p, n, err = surface_point(geometry, prim, o, d, t, time)
+            p, n, err = surface_point(geometry, prim, found.o, d, found.t, time)
         hit.p = p
         hit.n = n
         hit.err = err

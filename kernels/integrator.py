@@ -42,7 +42,7 @@ from .media import Media
 from .record import CAMERA, RayRecord, record_ray
 from .sample_warps import concentric_disk
 from .sampling import Sampler, sample_1d, sample_2d
-from .traverse import NO_HIT, GeometryData, Traversal, traversal
+from .traverse import NO_HIT, GeometryData, RayHit, Traversal, ray_hit, traversal
 
 
 @wp.struct
@@ -87,6 +87,12 @@ class CameraRay:
     record: wp.int32
 
 
+@wp.func
+def camera_hit(ray: CameraRay) -> RayHit:
+    """The camera ray ``ray`` and its first hit, as one ``RayHit``."""
+    return ray_hit(ray.o, ray.d, ray.time, ray.t, ray.prim, ray.inst)
+
+
 def make_trace_segment(record: bool, trace: Traversal):
     """``trace_segment``, recording the segment when ``record`` (compiled out otherwise)."""
 
@@ -105,8 +111,8 @@ def make_trace_segment(record: bool, trace: Traversal):
         depth: wp.int32,
         parent: wp.int32,
     ):
-        """Closest hit ``(t, prim, inst)`` of unit ray ``o + s d`` for ``t_from < s < t_max``, at the time of
-        camera ray ``ray`` (``t = inf`` on a miss, ``t_max`` finite or not), and the record index of the
+        """The closest hit of unit ray ``o + s d`` for ``t_from < s < t_max``, at the time of camera ray
+        ``ray`` (a ``RayHit``; ``t = inf`` on a miss, ``t_max`` finite or not), and the record index of the
         segment from ``o + t_last d`` to it (of ``kind``, carrying ``throughput``, segment ``depth`` of
         its path, child of record ``parent``; ``parent`` itself when not recording)."""
         t, prim, inst = trace.closest_hit(geometry, o, d, ray.time, t_from, t_max)
@@ -120,17 +126,12 @@ def make_trace_segment(record: bool, trace: Traversal):
                 ray.pixel,
                 ray.sample,
                 kind,
-                o + t_last * d,
-                d,
-                t - t_last,
-                prim,
-                inst,
-                ray.time,
+                ray_hit(o + t_last * d, d, ray.time, t - t_last, prim, inst),
                 throughput,
                 depth,
                 parent,
             )
-        return t, prim, inst, index
+        return ray_hit(o, d, ray.time, t, prim, inst), index
 
     return trace_segment
 
@@ -178,10 +179,10 @@ def make_render_kernel(
         ray.time = time
         ray.pixel = pixel
         ray.sample = sample
-        t, prim, inst, index = trace_segment(geometry, rec, ray, CAMERA, o, d, 0.0, t_max, 0.0, wp.vec3(1.0), 1, -1)
-        ray.t = t
-        ray.prim = prim
-        ray.inst = inst
+        found, index = trace_segment(geometry, rec, ray, CAMERA, o, d, 0.0, t_max, 0.0, wp.vec3(1.0), 1, -1)
+        ray.t = found.t
+        ray.prim = found.prim
+        ray.inst = found.inst
         ray.record = index
         return ray
 
@@ -215,7 +216,7 @@ def make_render_kernel(
         elif sampler.spp > 1:  # the AOVs' pixel-centre ray is not a sample
             o, t_max = clip_ray(cam, centre_o, centre)
             t, prim, inst = trace.closest_hit(geometry, o, centre, mid_shutter, 0.0, t_max)
-            write_aovs(film, geometry, pixel, o, centre, t, prim, inst, mid_shutter)
+            write_aovs(film, geometry, pixel, ray_hit(o, centre, mid_shutter, t, prim, inst))
         for s in range(first, first + launch.pass_spp):
             o = centre_o
             d = centre
@@ -231,7 +232,7 @@ def make_render_kernel(
             o, t_max = clip_ray(cam, o, d)
             ray = camera_ray(geometry, rec, pixel, s, o, d, t_max, time)
             if sampler.spp == 1:  # the pixel-centre ray is the sample, and gives the AOVs
-                write_aovs(film, geometry, pixel, o, d, ray.t, ray.prim, ray.inst, time)
+                write_aovs(film, geometry, pixel, camera_hit(ray))
             value = radiance(geometry, materials, lights, settings, sampler, ray, rec)
             lum = luminance(value)
             if wp.isfinite(total + value) and wp.isfinite(lum * lum):

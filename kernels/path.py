@@ -47,7 +47,7 @@ import warp as wp
 
 from .features import ALL, Features
 from .hit import Hit, make_surface_hit_for, normal_map_shadowing
-from .integrator import CameraRay, IntegratorSettings, make_trace_segment
+from .integrator import CameraRay, IntegratorSettings, camera_hit, make_trace_segment
 from .lights import LightData, lighting_for
 from .materials import (
     BSDF_SPECULAR,
@@ -256,14 +256,12 @@ def make_path_radiance(record: bool, features: Features = ALL):
     ) -> wp.vec3:
         """One path's estimate of the radiance (W/(m^2 sr)) arriving at the camera along ``ray``."""
         path = start_path(materials, settings, ray)
-        t = ray.t
-        prim = ray.prim
-        inst = ray.inst
+        found = camera_hit(ray)
         traced = bool(True)
         for _segment in range(4 * settings.max_depth + 16):
             # Trace the next segment (the camera ray's is traced already)
             if not traced:
-                t, prim, inst, current = trace_segment(
+                found, current = trace_segment(
                     geometry,
                     rec,
                     ray,
@@ -283,24 +281,31 @@ def make_path_radiance(record: bool, features: Features = ALL):
             # Absorption in the medium the segment crossed
             if wp.static(features.dielectric):
                 path.throughput = wp.cw_mul(
-                    path.throughput, medium_transmittance(materials, path.media, path.n_media, t - path.t_last)
+                    path.throughput, medium_transmittance(materials, path.media, path.n_media, found.t - path.t_last)
                 )
 
             # Escaped: the environment lights
-            if prim == NO_HIT:
+            if found.prim == NO_HIT:
                 if wp.static(features.lights):
                     escaped = wp.static(lighting.environment_radiance)(lights, path.d, path.prev_pdf, path.specular)
                     path.radiance += wp.cw_mul(path.throughput, escaped)
                 break
 
             # Emission at the front of what was hit, MIS-weighted against light sampling
-            hit = surface_hit(geometry, materials, path.o, path.d, t, prim, inst, ray.time)
+            hit = surface_hit(geometry, materials, found)
             emission = materials.emission[hit.material]
             if hit.front and max_component(emission) > 0.0:
                 mis = float(1.0)
                 if not path.specular:
                     light_pdf = wp.static(lighting.pdf_li)(
-                        geometry, lights, hit.shape, prim, inst, path.prev_p, path.d, wp.length(hit.p - path.prev_p)
+                        geometry,
+                        lights,
+                        hit.shape,
+                        found.prim,
+                        found.inst,
+                        path.prev_p,
+                        path.d,
+                        wp.length(hit.p - path.prev_p),
                     )
                     mis = power_heuristic(path.prev_pdf, light_pdf)
                 path.radiance += wp.cw_mul(path.throughput, emission) * mis
@@ -321,8 +326,8 @@ def make_path_radiance(record: bool, features: Features = ALL):
                 if not interface.real:
                     path.media = interface.media
                     path.n_media = interface.n_media
-                    path.t_from = past_hit(path.o, hit.p, t)
-                    path.t_last = t
+                    path.t_from = past_hit(path.o, hit.p, found.t)
+                    path.t_last = found.t
                     path.segment_kind = STRAIGHT
                     # a shadow ray stops at this surface, so next-event estimation never finds
                     # what lies beyond it: light found there takes the BSDF sample's full weight
@@ -399,8 +404,8 @@ def make_path_radiance(record: bool, features: Features = ALL):
 
             # Spawn the next segment; Russian roulette past RR_DEPTH
             if straight:
-                path.t_from = past_hit(path.o, hit.p, t)
-                path.t_last = t
+                path.t_from = past_hit(path.o, hit.p, found.t)
+                path.t_last = found.t
             else:
                 path.o = spawn_origin(hit.p, hit.n, hit.err, path.d)
                 path.t_from = 0.0

@@ -13,7 +13,7 @@ import functools
 import warp as wp
 
 from .hit import make_surface_hit
-from .integrator import CameraRay, IntegratorSettings
+from .integrator import CameraRay, IntegratorSettings, camera_hit
 from .lights import LightData
 from .materials import MaterialData
 from .record import RayRecord
@@ -40,7 +40,7 @@ def make_raycast_radiance(textures: bool):
         """``base_color * |dot(n, d)|`` at the camera ray's hit (``n`` its shading normal), black on a miss."""
         if ray.prim == NO_HIT:
             return wp.vec3(0.0)
-        hit = surface_hit(geometry, materials, ray.o, ray.d, ray.t, ray.prim, ray.inst, ray.time)
+        hit = surface_hit(geometry, materials, camera_hit(ray))
         color = materials.base_color[hit.material]
         if wp.static(textures):
             color = material_rgb(materials.textures, hit.material, ALBEDO, hit.uv, color)

@@ -44,7 +44,7 @@ are dropped (a truncated recording), and their children still name them as paren
 
 import warp as wp
 
-from .traverse import NO_HIT, GeometryData, hit_point, hit_shape
+from .traverse import NO_HIT, GeometryData, RayHit, hit_point, hit_shape
 
 CAMERA = wp.constant(0)
 SHADOW_LIT = wp.constant(1)
@@ -102,22 +102,21 @@ def record_ray(
     pixel: wp.int32,
     sample: wp.int32,
     kind: wp.int32,
-    o: wp.vec3,
-    d: wp.vec3,
-    t: float,
-    prim: wp.int32,
-    inst: wp.int32,
-    time: float,
+    found: RayHit,
     throughput: wp.vec3,
     depth: wp.int32,
     parent: wp.int32,
 ) -> wp.int32:
     """Append the segment of unit ray ``o + s d`` (at ray time ``time``) that ended at ``(t, prim, inst)``
-    as a trace returned it; returns its buffer index.
+    (``found``) as a trace returned it; returns its buffer index.
 
     ``prim == NO_HIT`` with finite ``t``: the ray ran its whole interval (a shadow ray reaching its
     light at distance ``t``); with ``t = inf`` it escaped the scene.
     """
+    o = found.o
+    d = found.d
+    t = found.t
+    prim = found.prim
     i = wp.atomic_add(rec.count, 0, 1)
     if i < rec.segments.shape[0]:
         s = Segment()
@@ -126,17 +125,17 @@ def record_ray(
         s.kind = kind
         s.origin = o
         s.direction = d
-        s.time = time
+        s.time = found.time
         s.throughput = throughput
         s.depth = depth
         s.parent = parent
         s.shape = -1
         s.normal = wp.vec3(0.0)
         if prim != NO_HIT:
-            end, normal, _err = hit_point(geometry, prim, inst, o, d, t, time)
+            end, normal, _err = hit_point(geometry, found)
             s.end = end
             s.normal = normal
-            s.shape = hit_shape(geometry, prim, inst)
+            s.shape = hit_shape(geometry, prim, found.inst)
             s.flags = HIT
             if wp.dot(d, s.normal) < 0.0:
                 s.flags = HIT | ENTERING

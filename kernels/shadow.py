@@ -26,7 +26,7 @@ from .materials import BSDF_THIN, BSDF_TRANSMISSION, MaterialData, bsdf_flags, t
 from .media import beer_lambert, max_component
 from .record import SHADOW_BLOCKED, SHADOW_LIT, RayRecord, record_ray
 from .spawn import spawn_origin
-from .traverse import NO_HIT, GeometryData, Traversal, hit_point, make_surface_point, prim_shape
+from .traverse import NO_HIT, GeometryData, Traversal, hit_point, make_surface_point, prim_shape, ray_hit
 
 SHADOW_CROSSINGS = wp.constant(16)  # dielectric surfaces a filtered shadow ray may pass
 
@@ -63,7 +63,7 @@ def make_shadow_ray(record: bool, trace: Traversal):
             if not passes(geometry, materials, prim):
                 return wp.vec3(0.0), t_total + t, prim, inst
             if wp.static(trace.features.instances):
-                p, n, err = hit_point(geometry, prim, inst, o, w, t, time)
+                p, n, err = hit_point(geometry, ray_hit(o, w, time, t, prim, inst))
             else:
                 p, n, err = surface_point(geometry, prim, o, w, t, time)
             m = materials.shape_material[prim_shape(geometry, prim)]
@@ -121,12 +121,7 @@ def make_shadow_ray(record: bool, trace: Traversal):
                     pixel,
                     sample,
                     SHADOW_LIT,
-                    o,
-                    w,
-                    t_max,
-                    NO_HIT,
-                    -1,
-                    time,
+                    ray_hit(o, w, time, t_max, NO_HIT, -1),
                     wp.cw_mul(throughput, visible),
                     depth,
                     parent,
@@ -140,12 +135,7 @@ def make_shadow_ray(record: bool, trace: Traversal):
                     pixel,
                     sample,
                     SHADOW_BLOCKED,
-                    o,
-                    w,
-                    t_stop,
-                    prim_stop,
-                    inst_stop,
-                    time,
+                    ray_hit(o, w, time, t_stop, prim_stop, inst_stop),
                     wp.vec3(0.0),
                     depth,
                     parent,

@@ -63,7 +63,7 @@ def trace_spawned(
     refract_prim[i] = NOT_TRACED
     if prim == NO_HIT:
         return
-    p, n, err = traverse.hit_point(geometry, prim, inst, o, d, t, 0.0)
+    p, n, err = traverse.hit_point(geometry, traverse.ray_hit(o, d, 0.0, t, prim, inst))
     entering = wp.dot(d, n) < 0.0
     n_facing = n
     eta = 1.0 / ior

@@ -16,7 +16,9 @@ names an instance of a group; the ray is taken into the group's object space (``
 direction not renormalised so that ``t`` is unchanged) and the same traversal, without planes or
 instances, continues from the group's root node, with a stack of its own. The group's primitives
 sit after the scene's in the kind arrays and its tree after the scene's in ``nodes``; a hit through
-an instance is ``(t, prim, inst)``, and ``hit_point`` takes it back to world space.
+an instance is ``(t, prim, inst)``, and ``hit_point`` takes it back to world space. A ray and
+what ``closest_hit`` found along it travel together as one ``RayHit`` to what turns them into a
+surface point (``hit_point``, ``wrt.kernels.hit.surface_hit``), the AOVs and the ray records.
 
 The traversal is compiled per set of geometry features (``traversal``): the leaf test of a
 scene with triangles only has no sphere or polygon branch, and rays are moved into the frames of
@@ -609,17 +611,47 @@ def make_surface_point(quadrics: bool):
 surface_point = make_surface_point(True)
 
 
+@wp.struct
+class RayHit:
+    """A ray and what ``closest_hit`` found along it (Mitsuba 3's preliminary intersection, with its
+    ray): unit ray ``o + s d`` at ray ``time``, its closest hit at ``t`` on primitive ``prim``
+    (``NO_HIT``: none) through instance ``inst`` (-1: none)."""
+
+    o: wp.vec3
+    d: wp.vec3
+    time: float
+    t: float
+    prim: wp.int32
+    inst: wp.int32
+
+
 @wp.func
-def hit_point(geometry: GeometryData, prim: wp.int32, inst: wp.int32, o: wp.vec3, d: wp.vec3, t: float, time: float):
-    """``surface_point`` of a hit ``(t, prim, inst)`` from ``closest_hit``: for a primitive hit
-    through instance ``inst``, found in the group's object space and taken back to the world,
-    the normal by the inverse transpose. Its error bound adds the rounding of the two transforms:
+def ray_hit(o: wp.vec3, d: wp.vec3, time: float, t: float, prim: wp.int32, inst: wp.int32) -> RayHit:
+    """The ``RayHit`` of these fields."""
+    found = RayHit()
+    found.o = o
+    found.d = d
+    found.time = time
+    found.t = t
+    found.prim = prim
+    found.inst = inst
+    return found
+
+
+@wp.func
+def hit_point(geometry: GeometryData, found: RayHit):
+    """``surface_point`` of a hit ``found`` (not ``NO_HIT``): for a primitive hit through an
+    instance, found in the group's object space and taken back to the world, the normal by the
+    inverse transpose. Its error bound adds the rounding of the two transforms:
     the object-space bound stretched by at most the Frobenius norm of the linear part, plus a few
     ulps of the world point and translation."""
+    prim = found.prim
+    inst = found.inst
+    time = found.time
     if inst < 0:
-        return surface_point(geometry, prim, o, d, t, time)
-    o_obj, d_obj = to_object(geometry, inst, o, d, time)
-    p_obj, n_obj, err_obj = surface_point(geometry, prim, o_obj, d_obj, t, time)
+        return surface_point(geometry, prim, found.o, found.d, found.t, time)
+    o_obj, d_obj = to_object(geometry, inst, found.o, found.d, time)
+    p_obj, n_obj, err_obj = surface_point(geometry, prim, o_obj, d_obj, found.t, time)
     to_world = geometry.inst_to_world[inst]
     shift = wp.vec3(0.0)
     if geometry.moving != 0:

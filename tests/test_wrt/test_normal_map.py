@@ -10,7 +10,7 @@ from conftest import EXAMPLES
 from test_textures import SHAPES, needs_mitsuba, rays_toward, scene_xml, write_exr, write_meshes, write_png
 from wrt.kernels.hit import perturbed_normal, surface_hit
 from wrt.kernels.materials import MaterialData
-from wrt.kernels.traverse import NO_HIT, GeometryData, closest_hit, hit_point, shading_normal, surface_dpdu
+from wrt.kernels.traverse import NO_HIT, GeometryData, closest_hit, hit_point, ray_hit, shading_normal, surface_dpdu
 
 import wrt
 from wrt.device import upload_geometry, upload_materials
@@ -39,7 +39,7 @@ def trace_frames(
     t, prim, inst = closest_hit(geometry, o, d, 0.0, 0.0, wp.inf)
     out_hit[i] = wp.where(prim == NO_HIT, 0, 1)
     if prim != NO_HIT:
-        p, n, _err = hit_point(geometry, prim, inst, o, d, t, 0.0)
+        p, n, _err = hit_point(geometry, ray_hit(o, d, 0.0, t, prim, inst))
         ns = shading_normal(geometry, prim, inst, p, n, 0.0)
         dpdu = surface_dpdu(geometry, prim, inst, p, 0.0)
         out_dpdu[i] = dpdu
@@ -140,7 +140,7 @@ def hit_normals(
     i = wp.tid()
     t, prim, inst = closest_hit(geometry, origins[i], directions[i], 0.0, 0.0, wp.inf)
     if prim != NO_HIT:
-        hit = surface_hit(geometry, materials, origins[i], directions[i], t, prim, inst, 0.0)
+        hit = surface_hit(geometry, materials, ray_hit(origins[i], directions[i], 0.0, t, prim, inst))
         out_n[i] = hit.n_facing
         out_front[i] = wp.where(hit.front, 1, 0)
 

@@ -11,7 +11,7 @@ import warp as wp
 from conftest import EXAMPLES
 from wrt.kernels.materials import MaterialData
 from wrt.kernels.textures import ALBEDO, TextureData, material_rgb, texture_float, texture_rgb
-from wrt.kernels.traverse import NO_HIT, GeometryData, closest_hit, hit_point, prim_shape, surface_uv
+from wrt.kernels.traverse import NO_HIT, GeometryData, closest_hit, hit_point, prim_shape, ray_hit, surface_uv
 from wrt_harness.mitsuba_peer import mitsuba_available
 
 import wrt
@@ -38,7 +38,7 @@ def trace_uv(
     t, prim, inst = closest_hit(geometry, o, d, 0.0, 0.0, wp.inf)
     out_hit[i] = wp.where(prim == NO_HIT, 0, 1)
     if prim != NO_HIT:
-        p, _n, _err = hit_point(geometry, prim, inst, o, d, t, 0.0)
+        p, _n, _err = hit_point(geometry, ray_hit(o, d, 0.0, t, prim, inst))
         out_uv[i] = surface_uv(geometry, prim, inst, p, 0.0)
 
 
@@ -265,7 +265,7 @@ def albedo_at_hits(
     d = directions[i]
     t, prim, inst = closest_hit(geometry, o, d, 0.0, 0.0, wp.inf)
     if prim != NO_HIT:
-        p, _n, _err = hit_point(geometry, prim, inst, o, d, t, 0.0)
+        p, _n, _err = hit_point(geometry, ray_hit(o, d, 0.0, t, prim, inst))
         m = materials.shape_material[prim_shape(geometry, prim)]
         uv = surface_uv(geometry, prim, inst, p, 0.0)
         out_albedo[i] = material_rgb(textures, m, ALBEDO, uv, materials.albedo[m])
