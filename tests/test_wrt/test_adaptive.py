@@ -42,8 +42,8 @@ def test_relative_error_of_known_samples():
     assert black[0] == pytest.approx(1 / np.sqrt(16 * 15))
 
 
-def test_noisy_pixels_get_more_samples_and_black_sky_stops_first():
-    r = wrt.render(scene(), spp=256, target_error=0.05)
+def test_noisy_pixels_get_more_samples_and_black_sky_stops_first(device):
+    r = wrt.render(scene(), spp=256, target_error=0.05, device=device)
     counts = r.aovs["spp"]
     assert counts.dtype == np.int32 and counts.shape == (24, 32)
     sky = r.rgb.sum(axis=2) == 0
@@ -52,12 +52,12 @@ def test_noisy_pixels_get_more_samples_and_black_sky_stops_first():
     assert set(np.unique(counts)) <= set(adaptive_passes(256))
 
 
-def test_adaptive_images_are_deterministic_and_unbiased():
+def test_adaptive_images_are_deterministic_and_unbiased(device):
     s = scene()
-    a = wrt.render(s, spp=128, target_error=0.05, threads=1)
-    b = wrt.render(s, spp=128, target_error=0.05, threads=2)
+    a = wrt.render(s, spp=128, target_error=0.05, threads=1, device=device)
+    b = wrt.render(s, spp=128, target_error=0.05, threads=2, device=device)
     assert np.array_equal(a.rgb, b.rgb) and np.array_equal(a.aovs["spp"], b.aovs["spp"])
-    reference = wrt.render(s, spp=2048, seed=7).rgb.astype(np.float64)
+    reference = wrt.render(s, spp=2048, seed=7, device=device).rgb.astype(np.float64)
     lum = np.array([0.2126, 0.7152, 0.0722])
     ours, true = a.rgb.astype(np.float64) @ lum, reference @ lum
     assert ours.mean() == pytest.approx(true.mean(), rel=0.02)

@@ -117,7 +117,7 @@ def scenes(tmp_path_factory):
     return scene, flattened(scene)
 
 
-def test_instances_trace_like_the_flattened_scene(scenes, rng):
+def test_instances_trace_like_the_flattened_scene(scenes, rng, device):
     scene, flat = scenes
     origins = rng.uniform(-6.0, 6.0, size=(20000, 3))
     directions = rng.normal(size=(20000, 3))
@@ -136,9 +136,9 @@ def test_instances_trace_like_the_flattened_scene(scenes, rng):
     np.testing.assert_array_equal(occluded, shape >= 0)
 
 
-def test_instanced_images_and_aovs_match_the_flattened_scene(scenes):
+def test_instanced_images_and_aovs_match_the_flattened_scene(scenes, device):
     scene, flat = scenes
-    a, b = wrt.render(scene), wrt.render(flat)
+    a, b = wrt.render(scene, device=device), wrt.render(flat, device=device)
     ids_b = object_ids(scene, b.aovs["object_id"])
     same = a.aovs["object_id"] == ids_b
     assert np.count_nonzero(~same) <= 3
@@ -148,7 +148,7 @@ def test_instanced_images_and_aovs_match_the_flattened_scene(scenes):
     np.testing.assert_allclose(a.rgb[same], b.rgb[same], atol=1e-4)
 
 
-def test_moving_instances_blur_like_moving_shapes(scenes):
+def test_moving_instances_blur_like_moving_shapes(scenes, device):
     scene, _ = scenes
     shapes = list(scene.shapes)
     shapes[1] = dataclasses.replace(shapes[1], velocity=(2.0, 0.0, 0.0))
@@ -162,12 +162,12 @@ def test_moving_instances_blur_like_moving_shapes(scenes):
             dataclasses.replace(s, velocity=(2.0, 0.0, 0.0)) if k in (1, 2) else s for k, s in enumerate(flat.shapes)
         ),
     )
-    a, b = wrt.render(moving), wrt.render(flat)
+    a, b = wrt.render(moving, device=device), wrt.render(flat, device=device)
     assert scene_features(moving).motion and scene_features(moving).instances
     assert np.mean(np.abs(a.rgb - b.rgb)) < 2e-3 * max(np.mean(b.rgb), 1e-3)
 
 
-def test_a_thousand_instances_of_a_large_mesh_share_one_copy(tmp_path):
+def test_a_thousand_instances_of_a_large_mesh_share_one_copy(tmp_path, device):
     """1,000 instances of a 100k-triangle mesh: the primitives of one mesh plus 1,000 transforms."""
     mesh = grid_mesh(tmp_path / "big.ply", 224)  # 100,352 triangles
     instances = [
@@ -181,7 +181,7 @@ def test_a_thousand_instances_of_a_large_mesh_share_one_copy(tmp_path):
     assert len(prims.tri_shape) == 100_352 and len(prims.inst_shape) == 1000
     nodes = prims.bvh.nodes.shape[0]
     assert nodes < 100_352  # one tree over the mesh, one over the instances: not 1,000 copies
-    ids = wrt.render(scene).aovs["object_id"]
+    ids = wrt.render(scene, device=device).aovs["object_id"]
     assert len(np.unique(ids[ids >= 1])) > 500  # most instances are seen
 
 

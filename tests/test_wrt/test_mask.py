@@ -24,14 +24,16 @@ MATERIALS = [
 ]
 
 
-def wall_render(panel: bool, max_depth: int):
+def wall_render(panel: bool, max_depth: int, device: str):
     shapes = [WALL, {**PANEL, "material": "clear"}] if panel else [WALL]
     render = {"width": 32, "height": 32, "spp": 64, "integrator": "path", "max_depth": max_depth}
     camera = {"origin": [0.0, 0.0, 5.0], "look_at": [0.0, 0.0, 0.0], "fov": 40.0}
-    return wrt.render(make_scene(shapes, render=render, camera=camera, materials=MATERIALS, lights=LIGHTS))
+    return wrt.render(
+        make_scene(shapes, render=render, camera=camera, materials=MATERIALS, lights=LIGHTS), device=device
+    )
 
 
-def test_a_clear_mask_shows_the_wall_but_blocks_shadow_rays():
+def test_a_clear_mask_shows_the_wall_but_blocks_shadow_rays(device):
     """A mask of opacity 0 between the camera and a diffuse wall (albedo rho) lit by a constant sky
     L and a point light I at (0, 0, 4): the wall, at each pixel's position p (the AOV of the render
     without the panel), is ``rho L`` (its hemisphere sees the sky, through the mask: found by BSDF
@@ -40,7 +42,7 @@ def test_a_clear_mask_shows_the_wall_but_blocks_shadow_rays():
     opacity, as Mitsuba's. Region means within 3% of these closed forms (the sky's MIS noise), with
     and without the panel; the null lobe is a segment of the path (Mitsuba's ``max_depth``), so the
     panel's render takes one more (4 against 3), and with 2 the wall seen through it is black."""
-    plain, masked = wall_render(False, 3), wall_render(True, 4)
+    plain, masked = wall_render(False, 3, device), wall_render(True, 4, device)
     p = plain.aovs["position"]
     r2 = (p**2).sum(axis=2) - 8.0 * p[..., 2] + 16.0
     direct = ALBEDO / np.pi * INTENSITY * 4.0 / r2**1.5  # cos = 4 / r for a light on the wall's axis
@@ -53,7 +55,7 @@ def test_a_clear_mask_shows_the_wall_but_blocks_shadow_rays():
         for region in (shadow & seen_through, lit):
             np.testing.assert_allclose(image[region].mean(axis=0), expected[region].mean(), rtol=0.03)
     assert (masked.aovs["object_id"][seen_through] == 1).all()  # the AOVs see the mask's surface
-    short = wall_render(True, 2)
+    short = wall_render(True, 2, device)
     assert not short.rgb[seen_through].any() and short.rgb[lit].min() > 0.0
 
 

@@ -213,7 +213,7 @@ def test_hits_and_front_normals_match_mitsuba(tmp_path, rng, kind, params):
     assert compared > n / 4
 
 
-def test_oracle_draws_disks_and_cylinders_where_rays_hit_them():
+def test_oracle_draws_disks_and_cylinders_where_rays_hit_them(device):
     """The pyvista geometry oracle's id image of an elliptical disk and a tilted tube (seen
     through one open end) agrees with the ray tracer's ``object_id`` AOV but for silhouette pixels."""
     from wrt_harness.oracle import rasterize_ids
@@ -232,7 +232,7 @@ def test_oracle_draws_disks_and_cylinders_where_rays_hit_them():
         render={"width": 64, "height": 48, "integrator": "raycast", "spp": 1},
         camera={"origin": [0.5, 3, 5], "look_at": [0, 0, 0], "fov": 45},
     )
-    ours = wrt.render(scene).aovs["object_id"]
+    ours = wrt.render(scene, device=device).aovs["object_id"]
     theirs = rasterize_ids(scene)
     assert {0, 1} <= set(np.unique(ours))
     assert np.mean(ours == theirs) > 0.98
