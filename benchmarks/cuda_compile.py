@@ -11,6 +11,8 @@ to what it reads: the figures are then that ``ptxas``'s, close to but not exactl
 
 ``core``: each integrator's all-features and recording modules, the BVH build, the batch
 traversal and the stress kernels; ``all``: every module ``wrt kernels`` lists for the examples.
+The integrators' modules are their CUDA forms (``_cuda``: the traversal out of line,
+``wrt.kernels.variants.CUDA_TRAVERSAL_INLINE``).
 """
 
 from __future__ import annotations
@@ -38,11 +40,11 @@ PTXAS_REGISTERS = re.compile(r"Used (\d+) registers")
 def module_names(which: str) -> list[str]:
     from wrt import aot
 
-    names = list(aot.needed_modules([aot.example_path(s) for s in aot.example_scenes()]))
+    names = list(aot.needed_modules([aot.example_path(s) for s in aot.example_scenes()], cuda=True))
     if which == "all":
         return names
     if which == "core":
-        return [n for n in names if n in CORE or n.endswith(("_all", "_record"))]
+        return [n for n in names if n in CORE or n.endswith(("_all_cuda", "_record_cuda"))]
     return which.split(",")
 
 
@@ -54,7 +56,7 @@ def compile_one(name: str, arch: int, folder: str) -> None:
     init_warp()
     import warp as wp
 
-    modules = aot.needed_modules([aot.example_path(s) for s in aot.example_scenes()])
+    modules = aot.needed_modules([aot.example_path(s) for s in aot.example_scenes()], cuda=True)
     wp.compile_aot_module(modules[name], arch=arch, module_dir=folder, use_ptx=True)
 
 

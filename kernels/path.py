@@ -234,10 +234,11 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
     return next_event
 
 
-def make_path_radiance(record: bool, features: Features = ALL):
+def make_path_radiance(record: bool, features: Features = ALL, inline_traversal: bool | None = None):
     """``path_radiance``, recording every ray it traces when ``record`` (compiled out otherwise),
-    with the code of the features the scene lacks compiled out (``wrt.kernels.features``)."""
-    trace = traversal(features)
+    with the code of the features the scene lacks compiled out (``wrt.kernels.features``), its
+    traversal with the inline hint ``inline_traversal`` (``wrt.kernels.traverse.Traversal``)."""
+    trace = traversal(features, inline_traversal)
     trace_segment = make_trace_segment(record, trace)
     next_event = make_next_event(record, trace, features)
     lighting = lighting_for(features)

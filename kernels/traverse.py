@@ -445,13 +445,19 @@ def _any_hit(features: Features, top: bool = True):
 
 
 class Traversal:
-    """``closest_hit`` and ``any_hit`` compiled for one set of scene features (``traversal``)."""
+    """``closest_hit`` and ``any_hit`` compiled for one set of scene features (``traversal``).
 
-    def __init__(self, features: Features):
+    ``inline``: Warp's inline hint of the two (``wp.func``'s): None leaves it to the compiler (the
+    CPU modules'), False keeps each out of line at its call sites (the CUDA modules',
+    ``wrt.kernels.variants.CUDA_TRAVERSAL_INLINE``)."""
+
+    def __init__(self, features: Features, inline: bool | None = None):
         self.features = features
+        self.inline = inline
         closest_hit_logged = _closest_hit(features, log_visits=True)
         closest_hit_unlogged = _closest_hit(features, log_visits=False)
         any_hit_from = _any_hit(features)
+        hinted = wp.func if inline is None else wp.func(inline=inline)
 
         @wp.func
         def closest_hit_visits(
@@ -467,14 +473,14 @@ class Traversal:
             """``closest_hit``, logging the wide nodes it visits in row ``row`` of ``log``."""
             return closest_hit_logged(geometry, 0, o, d, time, t_min, t_max, log, row)
 
-        @wp.func
+        @hinted
         def closest_hit(geometry: GeometryData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float):
             """Nearest intersection in ``(t_min, t_max)`` at ray time ``time``: returns
             ``(t, prim, inst)``; ``prim == NO_HIT`` on a miss; ``inst`` the instance the primitive
             was hit through (its group's primitive ``prim``), -1 for the scene's own primitives."""
             return closest_hit_unlogged(geometry, 0, o, d, time, t_min, t_max, VisitLog(), 0)
 
-        @wp.func
+        @hinted
         def any_hit(geometry: GeometryData, o: wp.vec3, d: wp.vec3, time: float, t_min: float, t_max: float) -> bool:
             """Whether anything lies in ``(t_min, t_max)`` along the ray at ray time ``time`` (for
             shadow rays); stops at the first hit."""
@@ -486,9 +492,10 @@ class Traversal:
 
 
 @functools.cache
-def traversal(features: Features) -> Traversal:
-    """The traversal functions for the geometry of ``features`` (its primitive kinds and motion)."""
-    return Traversal(geometry_features(features))
+def traversal(features: Features, inline: bool | None = None) -> Traversal:
+    """The traversal functions for the geometry of ``features`` (its primitive kinds and motion),
+    with the inline hint ``inline`` (``Traversal``)."""
+    return Traversal(geometry_features(features), inline)
 
 
 _all = traversal(ALL)

@@ -8,6 +8,8 @@ here on first use, each into a Warp module of its own (a variant's named after t
 already been loaded, and Warp's kernel cache keeps each compiled variant across processes. An
 integrator's module is imported when its kernel is first asked for: a process pays the start-up
 cost (Warp parses every function's source at import) of the integrator it renders with only.
+A CUDA device gets kernels of its own (``cuda``: modules named as the CPU's with ``_cuda`` after),
+whose traversal is kept out of line (``CUDA_TRAVERSAL_INLINE``).
 """
 
 from __future__ import annotations
@@ -25,12 +27,26 @@ from .materials import MATERIAL_FLAGS
 INTEGRATORS = ("raycast", "whitted", "path")
 
 
-def _radiance(integrator: str, features: Features, record: bool = False):
-    """The radiance function of ``integrator`` for ``features``, recording every ray where ``record``."""
+CUDA_TRAVERSAL_INLINE = False
+"""The traversal's inline hint in the CUDA modules (``wrt.kernels.traverse.Traversal``): out of
+line. NVRTC inlining the traversal at each of its call sites took the all-features Whitted module
+655-862 s to compile for sm_90 and the path module 331 s; out of line, 91 s and 136 s, with spills
+cut from 2-4 kB to about 150 B a thread. On the CPU the same hint costs render time (1.09x path,
+1.18x Whitted), so the CPU modules leave it to the compiler (docs/performance.md, "Kernels
+compiled ahead of time")."""
+
+
+def _inline_traversal(cuda: bool) -> bool | None:
+    return CUDA_TRAVERSAL_INLINE if cuda else None
+
+
+def _radiance(integrator: str, features: Features, record: bool = False, cuda: bool = False):
+    """The radiance function of ``integrator`` for ``features``, recording every ray where ``record``,
+    in its CUDA form where ``cuda``."""
     module = importlib.import_module(f"{__package__}.{integrator}")
     if integrator == "raycast":
         return module.make_raycast_radiance(features.textures)  # primary rays: only uv to specialise
-    return getattr(module, f"make_{integrator}_radiance")(record, features)
+    return getattr(module, f"make_{integrator}_radiance")(record, features, _inline_traversal(cuda))
 
 
 PATH_INLINE_THRESHOLD = 30000
@@ -80,28 +96,35 @@ def relevant(integrator: str, features: Features) -> Features:
     return only(features, EVERY_INTEGRATOR + RELEVANT[integrator])
 
 
-def render_kernel(integrator: str, features: Features):
-    """The rendering kernel of ``integrator`` ("raycast", "whitted" or "path") for ``features``."""
-    return _kernel(integrator, relevant(integrator, features))
+def render_kernel(integrator: str, features: Features, cuda: bool = False):
+    """The rendering kernel of ``integrator`` ("raycast", "whitted" or "path") for ``features``; for
+    a CUDA device where ``cuda`` (its modules' names end in ``_cuda``)."""
+    return _kernel(integrator, relevant(integrator, features), cuda)
 
 
 @functools.cache
-def all_features_kernel(integrator: str, record: bool = False):
+def all_features_kernel(integrator: str, record: bool = False, cuda: bool = False):
     """``integrator``'s all-features kernel, recording every ray it traces where ``record``, in
-    Warp module ``wrt_NAME_all`` (``wrt_NAME_record``); built on first use."""
-    module = f"wrt_{integrator}_{'record' if record else 'all'}"
+    Warp module ``wrt_NAME_all`` (``wrt_NAME_record``; for CUDA where ``cuda``, ``_cuda`` after
+    either); built on first use."""
+    module = f"wrt_{integrator}_{'record' if record else 'all'}{'_cuda' if cuda else ''}"
     return make_render_kernel(
-        _radiance(integrator, ALL, record), module=module, record=record, options=OPTIONS[integrator]
+        _radiance(integrator, ALL, record, cuda),
+        module=module,
+        record=record,
+        options=OPTIONS[integrator],
+        inline_traversal=_inline_traversal(cuda),
     )
 
 
 @functools.cache
-def _kernel(integrator: str, features: Features):
+def _kernel(integrator: str, features: Features, cuda: bool = False):
     if features == ALL:
-        return all_features_kernel(integrator)
+        return all_features_kernel(integrator, cuda=cuda)
     return make_render_kernel(
-        _radiance(integrator, features),
-        module=f"wrt_{integrator}_{features.key}",
+        _radiance(integrator, features, cuda=cuda),
+        module=f"wrt_{integrator}_{features.key}{'_cuda' if cuda else ''}",
         features=features,
         options=OPTIONS[integrator],
+        inline_traversal=_inline_traversal(cuda),
     )

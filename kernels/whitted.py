@@ -167,11 +167,12 @@ def make_direct_light(record: bool, trace: Traversal, textures: bool, normal_map
     return direct_light
 
 
-def make_whitted_radiance(record: bool, features: Features = ALL):
+def make_whitted_radiance(record: bool, features: Features = ALL, inline_traversal: bool | None = None):
     """``whitted_radiance``, recording every ray it traces when ``record`` (compiled out otherwise),
     with the code of the features the scene lacks compiled out (``wrt.kernels.features``): without
-    mirrors and dielectrics there is no branch stack and the camera ray's hit is the whole tree."""
-    trace = traversal(features)
+    mirrors and dielectrics there is no branch stack and the camera ray's hit is the whole tree; its
+    traversal with the inline hint ``inline_traversal`` (``wrt.kernels.traverse.Traversal``)."""
+    trace = traversal(features, inline_traversal)
     trace_segment = make_trace_segment(record, trace)
     direct_light = make_direct_light(record, trace, features.textures, features.normal_map)
     bsdf = make_bsdf(families_for(features, whitted=True), features.textures)

@@ -187,11 +187,11 @@ def example_path(name: str) -> str:
     return os.path.join(os.path.dirname(wrt.examples.__file__), name)
 
 
-def scene_modules(path: str) -> dict[str, wp.context.Module]:
+def scene_modules(path: str, cuda: bool = False) -> dict[str, wp.context.Module]:
     """The Warp modules a render or a ray recording of the scene file ``path`` can load, by name:
-    its integrator's all-features and recording kernels and its variant (``render_kernel_for``).
-    A Mitsuba scene counts as imported strictly and with ``--approximate``; a scene that neither
-    loads adds nothing."""
+    its integrator's all-features and recording kernels and its variant (``render_kernel_for``),
+    on the CPU or, where ``cuda``, on a CUDA device. A Mitsuba scene counts as imported strictly
+    and with ``--approximate``; a scene that neither loads adds nothing."""
     from wrt.kernels.features import ALL
     from wrt.kernels.variants import all_features_kernel, render_kernel
 
@@ -207,9 +207,9 @@ def scene_modules(path: str) -> dict[str, wp.context.Module]:
             continue
         integrator = scene.render.integrator
         for kernel in (
-            render_kernel(integrator, ALL),
-            render_kernel(integrator, scene_features(scene)),
-            all_features_kernel(integrator, record=True),
+            render_kernel(integrator, ALL, cuda),
+            render_kernel(integrator, scene_features(scene), cuda),
+            all_features_kernel(integrator, record=True, cuda=cuda),
         ):
             modules[kernel.module.name] = kernel.module
     return modules
@@ -228,11 +228,12 @@ def library_modules() -> dict[str, wp.context.Module]:
     return {n: m for n, m in user_modules.items() if n.startswith("wrt.kernels.") and m.kernels}
 
 
-def needed_modules(scenes: list[str]) -> dict[str, wp.context.Module]:
-    """The Warp modules that ``scenes`` (scene files) need, with the library's own, by name."""
+def needed_modules(scenes: list[str], cuda: bool = False) -> dict[str, wp.context.Module]:
+    """The Warp modules that ``scenes`` (scene files) need, with the library's own, by name (on a
+    CUDA device where ``cuda``)."""
     modules = library_modules()
     for path in scenes:
-        modules.update(scene_modules(path))
+        modules.update(scene_modules(path, cuda))
     return dict(sorted(modules.items()))
 
 

@@ -193,7 +193,7 @@ def trace_rays(
     if capacity < 1:
         raise WrtError(f"capacity must be >= 1, got {capacity}")
     dev = resolve_device(device)
-    kernel = all_features_kernel(scene.render.integrator, record=True)
+    kernel = all_features_kernel(scene.render.integrator, record=True, cuda=dev.is_cuda)
     load(kernel.module, dev)
     device_scene = prepare(scene, dev)
     rec = RayRecord()

@@ -118,16 +118,16 @@ def render_kernel_for(scene: Scene, specialize: bool | None, dev: wp.context.Dev
     costs milliseconds); from ``SPECIALIZE_COLD_SAMPLES`` on the variant always, as the render is
     then long enough to pay its first compilation (10-30 CPU-seconds against a render 3-26%
     faster). The image is the same either way."""
-    integrator = scene.render.integrator
+    integrator, cuda = scene.render.integrator, dev.is_cuda
     if specialize is None:
         samples = scene.render.width * scene.render.height * scene.render.spp
         if samples < SPECIALIZE_MIN_SAMPLES:
-            return render_kernel(integrator, ALL)
-        variant = render_kernel(integrator, scene_features(scene))
-        return (
-            variant if samples >= SPECIALIZE_COLD_SAMPLES or compiled(variant, dev) else render_kernel(integrator, ALL)
-        )
-    return render_kernel(integrator, scene_features(scene) if specialize else ALL)
+            return render_kernel(integrator, ALL, cuda)
+        variant = render_kernel(integrator, scene_features(scene), cuda)
+        if samples >= SPECIALIZE_COLD_SAMPLES or compiled(variant, dev):
+            return variant
+        return render_kernel(integrator, ALL, cuda)
+    return render_kernel(integrator, scene_features(scene) if specialize else ALL, cuda)
 
 
 @dataclass

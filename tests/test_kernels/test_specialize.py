@@ -2,17 +2,19 @@
 exactly what the all-features kernels render: specialisation only removes unreachable code."""
 
 import dataclasses
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import warp as wp
 from conftest import CAMERA, EXAMPLES, make_scene
 from wrt.kernels.features import ALL, Features
-from wrt.kernels.variants import relevant, render_kernel
+from wrt.kernels.traverse import traversal
+from wrt.kernels.variants import all_features_kernel, relevant, render_kernel
 
 import wrt
 from wrt.aot import compiled
-from wrt.renderer import scene_features
+from wrt.renderer import render_kernel_for, scene_features
 
 DIFFUSE = [{"name": "white", "albedo": [0.7, 0.7, 0.7]}]
 GLASS = {"name": "glass", "type": "dielectric", "ior": 1.5, "transmittance": [0.9, 0.8, 0.7]}
@@ -120,6 +122,26 @@ def test_variants_are_built_once_and_only_for_flags_that_pay():
     triangles_only = Features(moving=False, spheres=False, polygons=False)
     assert relevant("raycast", triangles_only) == triangles_only  # geometry flags pay for every integrator
     assert relevant("path", plain).specular  # the mirror test is a compare: not worth a variant
+
+
+def test_a_cuda_device_gets_modules_of_its_own_with_the_traversal_out_of_line():
+    """NVRTC inlining the traversal at each call site took the Whitted module 11-14 minutes: the
+    CUDA kernels are modules of their own (``_cuda``) whose traversal is ``noinline``; the CPU's
+    leave it to the compiler, and a render picks by its device."""
+    assert traversal(ALL, False).closest_hit.inline_hint == traversal(ALL, False).any_hit.inline_hint == "noinline"
+    assert traversal(ALL).closest_hit.inline_hint is None and traversal(ALL).any_hit.inline_hint is None
+    plain = Features(lights=False, specular=False, dielectric=False, lens=False, motion=False)
+    for integrator in ("raycast", "whitted", "path"):
+        cpu, cuda = render_kernel(integrator, plain), render_kernel(integrator, plain, cuda=True)
+        assert cuda.module.name == cpu.module.name + "_cuda" and cuda is not cpu
+        record = all_features_kernel(integrator, record=True, cuda=True)
+        assert record.module.name == f"wrt_{integrator}_record_cuda"
+    scene = make_scene([FLOOR], materials=DIFFUSE)
+    for is_cuda, suffix in ((True, "_cuda"), (False, "")):
+        device = SimpleNamespace(is_cuda=is_cuda)
+        for specialize in (True, False):
+            name = render_kernel_for(scene, specialize, device).module.name
+            assert name.endswith(suffix) and (is_cuda or not name.endswith("_cuda"))
 
 
 SCENES = {
@@ -267,7 +289,7 @@ def test_the_variant_is_taken_where_it_is_compiled_or_pays_its_compilation(monke
     monkeypatch.setattr(
         wrt.renderer,
         "render_kernel",
-        lambda integrator, features: chosen.append(features) or render_kernel(integrator, features),
+        lambda integrator, features, cuda: chosen.append(features) or render_kernel(integrator, features, cuda),
     )
     scene = make_scene([FLOOR], materials=DIFFUSE, render={"width": 16, "height": 8, "spp": 2, "integrator": "path"})
     samples = 16 * 8 * 2
