@@ -12,7 +12,7 @@ to what it reads: the figures are then that ``ptxas``'s, close to but not exactl
 ``core``: each integrator's all-features and recording modules, the BVH build, the batch
 traversal and the stress kernels; ``all``: every module ``wrt kernels`` lists for the examples.
 The integrators' modules are their CUDA forms (``_cuda``: the traversal out of line,
-``wrt.kernels.variants.CUDA_TRAVERSAL_INLINE``).
+``wrt.kernels.variants.CUDA_INLINE``).
 """
 
 from __future__ import annotations

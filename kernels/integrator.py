@@ -143,7 +143,7 @@ def make_render_kernel(
     record: bool = False,
     features: Features = ALL,
     options: dict | None = None,
-    inline_traversal: bool | None = None,
+    inline: bool | None = None,
 ):
     """A render kernel around the ``@wp.func`` ``radiance(geometry: GeometryData, materials: MaterialData,
     lights: LightData, settings: IntegratorSettings, sampler: Sampler, ray: CameraRay, rec: RayRecord) -> vec3``.
@@ -159,11 +159,11 @@ def make_render_kernel(
     ``features``: without ``lens`` the camera is taken to be a pinhole, without ``orthographic``
     a perspective camera, and without ``motion`` every sample is at mid-shutter (no lens or time
     sampling); ``module``: the name of the Warp module to put the kernel in, whose Warp options are
-    ``MODULE_OPTIONS`` and ``options``; ``inline_traversal``: the camera rays' traversal's inline
+    ``MODULE_OPTIONS`` and ``options``; ``inline``: the camera rays' traversal's inline
     hint (``wrt.kernels.traverse.Traversal``).
     """
 
-    trace = traversal(features, inline_traversal)
+    trace = traversal(features, inline)
     trace_segment = make_trace_segment(record, trace)
     generate_ray = make_generate_ray(features.orthographic)
 

@@ -152,10 +152,10 @@ def start_path(materials: MaterialData, settings: IntegratorSettings, ray: Camer
 def make_next_event(record: bool, trace: Traversal, features: Features):
     """``next_event``, recording its shadow rays when ``record``, sampling environment maps and
     emissive primitives when the scene has them, and lights across the surface when it has rough
-    dielectrics (each compiled out otherwise)."""
+    dielectrics (each compiled out otherwise); its BSDF interface has ``trace``'s inline hint."""
     shadow_ray = make_shadow_ray(record, trace)
     lighting = lighting_for(features)
-    bsdf = make_bsdf(families_for(features), features.textures)
+    bsdf = make_bsdf(families_for(features), features.textures, trace.inline)
 
     @wp.func
     def next_event(
@@ -234,15 +234,15 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
     return next_event
 
 
-def make_path_radiance(record: bool, features: Features = ALL, inline_traversal: bool | None = None):
+def make_path_radiance(record: bool, features: Features = ALL, inline: bool | None = None):
     """``path_radiance``, recording every ray it traces when ``record`` (compiled out otherwise),
     with the code of the features the scene lacks compiled out (``wrt.kernels.features``), its
-    traversal with the inline hint ``inline_traversal`` (``wrt.kernels.traverse.Traversal``)."""
-    trace = traversal(features, inline_traversal)
+    traversal and BSDF interface with the inline hint ``inline`` (``variants.CUDA_INLINE``)."""
+    trace = traversal(features, inline)
     trace_segment = make_trace_segment(record, trace)
     next_event = make_next_event(record, trace, features)
     lighting = lighting_for(features)
-    bsdf = make_bsdf(families_for(features), features.textures)
+    bsdf = make_bsdf(families_for(features), features.textures, inline)
     surface_hit = make_surface_hit_for(features)
 
     @wp.func

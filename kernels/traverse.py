@@ -449,7 +449,7 @@ class Traversal:
 
     ``inline``: Warp's inline hint of the two (``wp.func``'s): None leaves it to the compiler (the
     CPU modules'), False keeps each out of line at its call sites (the CUDA modules',
-    ``wrt.kernels.variants.CUDA_TRAVERSAL_INLINE``)."""
+    ``wrt.kernels.variants.CUDA_INLINE``)."""
 
     def __init__(self, features: Features, inline: bool | None = None):
         self.features = features

@@ -9,7 +9,7 @@ already been loaded, and Warp's kernel cache keeps each compiled variant across 
 integrator's module is imported when its kernel is first asked for: a process pays the start-up
 cost (Warp parses every function's source at import) of the integrator it renders with only.
 A CUDA device gets kernels of its own (``cuda``: modules named as the CPU's with ``_cuda`` after),
-whose traversal is kept out of line (``CUDA_TRAVERSAL_INLINE``).
+whose traversal and BSDF interface are kept out of line (``CUDA_INLINE``).
 """
 
 from __future__ import annotations
@@ -27,17 +27,18 @@ from .materials import MATERIAL_FLAGS
 INTEGRATORS = ("raycast", "whitted", "path")
 
 
-CUDA_TRAVERSAL_INLINE = False
-"""The traversal's inline hint in the CUDA modules (``wrt.kernels.traverse.Traversal``): out of
-line. NVRTC inlining the traversal at each of its call sites took the all-features Whitted module
-655-862 s to compile for sm_90 and the path module 331 s; out of line, 91 s and 136 s, with spills
-cut from 2-4 kB to about 150 B a thread. On the CPU the same hint costs render time (1.09x path,
-1.18x Whitted), so the CPU modules leave it to the compiler (docs/performance.md, "Kernels
-compiled ahead of time")."""
+CUDA_INLINE = False
+"""Warp's inline hint, in the CUDA modules, of the traversal (``wrt.kernels.traverse.Traversal``)
+and the BSDF interface (``wrt.kernels.materials.make_bsdf``): out of line. NVRTC inlining them at
+each call site took the all-features Whitted module 655 s to compile for sm_90 and the path module
+331 s; the traversal alone out of line, 115 s and 132 s, with spills cut from 2-4 kB to about
+150 B a thread; the BSDF interface too, 89 s and 59 s. On the CPU the traversal's hint costs
+render time (1.09x path, 1.18x Whitted), so the CPU modules leave both to the compiler
+(docs/performance.md, "Kernels compiled ahead of time")."""
 
 
-def _inline_traversal(cuda: bool) -> bool | None:
-    return CUDA_TRAVERSAL_INLINE if cuda else None
+def _inline(cuda: bool) -> bool | None:
+    return CUDA_INLINE if cuda else None
 
 
 def _radiance(integrator: str, features: Features, record: bool = False, cuda: bool = False):
@@ -46,7 +47,7 @@ def _radiance(integrator: str, features: Features, record: bool = False, cuda: b
     module = importlib.import_module(f"{__package__}.{integrator}")
     if integrator == "raycast":
         return module.make_raycast_radiance(features.textures)  # primary rays: only uv to specialise
-    return getattr(module, f"make_{integrator}_radiance")(record, features, _inline_traversal(cuda))
+    return getattr(module, f"make_{integrator}_radiance")(record, features, _inline(cuda))
 
 
 PATH_INLINE_THRESHOLD = 30000
@@ -113,7 +114,7 @@ def all_features_kernel(integrator: str, record: bool = False, cuda: bool = Fals
         module=module,
         record=record,
         options=OPTIONS[integrator],
-        inline_traversal=_inline_traversal(cuda),
+        inline=_inline(cuda),
     )
 
 
@@ -126,5 +127,5 @@ def _kernel(integrator: str, features: Features, cuda: bool = False):
         module=f"wrt_{integrator}_{features.key}{'_cuda' if cuda else ''}",
         features=features,
         options=OPTIONS[integrator],
-        inline_traversal=_inline_traversal(cuda),
+        inline=_inline(cuda),
     )

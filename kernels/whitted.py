@@ -111,9 +111,10 @@ def heaviest_branch(weight: BranchFloat, count: wp.int32) -> wp.int32:
 
 def make_direct_light(record: bool, trace: Traversal, textures: bool, normal_map: bool):
     """``direct_light``, recording its shadow rays when ``record``, with texture lookups when
-    ``textures`` and normal maps' shadowing when ``normal_map`` (each compiled out otherwise)."""
+    ``textures`` and normal maps' shadowing when ``normal_map`` (each compiled out otherwise); its
+    BSDF interface has ``trace``'s inline hint."""
     shadow_ray = make_shadow_ray(record, trace)
-    bsdf = make_bsdf(families_for(ALL, whitted=True), textures)  # masks need the path integrator (wrt.loader)
+    bsdf = make_bsdf(families_for(ALL, whitted=True), textures, trace.inline)  # masks need the path integrator
 
     @wp.func
     def direct_light(
@@ -167,15 +168,15 @@ def make_direct_light(record: bool, trace: Traversal, textures: bool, normal_map
     return direct_light
 
 
-def make_whitted_radiance(record: bool, features: Features = ALL, inline_traversal: bool | None = None):
+def make_whitted_radiance(record: bool, features: Features = ALL, inline: bool | None = None):
     """``whitted_radiance``, recording every ray it traces when ``record`` (compiled out otherwise),
     with the code of the features the scene lacks compiled out (``wrt.kernels.features``): without
     mirrors and dielectrics there is no branch stack and the camera ray's hit is the whole tree; its
-    traversal with the inline hint ``inline_traversal`` (``wrt.kernels.traverse.Traversal``)."""
-    trace = traversal(features, inline_traversal)
+    traversal and BSDF interface with the inline hint ``inline`` (``variants.CUDA_INLINE``)."""
+    trace = traversal(features, inline)
     trace_segment = make_trace_segment(record, trace)
     direct_light = make_direct_light(record, trace, features.textures, features.normal_map)
-    bsdf = make_bsdf(families_for(features, whitted=True), features.textures)
+    bsdf = make_bsdf(families_for(features, whitted=True), features.textures, inline)
     surface_hit = make_surface_hit_for(features)
 
     @wp.func

@@ -212,16 +212,18 @@ class BSDF(NamedTuple):
 
 
 @functools.cache
-def make_bsdf(families: tuple[str, ...] = ALL_FAMILIES, textures: bool = True) -> BSDF:
+def make_bsdf(families: tuple[str, ...] = ALL_FAMILIES, textures: bool = True, inline: bool | None = None) -> BSDF:
     """The BSDF interface over ``families`` (names of ``FAMILIES``; ``families_for``), with texture
     lookups of the parameters (``wrt.kernels.textures``, at the hit's ``uv``) only where
-    ``textures``. A family left out is not in the generated code: a material of it scatters
-    nothing. The dispatch tests the families in ``FAMILIES`` order (``_dispatch``); a wrapping
-    family (a mask) wraps the others'."""
+    ``textures``, its four functions with Warp's inline hint ``inline`` (None: the compiler's
+    choice, the CPU's; False: out of line, the CUDA kernels', ``wrt.kernels.variants.CUDA_INLINE``).
+    A family left out is not in the generated code: a material of it scatters nothing. The
+    dispatch tests the families in ``FAMILIES`` order (``_dispatch``); a wrapping family (a mask)
+    wraps the others'."""
     at = parameters(textures)
     chosen = [family for family in FAMILIES if family.name in families and family.make is not None]
     functions = [family.make(at) for family in chosen if not family.wraps]
-    bsdf = _dispatch(functions)
+    bsdf = _dispatch(functions, inline)
     for family in chosen:
         if family.wraps:
             wrapped = family.make(at, bsdf)
@@ -229,7 +231,7 @@ def make_bsdf(families: tuple[str, ...] = ALL_FAMILIES, textures: bool = True) -
     return bsdf
 
 
-def _dispatch(functions: list) -> BSDF:
+def _dispatch(functions: list, inline: bool | None = None) -> BSDF:
     """The four functions of the interface, each a chain of cases: the families that have one, in
     turn, then nothing.
 
@@ -242,8 +244,9 @@ def _dispatch(functions: list) -> BSDF:
     pdf_case = _eval_cases([(f.owns, f.pdf) for f in functions if f.pdf is not None], no_pdf)
     sample_case = _sample_cases([(f.owns, f.sample) for f in functions if f.sample is not None])
     lobes_case = _lobes_cases([(f.owns, f.specular_lobes) for f in functions if f.specular_lobes is not None])
+    hinted = wp.func if inline is None else wp.func(inline=inline)
 
-    @wp.func
+    @hinted
     def bsdf_eval(
         materials: MaterialData,
         m: wp.int32,
@@ -258,7 +261,7 @@ def _dispatch(functions: list) -> BSDF:
         surface, for glossy transmission); 0 for delta lobes."""
         return eval_case(materials, m, materials.type[m], n, wo, wi, eta, uv)
 
-    @wp.func
+    @hinted
     def bsdf_pdf(
         materials: MaterialData,
         m: wp.int32,
@@ -272,14 +275,14 @@ def _dispatch(functions: list) -> BSDF:
         """Solid-angle density (1/sr) with which ``bsdf_sample`` draws ``wi``; 0 for delta lobes."""
         return pdf_case(materials, m, materials.type[m], n, wo, wi, eta, uv)
 
-    @wp.func
+    @hinted
     def specular_lobes(
         materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uv: wp.vec2 = wp.vec2(0.0, 0.0)
     ) -> SpecularLobes:
         """The delta lobes of material ``m`` (none for a family without them)."""
         return lobes_case(materials, m, materials.type[m], n, wo, eta, uv)
 
-    @wp.func
+    @hinted
     def bsdf_sample(
         materials: MaterialData,
         m: wp.int32,

@@ -9,6 +9,7 @@ import pytest
 import warp as wp
 from conftest import CAMERA, EXAMPLES, make_scene
 from wrt.kernels.features import ALL, Features
+from wrt.kernels.materials import ALL_FAMILIES, make_bsdf
 from wrt.kernels.traverse import traversal
 from wrt.kernels.variants import all_features_kernel, relevant, render_kernel
 
@@ -125,11 +126,15 @@ def test_variants_are_built_once_and_only_for_flags_that_pay():
 
 
 def test_a_cuda_device_gets_modules_of_its_own_with_the_traversal_out_of_line():
-    """NVRTC inlining the traversal at each call site took the Whitted module 11-14 minutes: the
-    CUDA kernels are modules of their own (``_cuda``) whose traversal is ``noinline``; the CPU's
-    leave it to the compiler, and a render picks by its device."""
+    """NVRTC inlining the traversal and the BSDF interface at each call site took the Whitted
+    module 11-14 minutes: the CUDA kernels are modules of their own (``_cuda``) in which both are
+    ``noinline``; the CPU's leave them to the compiler, and a render picks by its device. (A mask's
+    BSDF wraps the others': the dispatch under it is out of line.)"""
     assert traversal(ALL, False).closest_hit.inline_hint == traversal(ALL, False).any_hit.inline_hint == "noinline"
     assert traversal(ALL).closest_hit.inline_hint is None and traversal(ALL).any_hit.inline_hint is None
+    unmasked = tuple(name for name in ALL_FAMILIES if name != "mask")
+    assert {f.inline_hint for f in make_bsdf(unmasked, True, False)} == {"noinline"}
+    assert {f.inline_hint for f in make_bsdf(unmasked, True)} == {None}
     plain = Features(lights=False, specular=False, dielectric=False, lens=False, motion=False)
     for integrator in ("raycast", "whitted", "path"):
         cpu, cuda = render_kernel(integrator, plain), render_kernel(integrator, plain, cuda=True)
