@@ -42,5 +42,12 @@ from .cpu_target import cpu_compiler_flags
 MODULE_OPTIONS = {"enable_backward": False}
 """The Warp options of every module of wrt's kernels (``wp.set_module_options``)."""
 
+
+def hinted_func(inline: bool | None):
+    """``wp.func`` with Warp's inline hint ``inline``: plain ``wp.func`` for None (the compiler's
+    choice), ``wp.func(inline=False)`` for out of line (``__noinline__`` on CUDA)."""
+    return wp.func if inline is None else wp.func(inline=inline)
+
+
 wp.config.log_level = wp.LOG_WARNING
 wp.config.cpu_compiler_flags = cpu_compiler_flags()

@@ -30,7 +30,7 @@ import functools
 
 import warp as wp
 
-from . import MODULE_OPTIONS
+from . import MODULE_OPTIONS, hinted_func
 from .bvh import STACK_SIZE, WideNode, child_entry, leaf_count, leaf_start
 from .features import ALL, Features, geometry_features
 from .intersect import (
@@ -457,7 +457,7 @@ class Traversal:
         closest_hit_logged = _closest_hit(features, log_visits=True)
         closest_hit_unlogged = _closest_hit(features, log_visits=False)
         any_hit_from = _any_hit(features)
-        hinted = wp.func if inline is None else wp.func(inline=inline)
+        hinted = hinted_func(inline)
 
         @wp.func
         def closest_hit_visits(

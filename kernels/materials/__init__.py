@@ -63,6 +63,7 @@ from typing import NamedTuple
 
 import warp as wp
 
+from .. import hinted_func
 from . import conductor, dielectric, diffuse, mask, phong, plastic, rough_dielectric, thin_dielectric
 from .conductor import CONDUCTOR, GLOSSY, MIRROR
 from .data import MaterialData, parameters
@@ -244,7 +245,7 @@ def _dispatch(functions: list, inline: bool | None = None) -> BSDF:
     pdf_case = _eval_cases([(f.owns, f.pdf) for f in functions if f.pdf is not None], no_pdf)
     sample_case = _sample_cases([(f.owns, f.sample) for f in functions if f.sample is not None])
     lobes_case = _lobes_cases([(f.owns, f.specular_lobes) for f in functions if f.specular_lobes is not None])
-    hinted = wp.func if inline is None else wp.func(inline=inline)
+    hinted = hinted_func(inline)
 
     @hinted
     def bsdf_eval(
