@@ -9,10 +9,10 @@ to what it reads: the figures are then that ``ptxas``'s, close to but not exactl
 
     python -m wrt_benchmarks.cuda_compile [--modules core|all|NAME,...] [--arch 75,90] [--timeout S] [--json FILE]
 
-``core``: each integrator's all-features and recording modules, the BVH build, the batch
-traversal and the stress kernels; ``all``: every module ``wrt kernels`` lists for the examples.
-The integrators' modules are their CUDA forms (``_cuda``: the traversal out of line,
-``wrt.kernels.variants.CUDA_INLINE``).
+``core``: the modules wrt ships as PTX (``wrt.aot.cuda_modules``: each integrator's all-features
+and recording modules, the BVH build, the batch traversal and the stress kernels); ``all``: every
+module ``wrt kernels`` lists for the examples. The integrators' modules are their CUDA forms
+(``_cuda``: the traversal out of line, ``wrt.kernels.variants.CUDA_INLINE``).
 """
 
 from __future__ import annotations
@@ -31,7 +31,6 @@ from wrt.host import machine_line
 
 from . import emit
 
-CORE = ("wrt.kernels.bvh_build", "wrt.kernels.traverse", "wrt.kernels.stress")
 PTXAS_FUNCTION = re.compile(r"Compiling entry function '(\w+)' for 'sm_(\d+)'")
 PTXAS_FRAME = re.compile(r"(\d+) bytes stack frame, (\d+) bytes spill stores, (\d+) bytes spill loads")
 PTXAS_REGISTERS = re.compile(r"Used (\d+) registers")
@@ -43,8 +42,8 @@ def module_names(which: str) -> list[str]:
     names = list(aot.needed_modules([aot.example_path(s) for s in aot.example_scenes()], cuda=True))
     if which == "all":
         return names
-    if which == "core":
-        return [n for n in names if n in CORE or n.endswith(("_all_cuda", "_record_cuda"))]
+    if which == "core":  # the modules shipped as PTX
+        return list(aot.cuda_modules())
     return which.split(",")
 
 

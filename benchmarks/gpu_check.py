@@ -20,8 +20,10 @@ table, and the end of the log of every step that did not pass. The steps' logs a
 a folder beside the report (``gpu_check/``). Exit code 0 when every step passed, 1 otherwise.
 
 The whole run stays inside ``BUDGET_S`` (under the 8 minutes asked): each step may use its
-share (``STEPS``) plus whatever the earlier steps left. A fresh machine compiles every kernel
-once (Warp's kernel cache, ``~/.cache/warp``): the first steps pay for it.
+share (``STEPS``) plus whatever the earlier steps left. The integrators' all-features and recording
+modules and the library's come with wrt as PTX (``wrt.aot.install_cuda``: loaded, not compiled,
+where the driver reads Warp's PTX); the report counts, per step, the modules wrt announced
+compiling (``wrt: compiled ...``) and their seconds, so a run shows whether they were.
 
 ``--quick`` is a dry run of the script itself, on a tiny subset (a few tests, two matrix entries,
 a 20k-triangle throughput mesh, ``wrt bench --quick``); with ``--device cpu`` it runs anywhere.
@@ -95,6 +97,15 @@ def summary_line(name: str, log: str) -> str:
     return (found[-1] if found else lines[-1] if lines else "(no output)")[:160]
 
 
+COMPILED = re.compile(r"^wrt: compiled (\S+) for (\S+) in ([\d.]+) s", re.M)
+
+
+def compilations(log: str) -> str:
+    """How many modules a step's log announces compiling (``wrt.aot.load``), and their seconds."""
+    seconds = [float(m.group(3)) for m in COMPILED.finditer(log)]
+    return f"{len(seconds)}, {sum(seconds):.0f} s" if seconds else "0"
+
+
 def throughput_summary(path: str) -> str:
     """Closest-hit Mrays/s (all threads) of wrt and ``wp.Mesh`` from a ``throughput.json``."""
     with open(path) as f:
@@ -131,6 +142,7 @@ def run_step(name: str, command: list[str], limit_s: float, work: str) -> dict:
         "status": status,
         "seconds": seconds,
         "summary": summary_line(name, log),
+        "compiled": compilations(log),
         "tail": log.splitlines()[-LOG_LINES:],
     }
 
@@ -161,10 +173,13 @@ def report(device: str, quick: bool, steps: list[dict], agreement: list[dict] | 
         f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; {machine(device)}; {total_s:.0f} s in all "
         f"(budget {BUDGET_S:.0f} s).",
         "",
-        "| step | result | seconds | summary |",
-        "|---|---|---|---|",
+        "| step | result | seconds | modules compiled | summary |",
+        "|---|---|---|---|---|",
     ]
-    lines += [f"| {s['step']} | {s['status']} | {s['seconds']:.1f} | {s['summary'].replace('|', '/')} |" for s in steps]
+    lines += [
+        f"| {s['step']} | {s['status']} | {s['seconds']:.1f} | {s['compiled']} | {s['summary'].replace('|', '/')} |"
+        for s in steps
+    ]
     if agreement:
         lines += [
             "",
@@ -209,6 +224,7 @@ def check(device: str, quick: bool, output: str) -> int:
                         "status": "FAIL",
                         "seconds": 0.0,
                         "summary": "no test parametrised over the device was collected",
+                        "compiled": "0",
                         "tail": [],
                     }
                 )

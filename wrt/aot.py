@@ -2,15 +2,17 @@
 
 Warp keeps a compiled module in its kernel cache under the module's content hash: a folder
 ``<kernel cache>/<identifier>/`` (``identifier`` = ``wp_<module name>_<hash>``) holding the object
-(``.o`` on the CPU) and a ``.meta`` file. wrt ships such entries, built for the portable CPU target
-of ``wrt.kernels.cpu_target``, for the modules its examples need (the matrix renders them), in
-``wrt/kernels/compiled/``: ``cpu.zip`` and ``manifest.json``. ``install`` copies the entries missing
-from the kernel cache before a process's first launch (``wrt.device`` calls it), and Warp loads
-them as it would its own. A kernel whose source has changed hashes differently: nothing shipped
-matches it and it compiles, as any module does, so an edit never runs a stale object
-(``load`` prints what a compilation took). ``ship`` (``wrt kernels --ship``) rebuilds the archive.
+(``.o`` on the CPU, ``.smNN.ptx`` for CUDA) and a ``.meta`` file. wrt ships such entries, built for
+the portable CPU target of ``wrt.kernels.cpu_target``, for the modules its examples need (the matrix
+renders them), in ``wrt/kernels/compiled/``: ``cpu.zip``, ``cuda.zip`` (PTX for ``CUDA_ARCH`` of the
+core modules, ``cuda_modules``) and ``manifest.json``. ``install`` copies the CPU entries missing
+from the kernel cache before a process's first launch (``wrt.device`` calls it), ``install_cuda``
+the CUDA ones when a CUDA device is first used, and Warp loads them as it would its own. A kernel
+whose source has changed hashes differently: nothing shipped matches it and it compiles, as any
+module does, so an edit never runs a stale object (``load`` prints what a compilation took).
+``ship`` (``wrt kernels --ship``) rebuilds the archives.
 
-Everything here that knows Warp's cache layout (1.19) is in ``cache_entry``.
+Everything here that knows Warp's cache layout (1.19) is in ``cache_entry`` and ``cuda_cache_entry``.
 """
 
 from __future__ import annotations
@@ -41,7 +43,10 @@ SHIPPED_DIR = os.path.join(os.path.dirname(wrt.kernels.__file__), "compiled")
 """Where the package keeps the shipped modules: ``cpu.zip`` and ``manifest.json``."""
 SHIP_COMMAND = "wrt kernels --ship"
 """The command that rebuilds the shipped modules (after a kernel edit)."""
-FORMAT = 1
+FORMAT = 2
+CUDA_ARCH = 75
+"""The architecture of the shipped PTX: Warp's lowest, which a CUDA driver compiles (once, into its
+own cache) for any newer GPU. ``install_cuda`` points ``wp.config.ptx_target_arch`` at it."""
 
 
 @dataclass(frozen=True)
@@ -72,6 +77,18 @@ def cache_entry(module: wp.context.Module, device) -> CacheEntry:
         module.name,
         module.get_module_identifier(block_dim),
         module._get_compile_output_name(dev, block_dim=block_dim),
+        module._get_meta_name(block_dim=block_dim),
+    )
+
+
+def cuda_cache_entry(module: wp.context.Module, arch: int = CUDA_ARCH) -> CacheEntry:
+    """``module``'s entry in Warp's kernel cache as PTX for ``arch``, for the block size of its
+    CUDA launches: where Warp looks for it on a GPU whose PTX target is ``arch`` (no GPU needed)."""
+    block_dim = module.options["block_dim"] or 256  # Warp's CUDA default (_resolve_launch_block_dim)
+    return CacheEntry(
+        module.name,
+        module.get_module_identifier(block_dim),
+        module._get_compile_output_name(None, output_arch=arch, use_ptx=True, block_dim=block_dim),
         module._get_meta_name(block_dim=block_dim),
     )
 
@@ -127,25 +144,58 @@ def usable(manifest: dict | None) -> bool:
 
 
 def install(folder: str = SHIPPED_DIR) -> int:
-    """Copy the shipped modules that Warp's kernel cache lacks into it; how many were copied.
+    """Copy the shipped CPU modules that Warp's kernel cache lacks into it; how many were copied.
 
     Each file is written to a temporary name and renamed, the object before its ``.meta``
     (Warp takes an entry as cached when both exist), so that processes installing at once, or one
     killed midway, never leave an entry Warp would misread. Once per process and cache folder."""
-    return _install(os.path.abspath(folder), wp.config.kernel_cache_dir)
+    return _install(os.path.abspath(folder), wp.config.kernel_cache_dir, "cpu")
+
+
+def install_cuda(device, folder: str = SHIPPED_DIR) -> int:
+    """Before the first launch on the CUDA ``device`` (a ``wp.Device``): copy the shipped PTX that
+    Warp's kernel cache lacks into it, as ``install`` does; how many were copied.
+
+    Warp looks for PTX of ``min(device arch, wp.config.ptx_target_arch)``; where that option is
+    unset it is set to the shipped ``CUDA_ARCH``, so that the same files serve every GPU from
+    sm_75 on. Nothing is installed where Warp would not load PTX (a driver older than Warp's NVRTC:
+    Warp then builds CUBINs for the device's own architecture), for an older GPU, or where the
+    user chose another PTX target: the modules then compile on first use, as before."""
+    manifest = read_manifest(folder)
+    if not (device.is_cuda and usable(manifest) and "cuda" in manifest):
+        return 0
+    arch = manifest["cuda"]["arch"]
+    if device.get_cuda_output_format() != "ptx" or device.arch < arch:
+        return 0
+    if wp.config.ptx_target_arch is None:
+        wp.config.ptx_target_arch = arch
+    if wp.config.ptx_target_arch != arch:
+        return 0
+    return _install(os.path.abspath(folder), wp.config.kernel_cache_dir, "cuda")
+
+
+ARCHIVES = {"cpu": "cpu.zip", "cuda": "cuda.zip"}
+
+
+def shipped_entries(manifest: dict, kind: str = "cpu") -> list[dict]:
+    """The manifest's rows of the ``kind`` ("cpu" or "cuda") of modules shipped."""
+    return manifest["modules"] if kind == "cpu" else manifest.get("cuda", {}).get("modules", [])
 
 
 @functools.cache
-def _install(folder: str, cache_dir: str) -> int:
+def _install(folder: str, cache_dir: str, kind: str) -> int:
     manifest = read_manifest(folder)
     if not usable(manifest):
         return 0
-    missing = [CacheEntry(**{k: m[k] for k in ("name", "identifier", "binary", "meta")}) for m in manifest["modules"]]
-    missing = [e for e in missing if not e.cached(cache_dir)]
+    entries = [
+        CacheEntry(**{k: m[k] for k in ("name", "identifier", "binary", "meta")})
+        for m in shipped_entries(manifest, kind)
+    ]
+    missing = [e for e in entries if not e.cached(cache_dir)]
     if not missing:
         return 0
     try:
-        with zipfile.ZipFile(os.path.join(folder, "cpu.zip")) as archive:
+        with zipfile.ZipFile(os.path.join(folder, ARCHIVES[kind])) as archive:
             for entry in missing:
                 os.makedirs(os.path.join(cache_dir, entry.identifier), exist_ok=True)
                 for name, path in zip((entry.binary, entry.meta), entry.paths(cache_dir)):
@@ -237,70 +287,105 @@ def needed_modules(scenes: list[str], cuda: bool = False) -> dict[str, wp.contex
     return dict(sorted(modules.items()))
 
 
-def compile_modules(modules: dict[str, wp.context.Module], jobs: int | None = None, progress=None) -> dict:
-    """Compile (or load from the cache) ``modules`` on the CPU, ``jobs`` at a time (default:
-    every core; a Warp compilation runs on one core and releases the GIL); the seconds each took,
-    by name. ``progress(name, seconds)`` is called as each is done."""
+def cuda_modules() -> dict[str, wp.context.Module]:
+    """The modules shipped as PTX, by name: the library's own (``library_modules``) and each
+    integrator's all-features and recording kernels in their CUDA forms. A render below
+    ``wrt.renderer.SPECIALIZE_COLD_SAMPLES`` pixel samples takes its integrator's all-features
+    kernel where its variant is not cached, so these serve the examples and the matrix on a GPU."""
+    from wrt.kernels.variants import INTEGRATORS, all_features_kernel
+
+    modules = library_modules()
+    for integrator in INTEGRATORS:
+        for record in (False, True):
+            module = all_features_kernel(integrator, record=record, cuda=True).module
+            modules[module.name] = module
+    return dict(sorted(modules.items()))
+
+
+def compile_modules(
+    modules: dict[str, wp.context.Module], jobs: int | None = None, progress=None, cuda_arch: int | None = None
+) -> dict:
+    """Compile (or load from the cache) ``modules`` on the CPU, or where ``cuda_arch`` compile
+    them to PTX for that architecture (no GPU needed), into Warp's kernel cache, ``jobs`` at a time
+    (default: every core; a Warp compilation runs on one core and releases the GIL); the seconds
+    each took, by name. ``progress(name, seconds)`` is called as each is done."""
+    seconds = _compile_all([(name, module, cuda_arch) for name, module in modules.items()], jobs, progress)
+    return {name: seconds[name, cuda_arch] for name in modules}
+
+
+def _compile_all(tasks: list[tuple], jobs: int | None, progress) -> dict:
+    """Compile ``(name, module, cuda_arch)`` tasks as ``compile_modules`` does, the CUDA ones (the
+    longest) first; the seconds each took, by ``(name, cuda_arch)``."""
     dev = wp.get_device("cpu")
 
-    def build(module):
+    def build(task):
+        name, module, arch = task
         t0 = time.perf_counter()
-        module.load(dev, block_dim=_block_dim(dev, module))
+        if arch is None:
+            module.load(dev, block_dim=_block_dim(dev, module))
+        else:
+            module._compile(None, output_arch=arch, use_ptx=True)
         seconds = time.perf_counter() - t0
         if progress is not None:
-            progress(module.name, seconds)
-        return seconds
+            progress(name if arch is None else f"{name} (sm_{arch})", seconds)
+        return (name, arch), seconds
 
     with ThreadPoolExecutor(max_workers=jobs or os.cpu_count() or 1) as pool:
-        return dict(zip(modules, pool.map(build, modules.values())))
+        return dict(pool.map(build, sorted(tasks, key=lambda t: t[2] is None)))
 
 
 def ship(scenes: list[str], folder: str = SHIPPED_DIR, jobs: int | None = None, progress=None) -> dict:
-    """Compile ``needed_modules(scenes)`` for the CPU at the portable target (``compile_modules``)
-    in a kernel cache of their own, and write their entries to ``folder`` as ``cpu.zip`` and
-    ``manifest.json`` (each atomically); the manifest. ``scenes`` are recorded relative to
-    ``wrt.examples`` where they lie in it. Refused on a CPU without x86-64-v3."""
+    """Compile ``needed_modules(scenes)`` for the CPU at the portable target, and ``cuda_modules()``
+    to PTX for ``CUDA_ARCH``, in a kernel cache of their own, and write their entries to ``folder``
+    as ``cpu.zip``, ``cuda.zip`` and ``manifest.json`` (each atomically); the manifest. ``scenes``
+    are recorded relative to ``wrt.examples`` where they lie in it. Refused on a CPU without
+    x86-64-v3 (the CUDA modules' hashes include the CPU flags too)."""
     if wp.config.cpu_compiler_flags != PORTABLE_FLAGS:
         raise WrtError(
             f"{SHIP_COMMAND}: this CPU lacks x86-64-v3 (AVX2, FMA), so its objects would not be portable; "
             "build on an x86-64-v3 machine"
         )
-    return ship_modules(needed_modules(scenes), folder, jobs, progress, scenes=[_relative(s) for s in scenes])
+    scenes_shipped = [_relative(s) for s in scenes]
+    return ship_modules(needed_modules(scenes), folder, jobs, progress, scenes=scenes_shipped, cuda=cuda_modules())
 
 
 def ship_modules(
-    modules: dict[str, wp.context.Module], folder: str, jobs: int | None = None, progress=None, scenes=()
+    modules: dict[str, wp.context.Module],
+    folder: str,
+    jobs: int | None = None,
+    progress=None,
+    scenes=(),
+    cuda: dict[str, wp.context.Module] | None = None,
 ) -> dict:
-    """``ship``'s work for any ``modules``, at this process's CPU flags (the manifest records its
-    ``cpu_target``, and ``install`` uses it only where that matches)."""
-    dev = wp.get_device("cpu")
+    """``ship``'s work for any ``modules`` (and ``cuda`` modules, PTX for ``CUDA_ARCH``), at this
+    process's CPU flags (the manifest records its ``cpu_target``, and ``install`` uses it only
+    where that matches)."""
+    cuda = cuda or {}
     saved = wp.config.kernel_cache_dir
     started = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="wrt-ship-") as build_cache:
         wp.config.kernel_cache_dir = build_cache
         try:
-            seconds = compile_modules(modules, jobs, progress)
+            tasks = [(n, m, None) for n, m in modules.items()] + [(n, m, CUDA_ARCH) for n, m in cuda.items()]
+            seconds = _compile_all(tasks, jobs, progress)
         finally:
             wp.config.kernel_cache_dir = saved
-        entries = []
         os.makedirs(folder, exist_ok=True)
-        with atomic_path(os.path.join(folder, "cpu.zip")) as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zf:
-            for name, module in modules.items():
-                entry = cache_entry(module, dev)
-                binary, meta = entry.paths(build_cache)
-                zf.write(binary, f"{entry.identifier}/{entry.binary}")
-                zf.write(meta, f"{entry.identifier}/{entry.meta}")
-                entries.append(
-                    {
-                        "name": name,
-                        "identifier": entry.identifier,
-                        "binary": entry.binary,
-                        "meta": entry.meta,
-                        "source_bytes": os.path.getsize(_source(entry, build_cache)),
-                        "object_bytes": os.path.getsize(binary),
-                        "compile_s": round(seconds[name], 2),
-                    }
-                )
+        cpu_entries = {n: cache_entry(m, "cpu") for n, m in modules.items()}
+        rows = _archive(os.path.join(folder, ARCHIVES["cpu"]), cpu_entries, build_cache)
+        for row in rows:
+            entry = cpu_entries[row["name"]]
+            row.update(
+                source_bytes=os.path.getsize(_source(entry, build_cache)),
+                object_bytes=row.pop("binary_bytes"),
+                compile_s=round(seconds[row["name"], None], 2),
+            )
+        cuda_rows = []
+        if cuda:
+            cuda_entries = {n: cuda_cache_entry(m) for n, m in cuda.items()}
+            cuda_rows = _archive(os.path.join(folder, ARCHIVES["cuda"]), cuda_entries, build_cache)
+            for row in cuda_rows:
+                row.update(ptx_bytes=row.pop("binary_bytes"), compile_s=round(seconds[row["name"], CUDA_ARCH], 2))
     manifest = {
         "format": FORMAT,
         "warp": wp.config.version,
@@ -311,10 +396,33 @@ def ship_modules(
         "jobs": jobs or os.cpu_count() or 1,
         "wall_s": round(time.perf_counter() - started, 1),
         "scenes": list(scenes),
-        "modules": entries,
+        "modules": rows,
     }
+    if cuda:
+        manifest["cuda"] = {"arch": CUDA_ARCH, "format": "ptx", "modules": cuda_rows}
     write_json(os.path.join(folder, "manifest.json"), manifest)
     return manifest
+
+
+def _archive(path: str, entries: dict[str, CacheEntry], cache_dir: str) -> list[dict]:
+    """Write ``entries`` (by module name) from ``cache_dir`` to the zip file ``path``, atomically;
+    one manifest row per entry (``binary_bytes``: the object's or the PTX's size)."""
+    rows = []
+    with atomic_path(path) as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zf:
+        for name, entry in entries.items():
+            binary, meta = entry.paths(cache_dir)
+            zf.write(binary, f"{entry.identifier}/{entry.binary}")
+            zf.write(meta, f"{entry.identifier}/{entry.meta}")
+            rows.append(
+                {
+                    "name": name,
+                    "identifier": entry.identifier,
+                    "binary": entry.binary,
+                    "meta": entry.meta,
+                    "binary_bytes": os.path.getsize(binary),
+                }
+            )
+    return rows
 
 
 def _source(entry: CacheEntry, cache_dir: str) -> str:

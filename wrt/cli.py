@@ -304,8 +304,9 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
         nargs="?",
         const="",
         metavar="DIR",
-        help="rebuild the shipped modules: compile every module for the portable CPU target and write cpu.zip and "
-        "manifest.json to DIR (default: the package's kernels/compiled); after editing a kernel",
+        help="rebuild the shipped modules: compile every module for the portable CPU target, and the core ones to "
+        "PTX for CUDA, and write cpu.zip, cuda.zip and manifest.json to DIR (default: the package's "
+        "kernels/compiled); after editing a kernel",
     )
     k.add_argument(
         "--jobs", type=int_in(1, MAX_THREADS, "--jobs"), help="modules compiled at once (default: one per core)"
@@ -545,10 +546,12 @@ def _kernels(args) -> int:
         folder = args.ship or aot.SHIPPED_DIR
         manifest = aot.ship(scenes, folder, args.jobs, progress=done)
         size = sum(m["object_bytes"] for m in manifest["modules"])
+        ptx = sum(m["ptx_bytes"] for m in manifest["cuda"]["modules"])
+        zipped = {kind: os.path.getsize(os.path.join(folder, name)) / 1e6 for kind, name in aot.ARCHIVES.items()}
         print(
-            f"wrote {len(manifest['modules'])} modules ({size / 1e6:.1f} MB of objects, "
-            f"{os.path.getsize(os.path.join(folder, 'cpu.zip')) / 1e6:.1f} MB zipped) to {folder} "
-            f"in {manifest['wall_s']:.0f} s"
+            f"wrote {len(manifest['modules'])} CPU modules ({size / 1e6:.1f} MB of objects, {zipped['cpu']:.1f} MB "
+            f"zipped) and {len(manifest['cuda']['modules'])} CUDA modules (sm_{manifest['cuda']['arch']} PTX, "
+            f"{ptx / 1e6:.1f} MB, {zipped['cuda']:.1f} MB zipped) to {folder} in {manifest['wall_s']:.0f} s"
         )
         return 0
     modules = aot.needed_modules(scenes)

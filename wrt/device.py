@@ -23,7 +23,7 @@ from wrt.kernels.sampling import INDEPENDENT, SOBOL, STRATIFIED, Sampler
 from wrt.kernels.textures import TextureData
 from wrt.kernels.traverse import GeometryData, mat24
 
-from .aot import install
+from .aot import install, install_cuda
 from .bake import bake_lights, bake_materials, camera_media, surface_materials
 from .emitting import EmittingPrimitives
 from .errors import WrtError
@@ -74,6 +74,8 @@ def resolve_device(name: str | wp.Device | None) -> wp.Device:
         except (RuntimeError, ValueError) as e:
             raise WrtError(f"device {name!r}: {e}") from None
     install()  # the shipped compiled modules, before any launch (wrt.aot)
+    if dev.is_cuda:
+        install_cuda(dev)
     return dev
 
 

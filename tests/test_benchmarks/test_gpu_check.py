@@ -23,7 +23,13 @@ def test_a_step_records_pass_failure_and_time_out(tmp_path):
     assert failed["status"] == "FAIL (exit 1)" and failed["summary"] == "1 failed, 2 passed"
     slow = run_step("path", [*python, "import time; print('begun', flush=True); time.sleep(30)"], 1, str(tmp_path))
     assert slow["status"] == "timed out (1 s)" and slow["tail"] == ["begun"]
-    text = report("cpu", True, [ok, failed, slow], None, 2.0)
+    assert ok["compiled"] == "0"
+    announced = "print('wrt: compiled wrt_path_all_cuda for cuda:0 in 12.5 s (cached from now on)');"
+    announced += "print('wrt: compiled wrt.kernels.stress for cuda:0 in 7.0 s (cached from now on)')"
+    compiling = run_step("agreement", [*python, announced], 30, str(tmp_path))
+    assert compiling["compiled"] == "2, 20 s"  # what the shipped PTX should have spared
+    text = report("cpu", True, [ok, failed, slow, compiling], None, 2.0)
+    assert "| agreement | pass | " in text and "| 2, 20 s |" in text
     assert "| matrix | pass |" in text and "## tests: FAIL (exit 1)" in text and "## path: timed out (1 s)" in text
 
 

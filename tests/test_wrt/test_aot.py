@@ -8,6 +8,7 @@ import importlib.util
 import os
 import subprocess
 import sys
+import types
 import zipfile
 
 import pytest
@@ -36,6 +37,23 @@ def test_the_shipped_modules_are_those_the_kernel_sources_make():
     with zipfile.ZipFile(os.path.join(aot.SHIPPED_DIR, "cpu.zip")) as archive:
         names = set(archive.namelist())
     assert {f"{m['identifier']}/{m[k]}" for m in manifest["modules"] for k in ("binary", "meta")} == names
+
+
+@pytest.mark.skipif(not PORTABLE_CPU, reason="this CPU lacks x86-64-v3: nothing shipped applies to it")
+def test_the_shipped_ptx_is_what_the_kernel_sources_make_for_cuda():
+    """The CUDA half of the test above: the PTX shipped for the core modules."""
+    manifest = aot.read_manifest()
+    rebuild = f"rebuild them with `{aot.SHIP_COMMAND}`"
+    assert "cuda" in manifest and manifest["cuda"]["arch"] == aot.CUDA_ARCH, f"no shipped PTX: {rebuild}"
+    expected = {name: aot.cuda_cache_entry(m) for name, m in aot.cuda_modules().items()}
+    shipped = {m["name"]: m for m in aot.shipped_entries(manifest, "cuda")}
+    stale = sorted(n for n in expected.keys() | shipped.keys() if n not in shipped or n not in expected)
+    stale += sorted(n for n in expected.keys() & shipped.keys() if expected[n].identifier != shipped[n]["identifier"])
+    assert not stale, f"the kernels changed since the shipped PTX was built ({', '.join(stale)}): {rebuild}"
+    assert all(m["binary"].endswith(f".sm{aot.CUDA_ARCH}.ptx") for m in shipped.values())
+    with zipfile.ZipFile(os.path.join(aot.SHIPPED_DIR, "cuda.zip")) as archive:
+        names = set(archive.namelist())
+    assert {f"{m['identifier']}/{m[k]}" for m in shipped.values() for k in ("binary", "meta")} == names
 
 
 def test_the_cpu_target_is_portable_where_the_cpu_has_x86_64_v3(tmp_path, monkeypatch):
@@ -104,6 +122,42 @@ def test_an_edited_kernel_compiles_and_says_so_instead_of_loading_the_shipped_ob
     err = capsys.readouterr().err
     assert "wrt: compiling Warp module wrt_aot_probe for cpu" in err and "wrt: compiled wrt_aot_probe for cpu in" in err
     assert _launch(edited) == 2.0  # the edit runs, not the shipped object
+
+
+def _gpu(arch: int, output_format: str):
+    """A stand-in for a CUDA ``wp.Device`` of compute capability ``arch`` on whose driver Warp would
+    build ``output_format`` ("ptx" or "cubin"): what Warp's own choice of architecture reads."""
+    from warp._src.context import runtime
+
+    return types.SimpleNamespace(
+        is_cuda=True, is_cpu=False, arch=arch, alias="cuda:0", runtime=runtime,
+        get_cuda_output_format=lambda preferred=None: output_format,
+    )  # fmt: skip
+
+
+def test_shipped_ptx_lies_where_warp_looks_for_it_on_a_gpu(tmp_path, monkeypatch):
+    """A GPU's first use installs the shipped PTX, and Warp's own lookup (the architecture it
+    chooses for the device, then its kernel cache) finds it instead of compiling."""
+    kernel = _import_probe(tmp_path / "v1", 4.0)
+    shipped = str(tmp_path / "shipped")
+    modules = {kernel.module.name: kernel.module}
+    manifest = aot.ship_modules(modules, shipped, jobs=1, cuda=modules)
+    assert [m["binary"] for m in manifest["cuda"]["modules"]] == [aot.cuda_cache_entry(kernel.module).binary]
+    monkeypatch.setattr(wp.config, "kernel_cache_dir", str(tmp_path / "cache"))
+    monkeypatch.setattr(wp.config, "ptx_target_arch", None)
+
+    assert aot.install_cuda(_gpu(90, "cubin"), shipped) == 0  # Warp would build a CUBIN for sm_90
+    assert aot.install_cuda(_gpu(70, "ptx"), shipped) == 0  # older than the shipped PTX
+    assert wp.config.ptx_target_arch is None
+    gpu = _gpu(90, "ptx")
+    assert aot.install_cuda(gpu, shipped) == 1 and wp.config.ptx_target_arch == aot.CUDA_ARCH
+    arch = wp.Device.get_cuda_compile_arch(gpu)  # Warp's choice: min(90, ptx_target_arch)
+    assert arch == aot.CUDA_ARCH
+    assert kernel.module._compile(None, output_arch=arch, use_ptx=True) is False  # found: not compiled
+
+    monkeypatch.setattr(wp.config, "ptx_target_arch", 90)  # the user's own choice is kept
+    aot._install.cache_clear()
+    assert aot.install_cuda(gpu, shipped) == 0 and wp.config.ptx_target_arch == 90
 
 
 def test_install_writes_every_shipped_entry_once(tmp_path, monkeypatch):
