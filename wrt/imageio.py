@@ -20,11 +20,14 @@ import threading
 from dataclasses import dataclass, field
 
 import numpy as np
-import OpenImageIO as oiio
 
+from .console import held_signals
 from .errors import WrtError, foreign
 from .files import atomic_path, check_regular_file
 from .limits import MAX_IMAGE_SIDE
+
+with held_signals():  # a signal while nanobind sets the module up would abort the process
+    import OpenImageIO as oiio
 
 AOV_CHANNELS = {
     "depth": ("Z",),

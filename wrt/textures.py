@@ -18,11 +18,10 @@ import os
 from dataclasses import dataclass, field
 
 import numpy as np
-import OpenImageIO as oiio
 
 from wrt.kernels.textures import BILINEAR, BITMAP, CHECKERBOARD, CLAMP, MIRROR, NEAREST, REPEAT, SLOTS
 
-from .imageio import read_pixels, srgb_decode
+from .imageio import oiio, read_pixels, srgb_decode
 
 FILTERS = {"bilinear": BILINEAR, "nearest": NEAREST}
 WRAPS = {"repeat": REPEAT, "mirror": MIRROR, "clamp": CLAMP}

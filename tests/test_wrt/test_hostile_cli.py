@@ -22,6 +22,7 @@ import OpenImageIO as oiio
 import pytest
 
 from wrt.cli import main
+from wrt.console import Terminated, held_signals, terminate
 from wrt.imageio import read_image
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -113,6 +114,27 @@ def test_sigterm_during_any_write_removes_its_temporary_file(tmp_path):
     done = run_patched(tmp_path, patch, [])
     assert done.returncode == 143, done.stderr
     assert target.read_text() == "old\n" and os.listdir(target.parent) == ["results.json"]
+
+
+@pytest.mark.parametrize(
+    ("sig", "handler", "raised"),
+    [(signal.SIGTERM, terminate, Terminated), (signal.SIGINT, signal.default_int_handler, KeyboardInterrupt)],
+    ids=["sigterm", "ctrl-c"],
+)
+def test_a_signal_while_a_native_module_loads_is_held_until_it_has_loaded(sig, handler, raised):
+    """OpenImageIO's nanobind module aborted a ``wrt render`` (SIGABRT, "Critical nanobind
+    error") when SIGTERM's exception reached it while it registered its enums: its import holds
+    the signals, and delivers them, to the handlers it found, once the block is done."""
+    saved = signal.signal(sig, handler)
+    try:
+        done = []
+        with pytest.raises(raised), held_signals():
+            os.kill(os.getpid(), sig)
+            time.sleep(0.05)  # where the handler's exception would have been raised
+            done.append("the block ran to its end")
+        assert done and signal.getsignal(sig) is handler
+    finally:
+        signal.signal(sig, saved)
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
