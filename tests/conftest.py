@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -73,6 +74,28 @@ DEVICES = [
     pytest.param("cpu", id="cpu"),
     pytest.param("cuda:0", id="cuda", marks=pytest.mark.skipif(not wp.is_cuda_available(), reason="no CUDA device")),
 ]
+
+
+COMPILES_OWN_MODULE = re.compile(r"@wp\.kernel|specialize=(True|specialize)")
+"""What a test file has when its tests compile a Warp module that nothing ships: kernels of its
+own, or kernel variants (``specialize``) of its inline scenes."""
+
+
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist's, which reads the groups
+def pytest_collection_modifyitems(config, items):
+    """Under ``--dist loadgroup``, the tests of a file that compiles a module of its own run in one
+    worker: spread over two, each compiled the same module at the same time (a cold suite spent
+    13-17 s twice on each of test_shading_normals' variants), where one worker compiles it once
+    and the file's other tests load it. Tests already in a group keep theirs."""
+    sources = {}
+    for item in items:
+        if item.get_closest_marker("xdist_group") is not None:
+            continue
+        path = item.path
+        if path not in sources:
+            sources[path] = bool(COMPILES_OWN_MODULE.search(path.read_text()))
+        if sources[path]:
+            item.add_marker(pytest.mark.xdist_group(path.stem))
 
 
 @pytest.fixture(params=DEVICES)
