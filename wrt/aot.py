@@ -287,6 +287,34 @@ def needed_modules(scenes: list[str], cuda: bool = False) -> dict[str, wp.contex
     return dict(sorted(modules.items()))
 
 
+VARIANTS_FILE = os.path.join(SHIPPED_DIR, "variants.json")
+"""Kernel variants shipped besides the examples' (``listed_variants``)."""
+
+
+def read_variants(path: str = VARIANTS_FILE) -> list[dict]:
+    """The variants listed in ``path``: ``{"kernel": ..., "flags": [...]}`` each."""
+    with open(path) as f:
+        return json.load(f)["variants"]
+
+
+def listed_variants(path: str = VARIANTS_FILE) -> dict[str, wp.context.Module]:
+    """The modules of the variants ``path`` lists, by name: scene kinds no example has that the
+    test suite renders specialised (a lit quad, a textured plane, ...). Each is a kernel (an
+    integrator, or ``trace``: the batch traversal of ``Tracer(specialize=True)``) and the
+    ``Features`` flags it keeps; every other flag is off, so one added later stays off."""
+    from wrt.kernels.features import Features
+    from wrt.kernels.traverse import trace_kernels
+    from wrt.kernels.variants import render_kernel
+
+    modules = {}
+    for variant in read_variants(path):
+        features = Features(**{name: name in variant["flags"] for name in Features.__dataclass_fields__})
+        kind = variant["kernel"]
+        kernel = trace_kernels(features)[0] if kind == "trace" else render_kernel(kind, features)
+        modules[kernel.module.name] = kernel.module
+    return modules
+
+
 def cuda_modules() -> dict[str, wp.context.Module]:
     """The modules shipped as PTX, by name: the library's own (``library_modules``) and each
     integrator's all-features and recording kernels in their CUDA forms. A render below
@@ -335,9 +363,10 @@ def _compile_all(tasks: list[tuple], jobs: int | None, progress) -> dict:
 
 
 def ship(scenes: list[str], folder: str = SHIPPED_DIR, jobs: int | None = None, progress=None) -> dict:
-    """Compile ``needed_modules(scenes)`` for the CPU at the portable target, and ``cuda_modules()``
-    to PTX for ``CUDA_ARCH``, in a kernel cache of their own, and write their entries to ``folder``
-    as ``cpu.zip``, ``cuda.zip`` and ``manifest.json`` (each atomically); the manifest. ``scenes``
+    """Compile ``needed_modules(scenes)`` and ``listed_variants()`` for the CPU at the portable
+    target, and ``cuda_modules()`` to PTX for ``CUDA_ARCH``, in a kernel cache of their own, and
+    write their entries to ``folder`` as ``cpu.zip``, ``cuda.zip`` and ``manifest.json`` (each
+    atomically); the manifest. ``scenes``
     are recorded relative to ``wrt.examples`` where they lie in it. Refused on a CPU without
     x86-64-v3 (the CUDA modules' hashes include the CPU flags too)."""
     if wp.config.cpu_compiler_flags != PORTABLE_FLAGS:
@@ -345,8 +374,18 @@ def ship(scenes: list[str], folder: str = SHIPPED_DIR, jobs: int | None = None, 
             f"{SHIP_COMMAND}: this CPU lacks x86-64-v3 (AVX2, FMA), so its objects would not be portable; "
             "build on an x86-64-v3 machine"
         )
+    modules = needed_modules(scenes) | listed_variants()
+    variants = read_variants()
     scenes_shipped = [_relative(s) for s in scenes]
-    return ship_modules(needed_modules(scenes), folder, jobs, progress, scenes=scenes_shipped, cuda=cuda_modules())
+    return ship_modules(
+        dict(sorted(modules.items())),
+        folder,
+        jobs,
+        progress,
+        scenes=scenes_shipped,
+        cuda=cuda_modules(),
+        variants=variants,
+    )
 
 
 def ship_modules(
@@ -356,25 +395,37 @@ def ship_modules(
     progress=None,
     scenes=(),
     cuda: dict[str, wp.context.Module] | None = None,
+    variants=(),
 ) -> dict:
     """``ship``'s work for any ``modules`` (and ``cuda`` modules, PTX for ``CUDA_ARCH``), at this
     process's CPU flags (the manifest records its ``cpu_target``, and ``install`` uses it only
-    where that matches)."""
+    where that matches). An entry already in ``folder``'s archives under the same identifier (the
+    hash of the same source and options, for the same Warp and CPU target) is kept, not compiled
+    again: after an edit, only the modules it changed compile."""
     cuda = cuda or {}
     saved = wp.config.kernel_cache_dir
     started = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="wrt-ship-") as build_cache:
+        cpu_entries = {n: cache_entry(m, "cpu") for n, m in modules.items()}
+        cuda_entries = {n: cuda_cache_entry(m) for n, m in cuda.items()}
+        kept = _reuse(folder, build_cache)
+        tasks = [(n, modules[n], None) for n, e in cpu_entries.items() if ("cpu", e.identifier) not in kept]
+        tasks += [(n, cuda[n], CUDA_ARCH) for n, e in cuda_entries.items() if ("cuda", e.identifier) not in kept]
         wp.config.kernel_cache_dir = build_cache
         try:
-            tasks = [(n, m, None) for n, m in modules.items()] + [(n, m, CUDA_ARCH) for n, m in cuda.items()]
             seconds = _compile_all(tasks, jobs, progress)
         finally:
             wp.config.kernel_cache_dir = saved
         os.makedirs(folder, exist_ok=True)
-        cpu_entries = {n: cache_entry(m, "cpu") for n, m in modules.items()}
         rows = _archive(os.path.join(folder, ARCHIVES["cpu"]), cpu_entries, build_cache)
         for row in rows:
             entry = cpu_entries[row["name"]]
+            if ("cpu", entry.identifier) in kept:
+                old = kept["cpu", entry.identifier]
+                row.update(
+                    source_bytes=old["source_bytes"], object_bytes=row.pop("binary_bytes"), compile_s=old["compile_s"]
+                )
+                continue
             row.update(
                 source_bytes=os.path.getsize(_source(entry, build_cache)),
                 object_bytes=row.pop("binary_bytes"),
@@ -382,10 +433,11 @@ def ship_modules(
             )
         cuda_rows = []
         if cuda:
-            cuda_entries = {n: cuda_cache_entry(m) for n, m in cuda.items()}
             cuda_rows = _archive(os.path.join(folder, ARCHIVES["cuda"]), cuda_entries, build_cache)
             for row in cuda_rows:
-                row.update(ptx_bytes=row.pop("binary_bytes"), compile_s=round(seconds[row["name"], CUDA_ARCH], 2))
+                old = kept.get(("cuda", row["identifier"]))
+                compile_s = old["compile_s"] if old else round(seconds[row["name"], CUDA_ARCH], 2)
+                row.update(ptx_bytes=row.pop("binary_bytes"), compile_s=compile_s)
     manifest = {
         "format": FORMAT,
         "warp": wp.config.version,
@@ -396,12 +448,39 @@ def ship_modules(
         "jobs": jobs or os.cpu_count() or 1,
         "wall_s": round(time.perf_counter() - started, 1),
         "scenes": list(scenes),
+        "variants": list(variants),
+        "compiled": len(tasks),
+        "reused": len(cpu_entries) + len(cuda_entries) - len(tasks),
         "modules": rows,
     }
     if cuda:
         manifest["cuda"] = {"arch": CUDA_ARCH, "format": "ptx", "modules": cuda_rows}
     write_json(os.path.join(folder, "manifest.json"), manifest)
     return manifest
+
+
+def _reuse(folder: str, cache_dir: str) -> dict:
+    """Unpack the entries of ``folder``'s archives into ``cache_dir`` where its manifest is usable
+    here; their manifest rows, by ``(kind, identifier)``."""
+    manifest = read_manifest(folder)
+    if not usable(manifest):
+        return {}
+    kept = {}
+    try:
+        for kind, archive_name in ARCHIVES.items():
+            rows = shipped_entries(manifest, kind)
+            if not rows:
+                continue
+            with zipfile.ZipFile(os.path.join(folder, archive_name)) as archive:
+                for row in rows:
+                    entry = CacheEntry(**{k: row[k] for k in ("name", "identifier", "binary", "meta")})
+                    os.makedirs(os.path.join(cache_dir, entry.identifier), exist_ok=True)
+                    for name, path in zip((entry.binary, entry.meta), entry.paths(cache_dir)):
+                        _write_cache_file(path, archive.read(f"{entry.identifier}/{name}"))
+                    kept[kind, entry.identifier] = row
+    except (OSError, zipfile.BadZipFile, KeyError):  # a damaged archive: compile everything
+        return {}
+    return kept
 
 
 def _archive(path: str, entries: dict[str, CacheEntry], cache_dir: str) -> list[dict]:

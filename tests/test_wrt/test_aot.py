@@ -29,7 +29,8 @@ def test_the_shipped_modules_are_those_the_kernel_sources_make():
     assert manifest is not None, f"no shipped modules in {aot.SHIPPED_DIR}: {rebuild}"
     assert aot.usable(manifest), f"the shipped modules were built for another Warp or CPU target: {rebuild}"
     assert manifest["scenes"] == aot.example_scenes(), f"the example scenes changed: {rebuild}"
-    modules = aot.needed_modules([aot.example_path(s) for s in manifest["scenes"]])
+    assert manifest["variants"] == aot.read_variants(), f"the listed variants changed: {rebuild}"
+    modules = aot.needed_modules([aot.example_path(s) for s in manifest["scenes"]]) | aot.listed_variants()
     expected = {name: aot.cache_entry(m, "cpu").identifier for name, m in modules.items()}
     shipped = {m["name"]: m["identifier"] for m in manifest["modules"]}
     stale = sorted(n for n in expected.keys() | shipped.keys() if expected.get(n) != shipped.get(n))
@@ -172,6 +173,19 @@ def test_install_writes_every_shipped_entry_once(tmp_path, monkeypatch):
     assert not [p for p in tmp_path.rglob("*") if p.name.startswith(".")]  # no temporary files left
     aot._install.cache_clear()
     assert aot.install() == 0  # all there already
+
+
+def test_a_rebuild_compiles_only_the_modules_that_changed(tmp_path):
+    kernel = _import_probe(tmp_path / "v1", 5.0)
+    shipped = str(tmp_path / "shipped")
+    first = aot.ship_modules({kernel.module.name: kernel.module}, shipped, jobs=1)
+    again = aot.ship_modules({kernel.module.name: kernel.module}, shipped, jobs=1)
+    assert (first["compiled"], again["compiled"], again["reused"]) == (1, 0, 1)
+    assert again["modules"] == first["modules"]  # the same entry, its figures kept
+    edited = _import_probe(tmp_path / "v2", 6.0)
+    third = aot.ship_modules({edited.module.name: edited.module}, shipped, jobs=1)
+    assert (third["compiled"], third["reused"]) == (1, 0)
+    assert third["modules"][0]["identifier"] != first["modules"][0]["identifier"]
 
 
 def test_a_damaged_archive_is_a_warning_and_modules_compile_instead(tmp_path, monkeypatch, capsys):
