@@ -67,6 +67,11 @@ class CacheEntry:
         """Whether the entry is in ``cache_dir`` (default: Warp's kernel cache)."""
         return all(os.path.exists(p) for p in self.paths(cache_dir or wp.config.kernel_cache_dir))
 
+    @classmethod
+    def of(cls, row: dict) -> CacheEntry:
+        """The entry a manifest row names."""
+        return cls(*(row[k] for k in ("name", "identifier", "binary", "meta")))
+
 
 def cache_entry(module: wp.context.Module, device) -> CacheEntry:
     """``module``'s entry in Warp's kernel cache for ``device``, for the block size a launch uses
@@ -187,23 +192,25 @@ def _install(folder: str, cache_dir: str, kind: str) -> int:
     manifest = read_manifest(folder)
     if not usable(manifest):
         return 0
-    entries = [
-        CacheEntry(**{k: m[k] for k in ("name", "identifier", "binary", "meta")})
-        for m in shipped_entries(manifest, kind)
-    ]
-    missing = [e for e in entries if not e.cached(cache_dir)]
+    missing = [e for e in map(CacheEntry.of, shipped_entries(manifest, kind)) if not e.cached(cache_dir)]
     if not missing:
         return 0
     try:
-        with zipfile.ZipFile(os.path.join(folder, ARCHIVES[kind])) as archive:
-            for entry in missing:
-                os.makedirs(os.path.join(cache_dir, entry.identifier), exist_ok=True)
-                for name, path in zip((entry.binary, entry.meta), entry.paths(cache_dir)):
-                    _write_cache_file(path, archive.read(f"{entry.identifier}/{name}"))
+        _unpack(os.path.join(folder, ARCHIVES[kind]), missing, cache_dir)
     except (OSError, zipfile.BadZipFile, KeyError) as e:  # a damaged package, a full disk: compile
         print(f"wrt: warning: shipped kernels not installed ({e}); modules compile on first use", file=sys.stderr)
         return 0
     return len(missing)
+
+
+def _unpack(archive_path: str, entries: list[CacheEntry], cache_dir: str) -> None:
+    """Write ``entries`` from the zip file ``archive_path`` into the kernel cache ``cache_dir``,
+    each file atomically, the object before its ``.meta``."""
+    with zipfile.ZipFile(archive_path) as archive:
+        for entry in entries:
+            os.makedirs(os.path.join(cache_dir, entry.identifier), exist_ok=True)
+            for name, path in zip((entry.binary, entry.meta), entry.paths(cache_dir)):
+                _write_cache_file(path, archive.read(f"{entry.identifier}/{name}"))
 
 
 def _write_cache_file(path: str, data: bytes) -> None:
@@ -297,9 +304,9 @@ def read_variants(path: str = VARIANTS_FILE) -> list[dict]:
         return json.load(f)["variants"]
 
 
-def listed_variants(path: str = VARIANTS_FILE) -> dict[str, wp.context.Module]:
-    """The modules of the variants ``path`` lists, by name: scene kinds no example has that the
-    test suite renders specialised (a lit quad, a textured plane, ...). Each is a kernel (an
+def listed_variants(variants: list[dict] | None = None) -> dict[str, wp.context.Module]:
+    """The modules of ``variants`` (default: those ``VARIANTS_FILE`` lists), by name: scene kinds
+    no example has that the test suite renders specialised (a lit quad, a textured plane, ...). Each is a kernel (an
     integrator, or ``trace``: the batch traversal of ``Tracer(specialize=True)``) and the
     ``Features`` flags it keeps; every other flag is off, so one added later stays off."""
     from wrt.kernels.features import Features
@@ -307,7 +314,7 @@ def listed_variants(path: str = VARIANTS_FILE) -> dict[str, wp.context.Module]:
     from wrt.kernels.variants import render_kernel
 
     modules = {}
-    for variant in read_variants(path):
+    for variant in read_variants() if variants is None else variants:
         features = Features(**{name: name in variant["flags"] for name in Features.__dataclass_fields__})
         kind = variant["kernel"]
         kernel = trace_kernels(features)[0] if kind == "trace" else render_kernel(kind, features)
@@ -330,19 +337,17 @@ def cuda_modules() -> dict[str, wp.context.Module]:
     return dict(sorted(modules.items()))
 
 
-def compile_modules(
-    modules: dict[str, wp.context.Module], jobs: int | None = None, progress=None, cuda_arch: int | None = None
-) -> dict:
-    """Compile (or load from the cache) ``modules`` on the CPU, or where ``cuda_arch`` compile
-    them to PTX for that architecture (no GPU needed), into Warp's kernel cache, ``jobs`` at a time
-    (default: every core; a Warp compilation runs on one core and releases the GIL); the seconds
-    each took, by name. ``progress(name, seconds)`` is called as each is done."""
-    seconds = _compile_all([(name, module, cuda_arch) for name, module in modules.items()], jobs, progress)
-    return {name: seconds[name, cuda_arch] for name in modules}
+def compile_modules(modules: dict[str, wp.context.Module], jobs: int | None = None, progress=None) -> dict:
+    """Compile (or load from the cache) ``modules`` on the CPU, ``jobs`` at a time (default:
+    every core; a Warp compilation runs on one core and releases the GIL); the seconds each took,
+    by name. ``progress(name, seconds)`` is called as each is done."""
+    seconds = _compile_all([(name, module, None) for name, module in modules.items()], jobs, progress)
+    return {name: seconds[name, None] for name in modules}
 
 
 def _compile_all(tasks: list[tuple], jobs: int | None, progress) -> dict:
-    """Compile ``(name, module, cuda_arch)`` tasks as ``compile_modules`` does, the CUDA ones (the
+    """Compile ``(name, module, cuda_arch)`` tasks, ``jobs`` at a time: on the CPU for a
+    ``cuda_arch`` of None, else to PTX for that architecture (no GPU needed), the CUDA ones (the
     longest) first; the seconds each took, by ``(name, cuda_arch)``."""
     dev = wp.get_device("cpu")
 
@@ -366,16 +371,15 @@ def ship(scenes: list[str], folder: str = SHIPPED_DIR, jobs: int | None = None, 
     """Compile ``needed_modules(scenes)`` and ``listed_variants()`` for the CPU at the portable
     target, and ``cuda_modules()`` to PTX for ``CUDA_ARCH``, in a kernel cache of their own, and
     write their entries to ``folder`` as ``cpu.zip``, ``cuda.zip`` and ``manifest.json`` (each
-    atomically); the manifest. ``scenes``
-    are recorded relative to ``wrt.examples`` where they lie in it. Refused on a CPU without
-    x86-64-v3 (the CUDA modules' hashes include the CPU flags too)."""
+    atomically); the manifest. ``scenes`` are recorded relative to ``wrt.examples`` where they lie
+    in it. Refused on a CPU without x86-64-v3 (the CUDA modules' hashes include the CPU flags too)."""
     if wp.config.cpu_compiler_flags != PORTABLE_FLAGS:
         raise WrtError(
             f"{SHIP_COMMAND}: this CPU lacks x86-64-v3 (AVX2, FMA), so its objects would not be portable; "
             "build on an x86-64-v3 machine"
         )
-    modules = needed_modules(scenes) | listed_variants()
     variants = read_variants()
+    modules = needed_modules(scenes) | listed_variants(variants)
     scenes_shipped = [_relative(s) for s in scenes]
     return ship_modules(
         dict(sorted(modules.items())),
@@ -419,17 +423,12 @@ def ship_modules(
         os.makedirs(folder, exist_ok=True)
         rows = _archive(os.path.join(folder, ARCHIVES["cpu"]), cpu_entries, build_cache)
         for row in rows:
-            entry = cpu_entries[row["name"]]
-            if ("cpu", entry.identifier) in kept:
-                old = kept["cpu", entry.identifier]
-                row.update(
-                    source_bytes=old["source_bytes"], object_bytes=row.pop("binary_bytes"), compile_s=old["compile_s"]
-                )
-                continue
+            built = kept.get(("cpu", row["identifier"])) or {  # kept: its figures from when it compiled
+                "source_bytes": os.path.getsize(_source(cpu_entries[row["name"]], build_cache)),
+                "compile_s": round(seconds[row["name"], None], 2),
+            }
             row.update(
-                source_bytes=os.path.getsize(_source(entry, build_cache)),
-                object_bytes=row.pop("binary_bytes"),
-                compile_s=round(seconds[row["name"], None], 2),
+                source_bytes=built["source_bytes"], object_bytes=row.pop("binary_bytes"), compile_s=built["compile_s"]
             )
         cuda_rows = []
         if cuda:
@@ -468,16 +467,9 @@ def _reuse(folder: str, cache_dir: str) -> dict:
     kept = {}
     try:
         for kind, archive_name in ARCHIVES.items():
-            rows = shipped_entries(manifest, kind)
-            if not rows:
-                continue
-            with zipfile.ZipFile(os.path.join(folder, archive_name)) as archive:
-                for row in rows:
-                    entry = CacheEntry(**{k: row[k] for k in ("name", "identifier", "binary", "meta")})
-                    os.makedirs(os.path.join(cache_dir, entry.identifier), exist_ok=True)
-                    for name, path in zip((entry.binary, entry.meta), entry.paths(cache_dir)):
-                        _write_cache_file(path, archive.read(f"{entry.identifier}/{name}"))
-                    kept[kind, entry.identifier] = row
+            if rows := shipped_entries(manifest, kind):
+                _unpack(os.path.join(folder, archive_name), [CacheEntry.of(row) for row in rows], cache_dir)
+                kept.update({(kind, row["identifier"]): row for row in rows})
     except (OSError, zipfile.BadZipFile, KeyError):  # a damaged archive: compile everything
         return {}
     return kept

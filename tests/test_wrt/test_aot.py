@@ -32,12 +32,18 @@ def test_the_shipped_modules_are_those_the_kernel_sources_make():
     assert manifest["variants"] == aot.read_variants(), f"the listed variants changed: {rebuild}"
     modules = aot.needed_modules([aot.example_path(s) for s in manifest["scenes"]]) | aot.listed_variants()
     expected = {name: aot.cache_entry(m, "cpu").identifier for name, m in modules.items()}
-    shipped = {m["name"]: m["identifier"] for m in manifest["modules"]}
-    stale = sorted(n for n in expected.keys() | shipped.keys() if expected.get(n) != shipped.get(n))
+    stale = _stale(expected, manifest, "cpu")
     assert not stale, f"the kernels changed since the shipped modules were built ({', '.join(stale)}): {rebuild}"
-    with zipfile.ZipFile(os.path.join(aot.SHIPPED_DIR, "cpu.zip")) as archive:
-        names = set(archive.namelist())
-    assert {f"{m['identifier']}/{m[k]}" for m in manifest["modules"] for k in ("binary", "meta")} == names
+
+
+def _stale(expected: dict[str, str], manifest: dict, kind: str) -> list[str]:
+    """The modules whose shipped identifier of ``kind`` is not the one ``expected`` (by name) gives,
+    or that only one side has; the archive must hold exactly the manifest's entries."""
+    rows = aot.shipped_entries(manifest, kind)
+    shipped = {m["name"]: m["identifier"] for m in rows}
+    with zipfile.ZipFile(os.path.join(aot.SHIPPED_DIR, aot.ARCHIVES[kind])) as archive:
+        assert {f"{m['identifier']}/{m[k]}" for m in rows for k in ("binary", "meta")} == set(archive.namelist())
+    return sorted(n for n in expected.keys() | shipped.keys() if expected.get(n) != shipped.get(n))
 
 
 @pytest.mark.skipif(not PORTABLE_CPU, reason="this CPU lacks x86-64-v3: nothing shipped applies to it")
@@ -46,15 +52,10 @@ def test_the_shipped_ptx_is_what_the_kernel_sources_make_for_cuda():
     manifest = aot.read_manifest()
     rebuild = f"rebuild them with `{aot.SHIP_COMMAND}`"
     assert "cuda" in manifest and manifest["cuda"]["arch"] == aot.CUDA_ARCH, f"no shipped PTX: {rebuild}"
-    expected = {name: aot.cuda_cache_entry(m) for name, m in aot.cuda_modules().items()}
-    shipped = {m["name"]: m for m in aot.shipped_entries(manifest, "cuda")}
-    stale = sorted(n for n in expected.keys() | shipped.keys() if n not in shipped or n not in expected)
-    stale += sorted(n for n in expected.keys() & shipped.keys() if expected[n].identifier != shipped[n]["identifier"])
+    expected = {name: aot.cuda_cache_entry(m).identifier for name, m in aot.cuda_modules().items()}
+    stale = _stale(expected, manifest, "cuda")
     assert not stale, f"the kernels changed since the shipped PTX was built ({', '.join(stale)}): {rebuild}"
-    assert all(m["binary"].endswith(f".sm{aot.CUDA_ARCH}.ptx") for m in shipped.values())
-    with zipfile.ZipFile(os.path.join(aot.SHIPPED_DIR, "cuda.zip")) as archive:
-        names = set(archive.namelist())
-    assert {f"{m['identifier']}/{m[k]}" for m in shipped.values() for k in ("binary", "meta")} == names
+    assert all(m["binary"].endswith(f".sm{aot.CUDA_ARCH}.ptx") for m in aot.shipped_entries(manifest, "cuda"))
 
 
 def test_the_cpu_target_is_portable_where_the_cpu_has_x86_64_v3(tmp_path, monkeypatch):
