@@ -20,6 +20,8 @@ Modules, in data-flow order:
                     emissive primitives) and the one light interface (``sample_li``, ``pdf_li``,
                     ``is_delta``, the environment's radiance)
 - ``media``         nested and overlapping dielectrics along a ray, Beer-Lambert absorption
+- ``volumes``       participating media (one module each: homogeneous, Henyey-Greenstein phase
+                    functions): free-flight sampling, transmittance, the medium beyond a surface
 - ``shadow``        the shadow ray (opaque or filtered through dielectrics), recorded or not
 - ``film``          the per-pixel outputs and AOVs
 - ``integrator``    the pixel loop every integrator shares, tracing a segment; ``record``: ray recording

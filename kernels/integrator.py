@@ -57,6 +57,7 @@ class IntegratorSettings:
     min_throughput: float
     camera_media: Media  # the dielectrics the camera is inside, outermost first (wrt.bake.camera_media)
     camera_n_media: wp.int32
+    camera_medium: wp.int32  # the participating medium the camera is in (wrt.kernels.volumes); -1: vacuum
 
 
 @wp.struct

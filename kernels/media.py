@@ -1,5 +1,6 @@
 """Media along a ray: which dielectric the ray is inside, and what a dielectric surface it meets
-separates (shared by the whitted and path integrators).
+separates (shared by the whitted and path integrators). Participating media, which scatter, are
+``wrt.kernels.volumes``'; this bookkeeping of iors and Beer-Lambert absorption applies beside them.
 
 Each ray (or branch) carries a small stack of the dielectric shapes it is inside, up to
 ``MEDIA`` deep; a ray entering one more has no medium to be in (``MEDIA_OVERFLOW``): its sample

@@ -45,14 +45,17 @@ A path's shapes stay at its camera ray's time.
 
 import warp as wp
 
+from . import hinted_func
 from .features import ALL, Features
 from .hit import Hit, make_surface_hit_for, normal_map_shadowing
 from .integrator import CameraRay, IntegratorSettings, camera_hit, make_trace_segment
 from .lights import LightData, lighting_for
 from .materials import (
     BSDF_SPECULAR,
+    BSDF_THIN,
     BSDF_TOTAL_INTERNAL,
     BSDF_TRANSMISSION,
+    NULL,
     MaterialData,
     bsdf_flags_from,
     families_for,
@@ -76,12 +79,14 @@ from .record import (
     STRAIGHT,
     TOTAL_INTERNAL,
     RayRecord,
+    end_in_medium,
 )
 from .sample_warps import power_heuristic
 from .sampling import Sampler, sample_1d, sample_2d
 from .shadow import make_shadow_ray
 from .spawn import past_hit, spawn_origin
 from .traverse import NO_HIT, GeometryData, Traversal, traversal
+from .volumes import boundary_medium, free_flight, phase_sample, phase_value
 
 RR_DEPTH = wp.constant(5)
 
@@ -94,6 +99,11 @@ def bounce_dim(depth: wp.int32, j: wp.int32) -> wp.int32:
 @wp.func
 def light_dim(depth: wp.int32, i: wp.int32) -> wp.int32:
     return 1048576 + 2048 * depth + 2 * i
+
+
+@wp.func
+def flight_dim(vertex: wp.int32) -> wp.int32:
+    return 33554432 + vertex
 
 
 @wp.func
@@ -125,6 +135,8 @@ class PathState:
     prev_p: wp.vec3
     segment_kind: wp.int32  # recording: how the next segment to trace was spawned
     current: wp.int32  # recording: the record index of the segment being followed
+    medium: wp.int32  # the participating medium the ray is in (wrt.kernels.volumes); -1: vacuum
+    nulls: wp.int32  # null events so far that were not segments (a scene with media): depth + nulls keys the samples
 
 
 @wp.func
@@ -146,18 +158,51 @@ def start_path(materials: MaterialData, settings: IntegratorSettings, ray: Camer
     path.prev_p = ray.o
     path.segment_kind = SCATTERED
     path.current = ray.record
+    path.medium = settings.camera_medium
+    path.nulls = 0
     return path
+
+
+@wp.func
+def scatters_in(materials: MaterialData) -> bool:
+    """The scene has participating media: the path follows Mitsuba 3's ``volpath`` (shadow rays
+    pass null surfaces; null events are not segments)."""
+    return materials.media.count > 0
 
 
 def make_next_event(record: bool, trace: Traversal, features: Features):
     """``next_event``, recording its shadow rays when ``record``, sampling environment maps and
-    emissive primitives when the scene has them, and lights across the surface when it has rough
-    dielectrics (each compiled out otherwise); its BSDF interface has ``trace``'s inline hint."""
-    shadow_ray = make_shadow_ray(record, trace)
+    emissive primitives when the scene has them, lights across the surface when it has rough
+    dielectrics, and from scattering events when it has participating media (each compiled out
+    otherwise); it and its BSDF interface have ``trace``'s inline hint (out of line on CUDA: the
+    path kernel calls it once, from surfaces and from media alike)."""
+    shadow_ray = make_shadow_ray(record, trace, features.media)
     lighting = lighting_for(features)
     bsdf = make_bsdf(families_for(features), features.textures, trace.inline)
 
     @wp.func
+    def scattered(
+        materials: MaterialData, hit: Hit, wi: wp.vec3, flags: wp.int32, eta: float, scatter_medium: wp.int32
+    ):
+        """``(f, cos, pdf)`` toward ``wi``: the BSDF's at a surface, or the phase function of
+        ``scatter_medium`` (>= 0: ``hit`` is a point in it; its ``cos`` is 1); ``cos <= 0`` where
+        ``wi`` does not light the surface (then ``f`` and ``pdf`` are not evaluated)."""
+        if wp.static(features.media):
+            if scatter_medium >= 0:
+                phase = phase_value(materials.media, scatter_medium, hit.wo, wi)
+                return wp.vec3(phase), 1.0, phase
+        cos_theta = wp.dot(hit.n_facing, wi)
+        if wp.static(features.rough_dielectric):
+            cos_theta = seen_through(cos_theta, flags)
+        if cos_theta <= 0.0:
+            return wp.vec3(0.0), cos_theta, 0.0
+        f = wp.static(bsdf.eval)(materials, hit.material, hit.n_facing, hit.wo, wi, eta, hit.uv, hit.front)
+        if wp.static(features.normal_map):
+            f = f * normal_map_shadowing(hit, wi)
+        pdf = wp.static(bsdf.pdf)(materials, hit.material, hit.n_facing, hit.wo, wi, eta, hit.uv, hit.front)
+        return f, cos_theta, pdf
+
+    @hinted_func(trace.inline)
     def next_event(
         geometry: GeometryData,
         materials: MaterialData,
@@ -173,49 +218,53 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
         flags: wp.int32,
         eta: float,
         sigma_t: wp.vec3,
+        vertex: wp.int32,
+        medium: wp.int32,
+        scatter_medium: wp.int32,
     ) -> wp.vec3:
         """Light reflected toward ``hit.wo`` from one sample of every light (``wrt.kernels.lights``),
         MIS-weighted for those that are not delta lights (W/(m^2 sr), before the path's
-        ``throughput``); ``sigma`` is the absorption of the medium ``hit`` lies in, applied along
+        ``throughput``); ``sigma`` is the absorption of the dielectric ``hit`` lies in, applied along
         the shadow rays as along BSDF-sampled paths. ``flags`` are the BSDF's; a light below a
         surface with glossy transmission is seen through it (``seen_through``), ``eta`` the ratio
-        of the iors on either side and ``sigma_t`` the absorption beyond it.
+        of the iors on either side and ``sigma_t`` the absorption beyond it. ``vertex`` keys the
+        light samples. In a scene with participating media ``medium`` is the one the path is in
+        (a shadow ray leaves in the medium beyond the surface on its side), and ``scatter_medium >= 0``
+        makes ``hit`` a scattering event in that medium (its point and ``wo`` only).
 
         Recording: each shadow ray is a segment of ``depth + 1`` segments whose parent is record
         ``parent``, carrying ``throughput`` when it reaches its light and 0 when blocked (then
         ending at the blocker)."""
         total = wp.vec3(0.0)
-        m = hit.material
-        n = hit.n_facing
-        wo = hit.wo
         for i in range(wp.static(lighting.count)(lights)):
             ls = wp.static(lighting.sample_li)(
-                geometry, materials, lights, i, hit.p, ray.time, sampler, ray.pixel, ray.sample, light_dim(depth, i)
+                geometry, materials, lights, i, hit.p, ray.time, sampler, ray.pixel, ray.sample, light_dim(vertex, i)
             )
-            cos_theta = wp.dot(n, ls.wi)
-            if wp.static(features.rough_dielectric):
-                cos_theta = seen_through(cos_theta, flags)
             contribution = wp.vec3(0.0)
-            if ls.pdf > 0.0 and cos_theta > 0.0 and max_component(ls.radiance) > 0.0:
-                mis = float(1.0)
-                if not wp.static(lighting.is_delta)(lights, i):
-                    mis = power_heuristic(
-                        ls.pdf, wp.static(bsdf.pdf)(materials, m, n, wo, ls.wi, eta, hit.uv, hit.front)
-                    )
-                f = wp.static(bsdf.eval)(materials, m, n, wo, ls.wi, eta, hit.uv, hit.front)
-                if wp.static(features.normal_map):
-                    f = f * normal_map_shadowing(hit, ls.wi)
-                contribution = wp.cw_mul(f, ls.radiance) * (cos_theta * mis / ls.pdf)
+            if ls.pdf > 0.0 and max_component(ls.radiance) > 0.0:
+                f, cos_theta, scatter_pdf = scattered(materials, hit, ls.wi, flags, eta, scatter_medium)
+                if cos_theta > 0.0:
+                    mis = float(1.0)
+                    if not wp.static(lighting.is_delta)(lights, i):
+                        mis = power_heuristic(ls.pdf, scatter_pdf)
+                    contribution = wp.cw_mul(f, ls.radiance) * (cos_theta * mis / ls.pdf)
             if max_component(contribution) > 0.0:
                 shadow_sigma = sigma
-                if wp.static(features.rough_dielectric):
-                    if wp.dot(n, ls.wi) < 0.0:  # a light seen through the surface: the medium beyond it
-                        shadow_sigma = sigma_t
+                shadow_medium = medium
+                o = hit.p
+                if wp.static(features.media):
+                    if scatter_medium < 0 and scatters_in(materials):
+                        shadow_medium = boundary_medium(materials.media, hit.shape, wp.dot(ls.wi, hit.n) > 0.0, medium)
+                if scatter_medium < 0:
+                    o = spawn_origin(hit.p, hit.n, hit.err, ls.wi)
+                    if wp.static(features.rough_dielectric):
+                        if wp.dot(hit.n_facing, ls.wi) < 0.0:  # a light seen through the surface: the medium beyond it
+                            shadow_sigma = sigma_t
                 visible = shadow_ray(
                     geometry,
                     materials,
                     False,
-                    spawn_origin(hit.p, hit.n, hit.err, ls.wi),
+                    o,
                     ls.wi,
                     ls.t_max,
                     ray.time,
@@ -226,6 +275,7 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
                     depth + 1,
                     parent,
                     throughput,
+                    shadow_medium,
                 )
                 if max_component(visible) > 0.0:
                     total += wp.cw_mul(contribution, visible)
@@ -244,6 +294,24 @@ def make_path_radiance(record: bool, features: Features = ALL, inline: bool | No
     lighting = lighting_for(features)
     bsdf = make_bsdf(families_for(features), features.textures, inline)
     surface_hit = make_surface_hit_for(features)
+
+    @wp.func
+    def roulette(
+        materials: MaterialData, settings: IntegratorSettings, sampler: Sampler, ray: CameraRay, path: PathState
+    ) -> float:
+        """Russian roulette at a path's new segment: the probability with which it goes on,
+        ``min(0.95, largest channel of its throughput)`` past ``RR_DEPTH`` segments (1 before), its
+        throughput judged without the ``eta^2`` radiance scaling of refractions (pbrt-v4's
+        ``etaScale``); 0 where the roll ends it."""
+        if path.depth <= RR_DEPTH:
+            return 1.0
+        n_ratio = float(1.0)
+        if wp.static(features.dielectric):
+            n_ratio = current_ior(materials, settings.exterior_ior, path.media, path.n_media) / path.n_camera
+        q = wp.min(max_component(path.throughput) * n_ratio * n_ratio, 0.95)
+        if sample_1d(sampler, ray.pixel, ray.sample, bounce_dim(path.depth + path.nulls, 3)) >= q:
+            return 0.0
+        return q
 
     @wp.func
     def path_radiance(
@@ -279,67 +347,113 @@ def make_path_radiance(record: bool, features: Features = ALL, inline: bool | No
                 path.current = current
             traced = False
 
-            # Absorption in the medium the segment crossed
+            # A participating medium along the segment: scattered in it, or through to its end
+            t_end = found.t
+            in_medium = bool(False)
+            if wp.static(features.media):
+                if path.medium >= 0:
+                    flight = free_flight(
+                        materials.media,
+                        path.medium,
+                        found.t - path.t_last,
+                        sample_1d(sampler, ray.pixel, ray.sample, flight_dim(path.depth + path.nulls)),
+                    )
+                    path.throughput = wp.cw_mul(path.throughput, flight.weight)
+                    if flight.scattered:
+                        in_medium = True
+                        t_end = path.t_last + flight.t
+                        if wp.static(record):
+                            end_in_medium(rec, path.current, path.o + t_end * path.d)
+
+            # Absorption in the dielectric the segment crossed
             if wp.static(features.dielectric):
                 path.throughput = wp.cw_mul(
-                    path.throughput, medium_transmittance(materials, path.media, path.n_media, found.t - path.t_last)
+                    path.throughput, medium_transmittance(materials, path.media, path.n_media, t_end - path.t_last)
                 )
 
-            # Escaped: the environment lights
-            if found.prim == NO_HIT:
-                if wp.static(features.lights):
-                    escaped = wp.static(lighting.environment_radiance)(lights, path.d, path.prev_pdf, path.specular)
-                    path.radiance += wp.cw_mul(path.throughput, escaped)
-                break
-
-            # Emission at the front of what was hit, MIS-weighted against light sampling
-            hit = surface_hit(geometry, materials, found)
-            emission = materials.emission[hit.material]
-            if hit.front and max_component(emission) > 0.0:
-                mis = float(1.0)
-                if not path.specular:
-                    light_pdf = wp.static(lighting.pdf_li)(
-                        geometry,
-                        lights,
-                        hit.shape,
-                        found.prim,
-                        found.inst,
-                        path.prev_p,
-                        path.d,
-                        wp.length(hit.p - path.prev_p),
-                    )
-                    mis = power_heuristic(path.prev_pdf, light_pdf)
-                path.radiance += wp.cw_mul(path.throughput, emission) * mis
-            flags = bsdf_flags_from(materials, hit.material, hit.front)
-            if flags == 0:
-                break
-
-            # The media on either side; a false interface lets the ray go straight on (not a
-            # segment of its own: max_depth does not end the path there)
+            # The event at the segment's end: a scattering in the medium, or the surface hit
+            scatter_medium = int(-1)  # >= 0: the path scattered in this medium
+            if wp.static(features.media):
+                if in_medium:
+                    scatter_medium = path.medium
+            hit = Hit()
+            flags = int(0)
             interface = no_interface(path.media, path.n_media)
-            if wp.static(features.dielectric):
-                interface = cross_interface(
-                    materials, settings.exterior_ior, path.media, path.n_media, flags, hit.shape, hit.entering
-                )
-                if interface.n_media == MEDIA_OVERFLOW:  # no medium to be in: the sample is lost, and counted
-                    path.radiance = wp.vec3(wp.nan)
+            volumetric = bool(False)
+            last = bool(False)
+            if scatter_medium >= 0:
+                if path.depth >= settings.max_depth or max_component(path.throughput) == 0.0:
                     break
-                if not interface.real:
-                    path.media = interface.media
-                    path.n_media = interface.n_media
-                    path.t_from = past_hit(path.o, hit.p, found.t)
-                    path.t_last = found.t
-                    path.segment_kind = STRAIGHT
-                    # a shadow ray stops at this surface, so next-event estimation never finds
-                    # what lies beyond it: light found there takes the BSDF sample's full weight
-                    path.specular = True
-                    continue
-            if path.depth >= settings.max_depth:
-                break
+                hit.p = path.o + t_end * path.d
+                hit.wo = -path.d
+                hit.shape = -1
+            else:
+                # Escaped: the environment lights
+                if found.prim == NO_HIT:
+                    if wp.static(features.lights):
+                        escaped = wp.static(lighting.environment_radiance)(lights, path.d, path.prev_pdf, path.specular)
+                        path.radiance += wp.cw_mul(path.throughput, escaped)
+                    break
 
-            # Next-event estimation at non-specular surfaces
+                # Emission at the front of what was hit, MIS-weighted against light sampling
+                hit = surface_hit(geometry, materials, found)
+                emission = materials.emission[hit.material]
+                if hit.front and max_component(emission) > 0.0:
+                    mis = float(1.0)
+                    if not path.specular:
+                        light_pdf = wp.static(lighting.pdf_li)(
+                            geometry,
+                            lights,
+                            hit.shape,
+                            found.prim,
+                            found.inst,
+                            path.prev_p,
+                            path.d,
+                            wp.length(hit.p - path.prev_p),
+                        )
+                        mis = power_heuristic(path.prev_pdf, light_pdf)
+                    path.radiance += wp.cw_mul(path.throughput, emission) * mis
+                flags = bsdf_flags_from(materials, hit.material, hit.front)
+                if flags == 0:
+                    break
+
+                # The media on either side; a false interface lets the ray go straight on (not a
+                # segment of its own: max_depth does not end the path there)
+                if wp.static(features.dielectric):
+                    interface = cross_interface(
+                        materials, settings.exterior_ior, path.media, path.n_media, flags, hit.shape, hit.entering
+                    )
+                    if interface.n_media == MEDIA_OVERFLOW:  # no medium to be in: the sample is lost, and counted
+                        path.radiance = wp.vec3(wp.nan)
+                        break
+                    if not interface.real:
+                        path.media = interface.media
+                        path.n_media = interface.n_media
+                        if wp.static(features.media):
+                            if scatters_in(materials):  # and a null event: the next segment's samples are new
+                                path.medium = boundary_medium(materials.media, hit.shape, not hit.entering, path.medium)
+                                path.nulls += 1
+                        path.t_from = past_hit(path.o, hit.p, found.t)
+                        path.t_last = found.t
+                        path.segment_kind = STRAIGHT
+                        # a shadow ray stops at this surface, so next-event estimation never finds
+                        # what lies beyond it: light found there takes the BSDF sample's full weight
+                        path.specular = True
+                        continue
+
+                # In a scene with media a null event (straight on: a null surface, a mask's null
+                # lobe, a thin dielectric's transmission) is no segment, so the last segment's
+                # surface may still let the path through (Mitsuba 3's volpath)
+                if wp.static(features.media):
+                    volumetric = scatters_in(materials)
+                last = path.depth >= settings.max_depth
+                if last and not (volumetric and (flags & BSDF_THIN) != 0):
+                    break
+            vertex = path.depth + path.nulls
+
+            # Next-event estimation at a scattering event and at non-specular surfaces
             if wp.static(features.lights or features.emissive):
-                if non_specular(flags):
+                if scatter_medium >= 0 or (non_specular(flags) and not last):
                     sigma = wp.vec3(0.0)
                     if wp.static(features.dielectric):
                         sigma = medium_sigma(materials, path.media, path.n_media)
@@ -363,47 +477,73 @@ def make_path_radiance(record: bool, features: Features = ALL, inline: bool | No
                             flags,
                             interface.eta,
                             sigma_t,
+                            vertex,
+                            path.medium,
+                            scatter_medium,
                         ),
                     )
 
-            # Sample the BSDF for the next direction
-            uc = float(0.0)
-            u = wp.vec2(0.0)
-            if wp.static(features.specular):
-                if (flags & BSDF_TRANSMISSION) != 0 or wp.static(features.plastic):  # a plastic: coating or base
-                    uc = sample_1d(sampler, ray.pixel, ray.sample, bounce_dim(path.depth, 2))
-            if non_specular(flags):
-                u = sample_2d(sampler, ray.pixel, ray.sample, bounce_dim(path.depth, 0))
-            bs = wp.static(bsdf.sample)(
-                materials, hit.material, hit.n_facing, hit.wo, interface.eta, uc, u, hit.uv, hit.front
-            )
-            if bs.pdf == 0.0:
-                break
-            if wp.static(features.normal_map):
-                bs.weight = bs.weight * normal_map_shadowing(hit, bs.wi)
-            path.throughput = wp.cw_mul(path.throughput, bs.weight)
-            path.d = bs.wi
-            path.depth += 1
+            # The next direction: the phase function's, or the BSDF's
             straight = bool(False)
-            if (bs.flags & BSDF_SPECULAR) != 0:
-                path.specular = True
-                path.segment_kind = wp.where((bs.flags & BSDF_TOTAL_INTERNAL) != 0, TOTAL_INTERNAL, REFLECTED)
-                if (bs.flags & BSDF_TRANSMISSION) != 0:
-                    path.media = interface.media
-                    path.n_media = interface.n_media
-                    straight = interface.eta == 1.0  # index-matched: straight on
-                    path.segment_kind = wp.where(straight, STRAIGHT, REFRACTED)
-            else:
-                path.prev_pdf = bs.pdf
+            if scatter_medium >= 0:
+                u = sample_2d(sampler, ray.pixel, ray.sample, bounce_dim(vertex, 0))
+                path.d = phase_sample(materials.media, scatter_medium, hit.wo, u)
+                path.prev_pdf = phase_value(materials.media, scatter_medium, hit.wo, path.d)
                 path.prev_p = hit.p
                 path.specular = False
                 path.segment_kind = SCATTERED
-                if wp.static(features.rough_dielectric):
-                    if (bs.flags & BSDF_TRANSMISSION) != 0:  # refracted through a rough dielectric
+                path.depth += 1
+            else:
+                uc = float(0.0)
+                u = wp.vec2(0.0)
+                if wp.static(features.specular):
+                    if (flags & BSDF_TRANSMISSION) != 0 or wp.static(features.plastic):  # a plastic: coating or base
+                        uc = sample_1d(sampler, ray.pixel, ray.sample, bounce_dim(vertex, 2))
+                if non_specular(flags):
+                    u = sample_2d(sampler, ray.pixel, ray.sample, bounce_dim(vertex, 0))
+                bs = wp.static(bsdf.sample)(
+                    materials, hit.material, hit.n_facing, hit.wo, interface.eta, uc, u, hit.uv, hit.front
+                )
+                if bs.pdf == 0.0:
+                    break
+                null_event = volumetric and (bs.flags & BSDF_THIN) != 0 and (bs.flags & BSDF_TRANSMISSION) != 0
+                if last and not null_event:
+                    break
+                if wp.static(features.normal_map):
+                    bs.weight = bs.weight * normal_map_shadowing(hit, bs.wi)
+                path.throughput = wp.cw_mul(path.throughput, bs.weight)
+                path.d = bs.wi
+                if null_event:
+                    path.nulls += 1
+                else:
+                    path.depth += 1
+                if (bs.flags & BSDF_SPECULAR) != 0:
+                    # a null surface keeps the last scattering's MIS state: shadow rays pass it
+                    if not (null_event and materials.type[hit.material] == NULL):
+                        path.specular = True
+                    path.segment_kind = wp.where((bs.flags & BSDF_TOTAL_INTERNAL) != 0, TOTAL_INTERNAL, REFLECTED)
+                    if (bs.flags & BSDF_TRANSMISSION) != 0:
                         path.media = interface.media
                         path.n_media = interface.n_media
+                        straight = interface.eta == 1.0  # index-matched: straight on
+                        path.segment_kind = wp.where(straight, STRAIGHT, REFRACTED)
+                else:
+                    path.prev_pdf = bs.pdf
+                    path.prev_p = hit.p
+                    path.specular = False
+                    path.segment_kind = SCATTERED
+                    if wp.static(features.rough_dielectric):
+                        if (bs.flags & BSDF_TRANSMISSION) != 0:  # refracted through a rough dielectric
+                            path.media = interface.media
+                            path.n_media = interface.n_media
+                if wp.static(features.media):
+                    if volumetric:  # the medium on the side the path leaves to, where the shape bounds media
+                        path.medium = boundary_medium(
+                            materials.media, hit.shape, wp.dot(path.d, hit.n) > 0.0, path.medium
+                        )
 
-            # Spawn the next segment; Russian roulette past RR_DEPTH
+            # Spawn the next segment (from a scattering event: at its point, hit.n and hit.err
+            # being 0); Russian roulette past RR_DEPTH
             if straight:
                 path.t_from = past_hit(path.o, hit.p, found.t)
                 path.t_last = found.t
@@ -411,16 +551,10 @@ def make_path_radiance(record: bool, features: Features = ALL, inline: bool | No
                 path.o = spawn_origin(hit.p, hit.n, hit.err, path.d)
                 path.t_from = 0.0
                 path.t_last = 0.0
-                if path.depth > RR_DEPTH:
-                    n_ratio = float(1.0)  # the throughput without the eta^2 radiance scaling
-                    if wp.static(features.dielectric):
-                        n_ratio = (
-                            current_ior(materials, settings.exterior_ior, path.media, path.n_media) / path.n_camera
-                        )
-                    q = wp.min(max_component(path.throughput) * n_ratio * n_ratio, 0.95)
-                    if sample_1d(sampler, ray.pixel, ray.sample, bounce_dim(path.depth, 3)) >= q:
-                        break
-                    path.throughput = path.throughput / q
+                q = roulette(materials, settings, sampler, ray, path)
+                if q == 0.0:
+                    break
+                path.throughput = path.throughput / q
         return path.radiance
 
     return path_radiance

@@ -16,7 +16,8 @@ kind       int32     how the ray was spawned: ``CAMERA``, ``SHADOW_LIT``, ``SHAD
                      ``REFLECTED``, ``REFRACTED``, ``TOTAL_INTERNAL``, ``STRAIGHT``, ``SCATTERED``
 flags      int32     ``HIT``: ends on a surface; ``ENTERING``: hits it from its front side (against
                      ``normal``); ``ESCAPED``: left the scene (a miss, or a shadow ray toward a
-                     directional light): ``end = origin + direction``, unit length
+                     directional light): ``end = origin + direction``, unit length;
+                     ``IN_MEDIUM``: ends at a scattering event in a participating medium
 origin     vec3      where the ray starts (offset off the surface it leaves, as traced)
 direction  vec3      the unit direction it was traced with
 time       float     its ray time (the camera sample's time in the shutter interval)
@@ -68,6 +69,7 @@ KIND_NAMES = (
 HIT = wp.constant(1)
 ENTERING = wp.constant(2)
 ESCAPED = wp.constant(4)
+IN_MEDIUM = wp.constant(8)
 
 
 @wp.struct
@@ -147,3 +149,16 @@ def record_ray(
             s.flags = ESCAPED
         rec.segments[i] = s
     return i
+
+
+@wp.func
+def end_in_medium(rec: RayRecord, index: wp.int32, p: wp.vec3):
+    """Make recorded segment ``index`` (as ``record_ray`` appended it, up to the surface beyond)
+    end at ``p``, where it scattered in a participating medium: ``IN_MEDIUM``, no surface."""
+    if index >= 0 and index < rec.segments.shape[0]:
+        s = rec.segments[index]
+        s.end = p
+        s.normal = wp.vec3(0.0)
+        s.shape = -1
+        s.flags = IN_MEDIUM
+        rec.segments[index] = s

@@ -7,6 +7,10 @@
   the medium the ray starts in over its length (a light in the same tinted glass or murky water
   as the point it lights, as a path reaching it by BSDF sampling is attenuated), from one any-hit
   query;
+- through media (the path integrator in a scene with participating media, Mitsuba 3's
+  ``volpath``): null surfaces let the shadow ray through, changing the medium it is in, and the
+  transmittance of each medium it crosses (``wrt.kernels.volumes``) attenuates it; any other
+  surface blocks it;
 - filtered (the lecture's, whitted's ``dielectric_shadows = "filtered"``): dielectrics let the
   shadow ray through in a straight line, attenuated by Beer-Lambert over the length inside them:
   up to the first surface in the medium it starts in, between an entering and a leaving surface
@@ -22,18 +26,71 @@ that decides visibility does not say where the blocker is).
 
 import warp as wp
 
-from .materials import BSDF_THIN, BSDF_TRANSMISSION, MaterialData, bsdf_flags, thin_transmittance
+from .materials import BSDF_THIN, BSDF_TRANSMISSION, NULL, MaterialData, bsdf_flags, thin_transmittance
 from .media import beer_lambert, max_component
 from .record import SHADOW_BLOCKED, SHADOW_LIT, RayRecord, record_ray
 from .spawn import spawn_origin
-from .traverse import NO_HIT, GeometryData, Traversal, hit_point, make_surface_point, prim_shape, ray_hit
+from .traverse import (
+    NO_HIT,
+    GeometryData,
+    Traversal,
+    hit_point,
+    hit_shape,
+    make_surface_point,
+    prim_shape,
+    ray_hit,
+)
+from .volumes import boundary_medium, volume_transmittance
 
 SHADOW_CROSSINGS = wp.constant(16)  # dielectric surfaces a filtered shadow ray may pass
 
 
-def make_shadow_ray(record: bool, trace: Traversal):
-    """``shadow_ray`` over the traversal ``trace``, recording when ``record`` (compiled out otherwise)."""
+def make_shadow_ray(record: bool, trace: Traversal, media: bool = False):
+    """``shadow_ray`` over the traversal ``trace``, recording when ``record`` and through
+    participating media and null surfaces when ``media`` (each compiled out otherwise)."""
     surface_point = make_surface_point(trace.features.disks or trace.features.cylinders)
+
+    @wp.func
+    def crossing(geometry: GeometryData, prim: wp.int32, inst: wp.int32, o: wp.vec3, w: wp.vec3, t: float, time: float):
+        """Where the shadow ray ``o + s w`` meets ``prim`` at ``s = t``: ``(p, n, err)``."""
+        if wp.static(trace.features.instances):
+            return hit_point(geometry, ray_hit(o, w, time, t, prim, inst))
+        return surface_point(geometry, prim, o, w, t, time)
+
+    @wp.func
+    def through_media(
+        geometry: GeometryData,
+        materials: MaterialData,
+        o: wp.vec3,
+        w: wp.vec3,
+        t_max: float,
+        time: float,
+        medium: wp.int32,
+    ):
+        """Follow a shadow ray ``o + s w`` that starts in participating medium ``medium`` through
+        the null surfaces on its way, changing medium at each (Mitsuba 3's ``volpath``): ``(transmittance,
+        t, prim, inst)`` as ``filtered``'s; any other surface blocks it."""
+        out = wp.vec3(1.0)
+        t_total = float(0.0)
+        current = medium
+        for _k in range(SHADOW_CROSSINGS):
+            t, prim, inst = trace.closest_hit(geometry, o, w, time, 0.0, t_max)
+            if prim == NO_HIT:
+                return (
+                    wp.cw_mul(out, volume_transmittance(materials.media, current, t_max)),
+                    t_total + t_max,
+                    prim,
+                    inst,
+                )
+            if materials.type[materials.shape_material[prim_shape(geometry, prim)]] != NULL:
+                return wp.vec3(0.0), t_total + t, prim, inst
+            out = wp.cw_mul(out, volume_transmittance(materials.media, current, t))
+            p, n, err = crossing(geometry, prim, inst, o, w, t, time)
+            current = boundary_medium(materials.media, hit_shape(geometry, prim, inst), wp.dot(w, n) > 0.0, current)
+            o = spawn_origin(p, n, err, w)
+            t_max = t_max - t
+            t_total += t
+        return wp.vec3(0.0), t_total + t_max, NO_HIT, -1
 
     @wp.func
     def passes(geometry: GeometryData, materials: MaterialData, prim: wp.int32) -> bool:
@@ -62,10 +119,7 @@ def make_shadow_ray(record: bool, trace: Traversal):
                 return wp.cw_mul(out, beer_lambert(sigma_now, t)), t_total + t, prim, inst
             if not passes(geometry, materials, prim):
                 return wp.vec3(0.0), t_total + t, prim, inst
-            if wp.static(trace.features.instances):
-                p, n, err = hit_point(geometry, ray_hit(o, w, time, t, prim, inst))
-            else:
-                p, n, err = surface_point(geometry, prim, o, w, t, time)
+            p, n, err = crossing(geometry, prim, inst, o, w, t, time)
             m = materials.shape_material[prim_shape(geometry, prim)]
             if (bsdf_flags(materials, m) & BSDF_THIN) != 0:  # a pane: the medium goes on beyond it
                 passed = thin_transmittance(materials, m, wp.dot(w, n))
@@ -98,10 +152,12 @@ def make_shadow_ray(record: bool, trace: Traversal):
         depth: wp.int32,
         parent: wp.int32,
         throughput: wp.vec3,
+        medium: wp.int32 = -1,
     ) -> wp.vec3:
         """Transmittance of the shadow ray ``o + s w``, ``0 < s < t_max``, toward a light (unit
-        ``w``), starting in a medium of absorption coefficient ``sigma`` (``medium_sigma``),
-        passing dielectrics when ``is_filtered``.
+        ``w``), starting in a dielectric of absorption coefficient ``sigma`` (``medium_sigma``),
+        passing dielectrics when ``is_filtered``; in a scene with participating media (compiled in
+        with ``media``) starting in ``medium`` and passing null surfaces (``through_media``).
 
         Recording: the ray is segment ``depth`` of its path, child of record ``parent``, carrying
         ``throughput`` times its transmittance."""
@@ -109,8 +165,13 @@ def make_shadow_ray(record: bool, trace: Traversal):
         t_stop = float(t_max)
         prim_stop = int(NO_HIT)
         inst_stop = int(-1)
+        followed = is_filtered  # the blocker is known: no query to find it for the record
         if is_filtered:
             visible, t_stop, prim_stop, inst_stop = filtered(geometry, materials, o, w, t_max, time, sigma)
+        elif wp.static(media) and materials.media.count > 0:
+            visible, t_stop, prim_stop, inst_stop = through_media(geometry, materials, o, w, t_max, time, medium)
+            visible = wp.cw_mul(visible, beer_lambert(sigma, t_max))
+            followed = True
         elif not trace.any_hit(geometry, o, w, time, 0.0, t_max):
             visible = beer_lambert(sigma, t_max)
         if wp.static(record):
@@ -127,7 +188,7 @@ def make_shadow_ray(record: bool, trace: Traversal):
                     parent,
                 )
             else:
-                if not is_filtered:  # the any-hit query does not say where the blocker is
+                if not followed:  # the any-hit query does not say where the blocker is
                     t_stop, prim_stop, inst_stop = trace.closest_hit(geometry, o, w, time, 0.0, t_max)
                 record_ray(
                     rec,

@@ -79,6 +79,7 @@ RELEVANT = {
         "smooth",
         "textures",
         "normal_map",
+        "media",
     ),
 }
 """The flags each integrator's variants are specialised on besides those (``relevant``)."""
@@ -90,9 +91,9 @@ def relevant(integrator: str, features: Features) -> Features:
     measurable work are specialised on (see docs/performance.md): the geometry (primitive kinds,
     instances, moving surfaces) and the pixel loop's camera (lens, orthographic) and shutter sampling for
     every integrator; textures (the hit's uv) for raycast; lights, the branch stack, smooth shading,
-    textures and normal maps for whitted; lights,
-    dielectrics, rough dielectrics, plastics, masks, smooth shading, textures, normal maps, environment maps and
-    emissive primitives for path (its mirror test is a load and a compare: path ignores ``specular``;
+    textures and normal maps for whitted; lights, dielectrics, rough dielectrics, plastics, masks,
+    null surfaces, smooth shading, textures, normal maps, environment maps, emissive primitives and
+    participating media for path (its mirror test is a load and a compare: path ignores ``specular``;
     raycast's one shading normal per camera ray is not worth one)."""
     return only(features, EVERY_INTEGRATOR + RELEVANT[integrator])
 

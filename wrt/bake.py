@@ -6,6 +6,8 @@ upload, ``wrt.device``, rounds to float32 and converts to Warp arrays, nothing m
   surface light), each material's type code, lobes, base colour, relative ior and absorption, a
   mask's inner material, their textures' table, and each family's own table (``Family.bake``: the plastics' coating
   tables).
+- ``bake_media``: the participating media (``wrt.kernels.volumes.MediumData``) and the media
+  each surface bounds.
 - ``bake_lights``: one row per light (``wrt.kernels.lights.LightData``), the environment map's
   sampling distribution (``wrt.envmap``) and the pool of emissive primitives (``wrt.emitting``).
 - ``camera_media``: the dielectric volumes the camera starts inside, found with a float64 twin of
@@ -20,6 +22,7 @@ import numpy as np
 
 from wrt.kernels.lights import light_row
 from wrt.kernels.materials import FAMILIES, FAMILY_OF, TYPES, lobe_flags, mask_flags
+from wrt.kernels.volumes import UNSET
 
 from .emitting import EmittingPrimitives, emitting_primitives
 from .envmap import environment_distribution
@@ -28,6 +31,7 @@ from .scene import (
     SURFACE_LIGHTS,
     EnvironmentLight,
     Material,
+    Medium,
     Mesh,
     Scene,
     Sphere,
@@ -103,6 +107,25 @@ def bake_materials(scene: Scene) -> BakedMaterials:
         textures=texture_table(materials),
         tables={family.name: family.bake(materials, exterior) for family in FAMILIES if family.data is not None},
     )
+
+
+def bake_media(scene: Scene) -> dict[str, np.ndarray]:
+    """``MediumData``'s columns: per surface (``surface_materials``' numbering) the media its shape
+    bounds (``UNSET`` for none), per medium its extinction (``scale`` applied), albedo and phase
+    asymmetry (0 for isotropic); one placeholder row where there are none."""
+    surfaces = len(surface_materials(scene)[0])
+    interior = np.full(max(surfaces, 1), UNSET, dtype=np.int32)
+    exterior = interior.copy()
+    for shape, inside, outside in scene.boundaries:
+        interior[shape], exterior[shape] = inside, outside
+    media = scene.media or (Medium(name="placeholder"),)
+    return {
+        "shape_interior": interior,
+        "shape_exterior": exterior,
+        "sigma_t": np.array([np.multiply(m.sigma_t, m.scale) for m in media]),
+        "albedo": np.array([m.albedo for m in media]),
+        "g": np.array([m.g for m in media]),
+    }
 
 
 @dataclass

@@ -22,9 +22,10 @@ from wrt.kernels.media import MEDIA, Media
 from wrt.kernels.sampling import INDEPENDENT, SOBOL, STRATIFIED, Sampler
 from wrt.kernels.textures import TextureData
 from wrt.kernels.traverse import GeometryData, mat24
+from wrt.kernels.volumes import MediumData
 
 from .aot import install, install_cuda
-from .bake import bake_lights, bake_materials, camera_media, surface_materials
+from .bake import bake_lights, bake_materials, bake_media, camera_media, surface_materials
 from .emitting import EmittingPrimitives
 from .errors import WrtError
 from .geometry import Primitives
@@ -162,6 +163,8 @@ def upload_materials(scene: Scene, device) -> MaterialData:
     for family in FAMILIES:
         if family.data is not None:
             setattr(m, family.name, _table(family.data, baked.tables[family.name], device))
+    m.media = _table(MediumData, bake_media(scene), device)
+    m.media.count = len(scene.media)
     return m
 
 
@@ -189,10 +192,14 @@ def _texture_data(table: TextureTable, device) -> TextureData:
 
 def _table(struct, columns: dict, device):
     """An instance of the ``wp.struct`` ``struct`` whose array fields are ``columns`` (numpy, by
-    field name), each converted to the field's dtype (float64 rounded to float32 here)."""
+    field name), each converted to the field's dtype (float64 rounded to float32 here); its other
+    fields are left for the caller."""
     table = struct()
     for name, var in struct.vars.items():
-        values = np.asarray(columns[name], dtype=wp.dtype_to_numpy(var.type.dtype))
+        if not wp.types.is_array(var.type):
+            continue
+        dtype = var.type.dtype
+        values = np.asarray(columns[name], dtype=wp.dtype_to_numpy(getattr(dtype, "_wp_scalar_type_", dtype)))
         setattr(table, name, wp.array(values, dtype=var.type.dtype, device=device))
     return table
 
@@ -262,6 +269,7 @@ def integrator_settings(scene: Scene) -> IntegratorSettings:
     s.exterior_ior = render.exterior_ior
     s.filtered_shadows = int(render.dielectric_shadows == "filtered")
     s.min_throughput = render.min_throughput
+    s.camera_medium = scene.camera_medium
     return s
 
 

@@ -1,8 +1,8 @@
 """Load and validate a TOML scene file into ``wrt.scene`` dataclasses.
 
 Every problem is reported as one ``SceneError`` naming the file, the table (``render``,
-``camera``, ``material[i]``, ``shape[i]``, ``light[i]``; ``i`` counts from 0 in file order), the
-key and the offending value. The format is documented in ``docs/scene-format.md``.
+``camera``, ``material[i]``, ``medium[i]``, ``shape[i]``, ``light[i]``; ``i`` counts from 0 in
+file order), the key and the offending value. The format is documented in ``docs/scene-format.md``.
 """
 
 from __future__ import annotations
@@ -21,7 +21,9 @@ from .envmap import EnvironmentMapError, read_environment_map
 from .errors import MeshFileError, SceneError, listed
 from .files import TomlError, read_toml
 from .kernels.lights import LIGHT_TYPES
-from .kernels.materials import TYPES
+from .kernels.materials import FAMILY_OF, TYPES
+from .kernels.volumes import MEDIUM_TYPES as MEDIUM_REGISTRY
+from .kernels.volumes import PHASE_TYPES as PHASE_REGISTRY
 from .limits import MAX_DEPTH, MAX_IMAGE_SIDE, MAX_MAGNITUDE, MAX_SEED, MAX_SPP
 from .meshio import apply_transform, load_mesh, transform_matrix, transform_normals, vertex_normals
 from .scene import (
@@ -30,6 +32,8 @@ from .scene import (
     FILTERS,
     INTEGRATORS,
     MATERIAL_TYPES,
+    MEDIUM_TYPES,
+    PHASE_TYPES,
     SAMPLERS,
     STILL,
     AreaLight,
@@ -41,6 +45,7 @@ from .scene import (
     Group,
     Instance,
     Material,
+    Medium,
     Mesh,
     Plane,
     PointLight,
@@ -54,7 +59,7 @@ from .scene import (
 )
 from .textures import SLOTS, Bitmap, read_texture
 
-TOP_LEVEL = ("render", "camera", "material", "group", "shape", "light")
+TOP_LEVEL = ("render", "camera", "material", "medium", "group", "shape", "light")
 SHAPE_TYPES = ("sphere", "plane", "triangle", "polygon", "mesh", "disk", "cylinder", "instance")
 GROUP_SHAPE_TYPES = ("sphere", "triangle", "polygon", "mesh", "disk", "cylinder")  # bounded: what a [[group]] holds
 MESH_SHADING = ("flat", "smooth")  # a mesh's shading normals: its face normals, or interpolated vertex normals
@@ -223,8 +228,10 @@ MIN_ORTHOGRAPHIC_WIDTH = 2 * MAX_IMAGE_SIDE * FLOAT32_TINY
 float32 at any aspect."""
 
 
-def _camera(file: str, data) -> Camera:
+def _camera(file: str, data, media_index: Mapping[str, int]) -> tuple[Camera, int | None]:
+    """The camera, and the index of the medium it is in (``medium``; None: vacuum)."""
     t = _Table(file, "camera", data)
+    medium = _medium_ref(t, "medium", media_index)
     kind = t.string("type", Camera.type, CAMERA_TYPES)
     for other, keys in _CAMERA_KEYS.items():
         for key in keys:
@@ -283,7 +290,7 @@ def _camera(file: str, data) -> Camera:
             "does not normalise (its squared length underflows)",
             list(up),
         )
-    return Camera(
+    camera = Camera(
         origin=origin,
         look_at=look_at,
         up=up,
@@ -293,6 +300,7 @@ def _camera(file: str, data) -> Camera:
         far_clip=far_clip,
         **projection,
     )
+    return camera, medium
 
 
 def _conductor(t: _Table, scene_dir: str, textures: list) -> dict:
@@ -409,6 +417,49 @@ def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
             list(material.specular),
         )
     return material
+
+
+def _colour(t: _Table, key: str, default: tuple, hi: float = math.inf) -> tuple[float, float, float]:
+    """An RGB value ``[r, g, b]`` or one number for all three, each in ``[0, hi]``."""
+    value = t.get(key, default)
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return (t.number(key, lo=0.0, hi=hi),) * 3
+    return t.vec3(key, default, lo=0.0, hi=hi)
+
+
+def _medium(file: str, index: int, data) -> Medium:
+    t = _Table(file, f"medium[{index}]", data)
+    kind = t.string("type", Medium.type, MEDIUM_TYPES)
+    readers = {
+        "sigma_t": lambda: _colour(t, "sigma_t", Medium.sigma_t),
+        "albedo": lambda: _colour(t, "albedo", Medium.albedo, hi=1.0),
+        "scale": lambda: t.number("scale", Medium.scale, lo=0.0),
+    }
+    values = {"name": t.string("name"), "type": kind}
+    values.update({key: readers[key]() for key in MEDIUM_REGISTRY[kind].keys})
+    phase = _Table(file, f"medium[{index}].phase", t.get("phase", {"type": Medium.phase}))
+    values["phase"] = phase.string("type", Medium.phase, PHASE_TYPES)
+    if "g" in PHASE_REGISTRY[values["phase"]].keys:
+        values["g"] = phase.number("g", Medium.g, lo=-1.0, hi=1.0, lo_open=True, hi_open=True)
+    phase.finish()
+    t.finish()
+    medium = Medium(**values)
+    extinction = np.multiply(medium.sigma_t, medium.scale)
+    if not np.all(extinction <= MAX_MAGNITUDE):
+        raise t.error("scale", f"times sigma_t = {list(medium.sigma_t)}: {BEYOND_FLOAT32}", medium.scale)
+    return medium
+
+
+def _medium_ref(t: _Table, key: str, media_index: Mapping[str, int]) -> int | None:
+    """The index of the medium named by ``key`` (a shape's ``interior``/``exterior``, the camera's
+    ``medium``), or None where the key is absent."""
+    name = t.get(key, None)
+    if name is None:
+        return None
+    if not isinstance(name, str) or name not in media_index:
+        known = listed(media_index) or "none defined"
+        raise t.error(key, f"no [[medium]] with this name (known: {known})", name)
+    return media_index[name]
 
 
 def _newell_normal(t: _Table, vertices: tuple) -> tuple[float, float, float]:
@@ -556,11 +607,20 @@ def _shape(
     scene_dir: str,
     group_index: Mapping[str, int] | None = None,
     textured: frozenset = frozenset(),
+    media_index: Mapping[str, int] | None = None,
 ):
-    """The shape of table ``name`` (``shape[3]``, or ``group[0].shape[1]`` without ``group_index``:
-    a group's shapes are bounded, still and not instances); ``textured``: the indices of materials
-    with textures (their meshes' texture coordinates are read)."""
+    """``(shape, boundary)`` of table ``name`` (``shape[3]``, or ``group[0].shape[1]`` without
+    ``group_index``: a group's shapes are bounded, still, not instances and bound no media);
+    ``textured``: the indices of materials with textures (their meshes' texture coordinates are
+    read). ``boundary``: for a shape of the scene (``media_index``: the media by name), the
+    ``(interior, exterior)`` media it bounds (-1 for the side it does not name); None where it
+    names neither, and for a group's shape."""
     t = _Table(file, name, data)
+    boundary = None
+    if media_index is not None:
+        inside, outside = _medium_ref(t, "interior", media_index), _medium_ref(t, "exterior", media_index)
+        if inside is not None or outside is not None:
+            boundary = (-1 if inside is None else inside, -1 if outside is None else outside)
     kind = t.string("type", choices=SHAPE_TYPES if group_index is not None else GROUP_SHAPE_TYPES)
     name = t.get("material", None)
     if name is None:
@@ -598,7 +658,7 @@ def _shape(
         shape = Instance(group=group_index[group], matrix=_transform(t), material=material)
     velocity = t.vec3("velocity", STILL) if group_index is not None else STILL
     t.finish()
-    return dataclasses.replace(shape, velocity=velocity) if velocity != STILL else shape
+    return (dataclasses.replace(shape, velocity=velocity) if velocity != STILL else shape), boundary
 
 
 def _polygon_uvs(t: _Table, count: int) -> tuple | None:
@@ -626,7 +686,7 @@ def _group(
     if not isinstance(tables, list) or not tables or not all(isinstance(x, dict) for x in tables):
         raise t.error("shape", "must be a non-empty array of tables, written [[group.shape]]", tables)
     shapes = tuple(
-        _shape(file, f"group[{index}].shape[{j}]", table, material_index, scene_dir, textured=textured)
+        _shape(file, f"group[{index}].shape[{j}]", table, material_index, scene_dir, textured=textured)[0]
         for j, table in enumerate(tables)
     )
     t.finish()
@@ -718,7 +778,12 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
     if "camera" not in doc:
         raise SceneError(file, "camera", None, "is required")
     render = _render(file, doc.get("render", {}))
-    camera = _camera(file, doc["camera"])
+    media = [_medium(file, i, m) for i, m in enumerate(_array_of_tables(file, doc, "medium"))]
+    media_index: dict[str, int] = {}
+    for i, m in enumerate(media):
+        if media_index.setdefault(m.name, i) != i:
+            raise SceneError(file, f"medium[{i}]", "name", "is already used", m.name)
+    camera, camera_medium = _camera(file, doc["camera"], media_index)
     materials = [_material(file, i, m, scene_dir) for i, m in enumerate(_array_of_tables(file, doc, "material"))]
     material_index: dict[str, int] = {}
     for i, m in enumerate(materials):
@@ -749,10 +814,12 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
     for i, group in enumerate(groups):
         if group_index.setdefault(group.name, i) != i:
             raise SceneError(file, f"group[{i}]", "name", "is already used", group.name)
-    shapes = [
-        _shape(file, f"shape[{i}]", s, material_index, scene_dir, group_index, textured)
-        for i, s in enumerate(_array_of_tables(file, doc, "shape"))
-    ]
+    shapes, boundaries = [], []
+    for i, s in enumerate(_array_of_tables(file, doc, "shape")):
+        shape, boundary = _shape(file, f"shape[{i}]", s, material_index, scene_dir, group_index, textured, media_index)
+        shapes.append(shape)
+        if boundary is not None:
+            boundaries.append((i, *boundary))
     longest_time = max(abs(c) for c in camera.shutter)
     for i, shape in enumerate(shapes):  # a moving shape's displacement is a coordinate too
         displacement = float(np.linalg.norm(shape.velocity)) * longest_time
@@ -770,7 +837,7 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
     if len(maps) > 1:
         raise SceneError(file, f"light[{maps[1]}]", "file", f"a second environment map (light[{maps[0]}] has one)")
     if render.integrator == "whitted":
-        _check_whitted(file, lights, materials)
+        _check_whitted(file, lights, materials, media)
     return Scene(
         render=render,
         camera=camera,
@@ -779,12 +846,24 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
         lights=tuple(lights),
         path=file,
         groups=tuple(groups),
+        media=tuple(media),
+        boundaries=tuple(boundaries),
+        camera_medium=-1 if camera_medium is None else camera_medium,
     )
 
 
-def _check_whitted(source: str, lights, materials) -> None:
-    """Refuse what the whitted integrator cannot render: lights that are surfaces or a sky, and
-    materials with glossy or stochastic lobes (``SceneError`` naming ``source``, the entry and its type)."""
+def _check_whitted(source: str, lights, materials, media) -> None:
+    """Refuse what the whitted integrator cannot render: lights that are surfaces or a sky,
+    materials with glossy or stochastic lobes and participating media (``SceneError`` naming
+    ``source``, the entry and its type)."""
+    if media:
+        raise SceneError(
+            source,
+            "medium[0]",
+            "type",
+            'the whitted integrator traces no participating media (scattering needs integrator = "path")',
+            media[0].type,
+        )
     for i, light in enumerate(lights):
         if isinstance(light, (AreaLight, SphereLight, EnvironmentLight)):
             raise SceneError(
@@ -796,7 +875,7 @@ def _check_whitted(source: str, lights, materials) -> None:
                 light.type,
             )
     for i, material in enumerate(materials):
-        if material.type in ("rough_dielectric", "mask"):
+        if not FAMILY_OF[material.type].whitted:
             raise SceneError(
                 source,
                 f"material[{i}]",

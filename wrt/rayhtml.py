@@ -32,6 +32,7 @@ from .rayview import (
     NORMAL_COLOR,
     NORMAL_FRACTION,
     PLANE_OPACITY,
+    SCATTER_COLOR,
     _drawing_box,
     _folder_of,
     _legend,
@@ -128,11 +129,18 @@ def _html_scene(tree: RayTree, view: tuple[float, float] | None) -> dict:
         if blocks[part].n_cells:
             starts, ends = _polydata_lines(blocks[part])
             lines.append(_html_lines(starts, ends, np.tile(_rgba(color, alpha), (len(starts), 2, 1)), width))
-    hits = blocks["hits"]
+    hits, scatterings = blocks["hits"], blocks["scatterings"]
     balls, arrows = None, None
+    if hits.n_points or scatterings.n_points:
+        colors = [_rgb255(KIND_COLORS[k]) for k in hits.point_data["kind"]] if hits.n_points else []
+        colors += [_rgb255(SCATTER_COLOR)] * scatterings.n_points
+        points = np.concatenate([np.asarray(b.points).reshape(-1, 3) for b in (hits, scatterings)])
+        balls = {
+            "positions": _b64(points, "<f4"),
+            "colors": _b64(np.array(colors, dtype=np.uint8), "u1"),
+            "radius": HIT_FRACTION * size,
+        }
     if hits.n_points:
-        colors = np.array([_rgb255(KIND_COLORS[k]) for k in hits.point_data["kind"]], dtype=np.uint8)
-        balls = {"positions": _b64(hits.points, "<f4"), "colors": _b64(colors, "u1"), "radius": HIT_FRACTION * size}
         arrows = {
             "positions": _b64(hits.points, "<f4"),
             "directions": _b64(hits.point_data["facing_normal"], "<f4"),

@@ -23,6 +23,7 @@ from wrt.kernels.record import (
     ENTERING,
     ESCAPED,
     HIT,
+    IN_MEDIUM,
     KIND_NAMES,
     SHADOW_BLOCKED,
     SHADOW_LIT,
@@ -75,8 +76,9 @@ class RayTree:
         Start; end (hit point, the light for a shadow ray reaching a point or spot light, or
         ``origin + direction`` for an escaped ray); unit direction; unit geometric normal at the
         hit (outward / winding normal, not flipped; 0 without a hit); path weight carried.
-    hit, entering, escaped : (N,) bool
-        Ends on a surface; hits it from its front side (against ``normal``); left the scene.
+    hit, entering, escaped, in_medium : (N,) bool
+        Ends on a surface; hits it from its front side (against ``normal``); left the scene; ends
+        at a scattering event in a participating medium (the next segments start there).
     time : (N,) float32
         Ray time of each segment (its camera sample's time in the shutter interval).
     recorded : int
@@ -110,6 +112,7 @@ class RayTree:
     hit: np.ndarray
     entering: np.ndarray
     escaped: np.ndarray
+    in_medium: np.ndarray
     time: np.ndarray
     recorded: int
     visit_row: np.ndarray
@@ -233,6 +236,7 @@ def trace_rays(
         hit=(flags & HIT) != 0,
         entering=(flags & ENTERING) != 0,
         escaped=(flags & ESCAPED) != 0,
+        in_medium=(flags & IN_MEDIUM) != 0,
         time=seg["time"],
         recorded=recorded,
         visit_row=visit_row,

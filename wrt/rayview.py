@@ -15,6 +15,8 @@ misses      one line per escaped segment, ``MISS_FRACTION`` of the drawing's siz
             ``rgba`` fading from the kind's colour to transparent; cell data as ``segments``
 hits        the hit points, point data ``normal`` (unit geometric normal), ``facing_normal`` (flipped
             to the side the ray came from), ``kind``, ``shape``, ``entering``, ``row``
+scatterings the scattering events in participating media (the ends of ``RayTree.in_medium``
+            segments), point data ``depth``, ``row``
 lights      one piece per light that has a place, named ``light[k] TYPE`` (k: its index in
             ``[[light]]``), cell data ``color``: point and spot lights as a vertex, a directional
             light as a line along the direction it travels, a sphere light as its sphere, an area
@@ -79,6 +81,7 @@ NORMAL_COLOR = "#404040"
 LIGHT_COLOR = "#ffd000"
 LIGHT_BACK_COLOR = "#8c7a3a"  # the back of an area light, which emits nothing
 BVH_COLOR = "#7f8c9a"
+SCATTER_COLOR = "#5a4fcf"  # a scattering event in a participating medium
 MISS_FRACTION = 0.25  # misses are drawn this fraction of the drawing's size long (_drawing_box)
 HIT_FRACTION = 0.006  # radius of the hit spheres
 QUADRIC_SIDES = 96  # vertices of the rims of disks and tubes
@@ -278,6 +281,12 @@ def ray_blocks(tree: RayTree) -> pv.MultiBlock:
         hits.point_data["entering"] = tree.entering[hit_rows].astype(np.uint8)
         hits.point_data["row"] = hit_rows
 
+    scatter_rows = np.flatnonzero(tree.in_medium)
+    scatterings = pv.PolyData(tree.end[scatter_rows].astype(np.float64)) if len(scatter_rows) else pv.PolyData()
+    if len(scatter_rows):
+        scatterings.point_data["depth"] = tree.depth[scatter_rows]
+        scatterings.point_data["row"] = scatter_rows
+
     starts, directions = scene.camera.corner_rays(scene.render.width / scene.render.height)
     view = np.concatenate([starts, starts + 0.08 * size * directions])  # a pyramid, or a box (orthographic)
     edges = [[k, 4 + k] for k in range(4)] + [[ring + k, ring + (k + 1) % 4] for ring in (0, 4) for k in range(4)]
@@ -288,6 +297,7 @@ def ray_blocks(tree: RayTree) -> pv.MultiBlock:
     blocks["segments"] = segments
     blocks["misses"] = misses
     blocks["hits"] = hits
+    blocks["scatterings"] = scatterings
     blocks["lights"] = _light_blocks(scene, centre, size)
     blocks["camera"] = camera
     blocks["bvh"] = _box_edges(tree)
@@ -452,6 +462,8 @@ def _legend(tree: RayTree, blocks: pv.MultiBlock) -> list[list[str]]:
     legend = [[RayTree.KIND_NAMES[k], KIND_COLORS[k]] for k in sorted(set(tree.kind.tolist()))]
     if tree.hit.any():
         legend.append(["surface normal", NORMAL_COLOR])
+    if tree.in_medium.any():
+        legend.append(["scattering in a medium", SCATTER_COLOR])
     if len(blocks["lights"]):
         legend.append(["light", LIGHT_COLOR])
     if any(isinstance(light, AreaLight) for light in tree.scene.lights):
@@ -519,6 +531,10 @@ def draw(plotter: pv.Plotter, tree: RayTree, view: tuple[float, float] | None = 
         plotter.add_mesh(balls, scalars="color", rgb=True, show_scalar_bar=False)
         arrow = pv.Arrow(tip_length=0.3, tip_radius=0.08, shaft_radius=0.025, scale=NORMAL_FRACTION * size)
         plotter.add_mesh(hits.glyph(orient="facing_normal", scale=False, geom=arrow), color=NORMAL_COLOR)
+    scatterings = blocks["scatterings"]
+    if scatterings.n_points:
+        ball = pv.Sphere(radius=HIT_FRACTION * size, theta_resolution=12, phi_resolution=12)
+        plotter.add_mesh(scatterings.glyph(geom=ball, orient=False, scale=False), color=SCATTER_COLOR)
     boxes = blocks["bvh"]
     if boxes.n_cells:
         plotter.add_mesh(boxes, color=BVH_COLOR, opacity=0.6, line_width=1, lighting=False)

@@ -107,6 +107,7 @@ def scene_features(scene: Scene) -> Features:
         smooth=any(isinstance(shape, Mesh) and shape.normals is not None for shape in (*scene.shapes, *members)),
         textures=any(m.textures for m in used),
         normal_map=any(name == "normal_map" for m in used for name, _ in m.textures),
+        media=bool(scene.media),
     )
 
 

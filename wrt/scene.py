@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from wrt.kernels.materials import TYPES
+from wrt.kernels.volumes import MEDIUM_TYPES as MEDIUM_REGISTRY
+from wrt.kernels.volumes import PHASE_TYPES as PHASE_REGISTRY
 
 INTEGRATORS = ("raycast", "whitted", "path")
 SAMPLERS = ("independent", "stratified", "sobol")
@@ -138,6 +140,29 @@ class Material:
     opacity: float = 0.5
     material: str = ""  # mask: the name of the material it masks
     textures: tuple = ()  # (parameter, wrt.textures texture) pairs; the parameter's own value is its mean
+
+
+MEDIUM_TYPES = tuple(MEDIUM_REGISTRY)
+"""The ``type`` values of ``[[medium]]`` (``wrt.kernels.volumes``)."""
+PHASE_TYPES = tuple(PHASE_REGISTRY)
+"""The ``type`` values of a medium's ``phase`` table."""
+
+
+@dataclass(frozen=True)
+class Medium:
+    """``[[medium]]``: a participating medium (Mitsuba 3's ``homogeneous``): extinction ``sigma_t``
+    (per scene unit, times ``scale``) and single-scattering ``albedo`` (``sigma_s / sigma_t``, in
+    [0, 1]), both linear RGB; its phase function ``phase`` (``isotropic``, or ``hg``:
+    Henyey-Greenstein of asymmetry ``g`` in (-1, 1), ``g > 0`` forward). A shape's ``interior`` and
+    ``exterior`` and the camera's ``medium`` name media (``Scene.boundaries``, ``Scene.camera_medium``)."""
+
+    name: str
+    type: str = "homogeneous"
+    sigma_t: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    albedo: tuple[float, float, float] = (0.75, 0.75, 0.75)
+    scale: float = 1.0
+    phase: str = "isotropic"
+    g: float = 0.0
 
 
 STILL = (0.0, 0.0, 0.0)
@@ -360,7 +385,9 @@ Shape = Sphere | Plane | Triangle | Polygon | Mesh | Disk | Cylinder | Instance
 @dataclass(frozen=True, eq=False)
 class Scene:
     """A whole scene. ``shapes`` keep file order: a shape's index is its ``object_id``;
-    ``approximations`` lists what an ``--approximate`` Mitsuba import rendered differently."""
+    ``approximations`` lists what an ``--approximate`` Mitsuba import rendered differently.
+    ``boundaries`` lists the shapes that bound participating media (they name an ``interior`` or
+    an ``exterior`` medium; the other side, unnamed, is vacuum), in shape order."""
 
     render: RenderSettings
     camera: Camera
@@ -370,6 +397,9 @@ class Scene:
     path: str = "<memory>"
     approximations: tuple[str, ...] = ()
     groups: tuple[Group, ...] = ()
+    media: tuple[Medium, ...] = ()
+    boundaries: tuple[tuple[int, int, int], ...] = ()  # (shape, interior, exterior) medium indices, -1: vacuum
+    camera_medium: int = -1  # the medium the camera is in; -1: vacuum
 
     def surface_points(self, sides: int) -> np.ndarray:
         """Points (n, 3), float64, whose box holds every bounded shape and every light surface:

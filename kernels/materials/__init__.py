@@ -12,11 +12,12 @@ new module here, listed in ``FAMILIES``, with its tests and docs.
 
 Families: ``diffuse`` (Lambert), ``phong``, ``conductor`` (``mirror``, ``glossy``, ``conductor``),
 ``dielectric``, ``thin_dielectric``, ``rough_dielectric``, ``plastic`` (``plastic``,
-``rough_plastic``), ``mask``, and ``emitter`` (``EMITTER``, the surface of an area or sphere light:
-it reflects nothing). Any type may emit ``emission`` (W/(m^2 sr)) from its front side.
-``base_color`` is what the raycast integrator shows. A material that is not ``two_sided``
-(one-sided, as Mitsuba 3's diffuse and conductors) reflects nothing on its back side, the side its
-surface's shading normal points away from (``wrt.kernels.hit``).
+``rough_plastic``), ``mask``, ``null`` (no surface: a medium's boundary), and ``emitter``
+(``EMITTER``, the surface of an area or sphere light: it reflects nothing). Any type may emit
+``emission`` (W/(m^2 sr)) from its front side. ``base_color`` is what the raycast integrator
+shows. A material that is not ``two_sided`` (one-sided, as Mitsuba 3's diffuse and conductors)
+reflects nothing on its back side, the side its surface's shading normal points away from
+(``wrt.kernels.hit``).
 
 The BSDF interface (pbrt-v4's ``BSDF::f / Sample_f / PDF / Flags``, Mitsuba 3's ``eval / sample /
 pdf / flags``): integrators ask these functions and never test a material's type.
@@ -64,7 +65,7 @@ from typing import NamedTuple
 import warp as wp
 
 from .. import hinted_func
-from . import conductor, dielectric, diffuse, mask, phong, plastic, rough_dielectric, thin_dielectric
+from . import conductor, dielectric, diffuse, mask, null, phong, plastic, rough_dielectric, thin_dielectric
 from .conductor import CONDUCTOR, GLOSSY, MIRROR
 from .data import MaterialData, parameters
 from .dielectric import DIELECTRIC
@@ -87,6 +88,7 @@ from .interface import (
     no_lobes,
 )
 from .mask import MASK, mask_flags
+from .null import NULL
 from .phong import PHONG
 from .plastic import COATING_RES, PLASTIC, ROUGH_PLASTIC
 from .rough_dielectric import ROUGH_DIELECTRIC
@@ -103,6 +105,7 @@ FAMILIES: tuple[Family, ...] = (
     rough_dielectric.FAMILY,
     plastic.FAMILY,
     mask.FAMILY,
+    null.FAMILY,
     Family(name="emitter", types=(MaterialType("emitter", EMITTER, (), 0),), base_color="emission"),
 )
 """Every material family, in the order the dispatch tests them."""
@@ -140,6 +143,7 @@ __all__ = [
     "MATERIAL_FLAGS",
     "MIN_ALPHA",
     "MIRROR",
+    "NULL",
     "NULL_LOBE",
     "PHONG",
     "PLASTIC",

@@ -12,6 +12,7 @@ from typing import NamedTuple
 import warp as wp
 
 from ..textures import ROUGHNESS, TextureData, material_rgb, texture_float
+from ..volumes import MediumData
 from .interface import MIN_ALPHA
 from .plastic import PlasticData
 
@@ -39,6 +40,7 @@ class MaterialData:
     inner: wp.array(dtype=wp.int32)  # mask: the index of the material it masks (-1 for other types)
     opacity: wp.array(dtype=float)  # mask: the probability of its inner material (textured: slot OPACITY)
     plastic: PlasticData  # the plastics' own table (wrt.kernels.materials.plastic)
+    media: MediumData  # the participating media and the surfaces that bound them (wrt.kernels.volumes)
 
 
 class Parameters(NamedTuple):

@@ -251,7 +251,7 @@ def test_export_reopens_with_pyvista(tmp_path):
     tree = trace_rays(scene, [(16, 16), (10, 20)])
     rayview.export(tree, str(tmp_path / "rays.vtm"))
     blocks = pv.read(tmp_path / "rays.vtm")
-    assert list(blocks.keys()) == ["geometry", "segments", "misses", "hits", "lights", "camera", "bvh"]
+    assert list(blocks.keys()) == ["geometry", "segments", "misses", "hits", "scatterings", "lights", "camera", "bvh"]
     assert blocks["bvh"] is None or blocks["bvh"].n_cells == 0  # no --show-bvh: an empty block
     assert list(blocks["geometry"].keys()) == ["shape[0] sphere", "shape[1] plane"]
     ends, escaped = np.flatnonzero(~tree.escaped), np.flatnonzero(tree.escaped)

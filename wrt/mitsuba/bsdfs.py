@@ -275,6 +275,8 @@ class Materials:
                 },
                 True,
             )
+        elif p.type == "null":
+            material = Material({"type": "null"}, True)
         elif p.type == "mask":
             return self._mask(p)
         elif p.type == "normalmap":

@@ -10,6 +10,7 @@ from ..errors import SceneError, WrtError, shown, token
 from .bsdfs import Materials
 from .emitters import emitter
 from .instances import instance, shapegroup
+from .media import Media
 from .sensors import integrator, sensor
 from .shapes import shape
 from .xml import Document, Element, read_xml
@@ -102,7 +103,10 @@ def convert(doc: Document, root: Element, sources: dict[str, Element]) -> dict:
     for extra in sensors[1:] + integrators[1:]:
         doc.warn(extra, "only the first sensor and integrator are converted: ignored")
     sources["camera"] = sources["render"] = sensors[0] if sensors else root
-    render, camera = sensor(doc, sensors[0] if sensors else Element("sensor", {"type": "perspective"}, root.line))
+    media = Media(doc)
+    render, camera = sensor(
+        doc, sensors[0] if sensors else Element("sensor", {"type": "perspective"}, root.line), media
+    )
     render.update(integrator(doc, integrators[0] if integrators else None))
     materials = Materials(doc)
     shapes: list[dict] = []
@@ -116,18 +120,21 @@ def convert(doc: Document, root: Element, sources: dict[str, Element]) -> dict:
         elif child.tag == "shape" and kind == "instance":
             shapes.append(instance(doc, child, {group["name"] for group in groups}))
         elif child.tag == "shape":
-            shape(doc, materials, child, shapes, lights)
+            shape(doc, materials, child, shapes, lights, media)
         elif child.tag == "emitter":
             light = emitter(doc, child)
             if light is not None:
                 lights.append(light)
-        elif child.tag not in ("default", "path", "sensor", "integrator", "bsdf", "texture"):
+        elif child.tag not in ("default", "path", "sensor", "integrator", "bsdf", "texture", "medium"):
             doc.warn(child, "not supported: ignored")
         sources.update({f"shape[{i}]": child for i in range(n_shapes, len(shapes))})
         sources.update({f"light[{i}]": child for i in range(n_lights, len(lights))})
     sources.update({f"material[{i}]": e for i, e in enumerate(materials.sources) if e is not None})
+    sources.update({f"medium[{i}]": e for i, e in enumerate(media.sources)})
     exterior = materials.exterior_ior()
     if exterior != 1.0:
         render["exterior_ior"] = exterior
     tables = {"render": render, "camera": camera, "material": materials.tables, "shape": shapes, "light": lights}
+    if media.tables:
+        tables["medium"] = media.tables
     return {**tables, "group": groups} if groups else tables

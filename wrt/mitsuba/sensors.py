@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import token
 from ..limits import MAX_DEPTH, MAX_MAGNITUDE
+from .media import Media
 from .transforms import as_list, mirrors, vertical_fov
 from .xml import Document, Element, Plugin, parse_number
 
@@ -28,9 +29,9 @@ SAMPLERS = {
 """Mitsuba sampler -> wrt ``[render] sampler``. Samplers change the noise, not the expected image."""
 
 
-def sensor(doc: Document, element: Element) -> tuple[dict, dict]:
+def sensor(doc: Document, element: Element, media: Media) -> tuple[dict, dict]:
     """``(render, camera)`` tables from a ``perspective``, ``thinlens`` or ``orthographic`` sensor
-    with its film and sampler."""
+    with its film, sampler and the medium it is in."""
     p = Plugin(doc, element)
     if p.type not in SENSORS:
         raise doc.error(element, f"only {', '.join(SENSORS)} sensors can be converted")
@@ -73,6 +74,9 @@ def sensor(doc: Document, element: Element) -> tuple[dict, dict]:
             raise doc.error(element, "a thinlens sensor needs aperture_radius")
         camera["aperture_radius"] = p.number("aperture_radius", None)
         camera["focus_distance"] = p.number("focus_distance", far_clip)  # Mitsuba's default: far_clip
+    inside = media.refs(p, (None,))
+    if inside:
+        camera["medium"] = next(iter(inside.values()))
     p.finish()
     return render, camera
 
@@ -191,9 +195,10 @@ def sampler(doc: Document, element: Element) -> dict:
     return render
 
 
-INTEGRATORS = ("path", "volpath", "direct", "moment")
-"""Mitsuba integrators converted exactly: ``path`` (``volpath`` without media is ``path``; a
-medium is refused where it appears), ``direct`` (path with ``max_depth = 2``: emitters seen
+INTEGRATORS = ("path", "volpath", "volpathmis", "direct", "moment")
+"""Mitsuba integrators converted exactly: ``path``, ``volpath`` and ``volpathmis`` (wrt's path
+integrator, which follows ``volpath``'s semantics in a scene with media and ``path``'s without;
+the two volumetric ones converge to the same image), ``direct`` (path with ``max_depth = 2``: emitters seen
 directly plus direct light), ``moment`` (its nested integrator: the moments are extra channels)."""
 
 

@@ -8,6 +8,7 @@ import numpy as np
 
 from .bsdfs import Materials
 from .emitters import area_radiance, surface_light
+from .media import Media
 from .transforms import as_list, coordinate_system, mirrors, transform_point
 from .xml import Document, Element, Plugin
 
@@ -29,9 +30,14 @@ def cube_faces() -> list[np.ndarray]:
     return faces
 
 
-def shape(doc: Document, materials: Materials, element: Element, shapes: list, lights: list) -> None:
-    """Append the ``[[shape]]`` tables of a shape element to ``shapes`` (or its light to ``lights``)."""
+def shape(
+    doc: Document, materials: Materials, element: Element, shapes: list, lights: list, media: Media | None = None
+) -> None:
+    """Append the ``[[shape]]`` tables of a shape element to ``shapes`` (or its light to
+    ``lights``), with the ``interior`` and ``exterior`` media it bounds (``media``: the scene's;
+    None for a shapegroup's shapes, whose media are not supported)."""
     p = Plugin(doc, element)
+    bounds = media.refs(p, ("interior", "exterior")) if media is not None else {}
     matrix, _ = p.transform("to_world")
     bsdfs, emitters = p.children("bsdf"), p.children("emitter")
     for extra in bsdfs[1:] + emitters[1:]:
@@ -90,6 +96,8 @@ def shape(doc: Document, materials: Materials, element: Element, shapes: list, l
                     "wrt's area lights reflect no light, but this emitter's "
                     "BSDF reflects in Mitsuba (set its reflectance to 0 to compare)",
                 )
+            if bounds:
+                doc.warn(element, "an area-emitting rectangle or sphere that bounds a medium: its media are ignored")
             light = surface_light(tables[0], radiance)
             if not all(np.all(np.isfinite(v)) for v in light.values() if not isinstance(v, str)):
                 raise doc.error(element, f"to_world places the {p.type} light {BEYOND_FLOAT64}")
@@ -105,7 +113,7 @@ def shape(doc: Document, materials: Materials, element: Element, shapes: list, l
     else:
         name = materials.name(bsdf)
     for table in tables:
-        shapes.append({**table, "material": name})
+        shapes.append({**table, "material": name, **bounds})
     p.finish()
 
 

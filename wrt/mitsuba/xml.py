@@ -77,6 +77,7 @@ HARMLESS = {
     "hdrfilm": ("file_format", "pixel_format", "component_format", "compensate"),
     "path": ("rr_depth",),
     "volpath": ("rr_depth",),
+    "volpathmis": ("rr_depth",),
     "roughconductor": ("sample_visible",),
     "obj": ("flip_tex_coords",),
     "ply": ("flip_tex_coords",),

@@ -17,6 +17,7 @@ from .degenerate import (
     case_zero_radius_sphere,
 )
 from .lights import case_small_lights
+from .media import case_media
 from .offsets import case_contact_shadows, case_self_intersection
 from .precision import case_sphere_precision, case_ulps
 from .refraction import (
@@ -52,6 +53,7 @@ CASES = [
     ("not-finite", case_not_finite),
     ("small-lights", case_small_lights),
     ("transport", case_transport),
+    ("media", case_media),
 ]
 
 

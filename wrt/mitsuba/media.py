@@ -1,0 +1,85 @@
+"""Converting Mitsuba's participating media into wrt media: ``homogeneous`` (``sigma_t``,
+``albedo``, ``scale``) with its ``isotropic`` or ``hg`` phase function, each ``<medium>`` once,
+named when a shape's ``interior`` or ``exterior`` or the sensor first uses it."""
+
+from __future__ import annotations
+
+from .xml import Document, Element, Plugin
+
+HARMLESS_MEDIUM = ("sample_emitters",)
+"""Medium parameters that change only the noise: whether scattering events sample the emitters
+(wrt always does, MIS-weighted against the phase function: the same image)."""
+
+
+class Media:
+    """The ``[[medium]]`` tables of a conversion, one per ``<medium>`` element, in first-use order."""
+
+    def __init__(self, doc: Document):
+        self.doc = doc
+        self.tables: list[dict] = []
+        self.sources: list[Element] = []
+        self._names: dict[int, str] = {}
+
+    def name(self, element: Element) -> str:
+        """The name of the ``[[medium]]`` converted from ``element`` (converted on first use)."""
+        key = id(element)
+        if key not in self._names:
+            name = element.attrs.get("id") or f"medium@{element.line}"
+            taken = {table["name"] for table in self.tables}
+            while name in taken:
+                name += "'"
+            self._names[key] = name
+            self.tables.append({"name": name, **convert(self.doc, element)})
+            self.sources.append(element)
+        return self._names[key]
+
+    def refs(self, p: Plugin, names: tuple[str, ...]) -> dict[str, str]:
+        """The media a plugin names (``interior``, ``exterior``; a sensor's any name), by the name
+        it gives them, as ``[[medium]]`` names; marks them read."""
+        found = {}
+        for name, child in p.nested:
+            if child.tag == "medium":
+                p.used_nested.add(id(child))
+                if name not in names and None not in names:
+                    self.doc.warn(child, f"a medium named {name!r} here is not supported: ignored")
+                    continue
+                found[name] = self.name(child)
+        return found
+
+
+def convert(doc: Document, element: Element) -> dict:
+    """The ``[[medium]]`` table (without its name) of a ``<medium>``."""
+    p = Plugin(doc, element)
+    if p.type != "homogeneous":
+        doc.warn(element, f"medium type {p.type!r} is not supported: converted as a homogeneous medium of its defaults")
+    table = {
+        "type": "homogeneous",
+        "sigma_t": p.color("sigma_t", 1.0, unbounded=True),
+        "albedo": p.color("albedo", 0.75),
+        "scale": p.number("scale", 1.0),
+    }
+    if table["scale"] < 0.0:
+        raise doc.error(p.params["scale"], f"'scale' = {table['scale']:g} must not be negative")
+    phases = p.children("phase")
+    for extra in phases[1:]:
+        doc.warn(extra, "a medium takes one phase function: ignored")
+    if phases:
+        table["phase"] = phase(doc, phases[0])
+    if p.type == "homogeneous":
+        for name in HARMLESS_MEDIUM:
+            p.boolean(name, True)
+        p.finish()
+    return table
+
+
+def phase(doc: Document, element: Element) -> dict:
+    """A medium's ``phase`` table: ``isotropic``, or ``hg`` with its ``g`` in (-1, 1)."""
+    p = Plugin(doc, element)
+    if p.type == "hg":
+        table = {"type": "hg", "g": p.number("g", 0.8, above=-1.0, below=1.0)}
+    else:
+        if p.type != "isotropic":
+            doc.warn(element, f"phase function {p.type!r} is not supported: converted as isotropic")
+        table = {"type": "isotropic"}
+    p.finish()
+    return table

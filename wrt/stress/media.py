@@ -1,0 +1,127 @@
+"""Participating media at the ends of their range: an optical depth of 1e4 and of 1e-6, and media
+nested four deep, each against a closed form (``docs/stress.md``). Every medium is homogeneous,
+held by null spheres, and seen by an orthographic camera under a uniform environment of
+radiance 1, so that each pixel's transmittance is ``exp(-sum sigma_t chord)`` along its ray."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..loader import parse_scene
+from .refraction import render
+from .report import CaseResult
+
+SIZE = 16
+SPP = 256
+WIDTH = 2.4  # the orthographic view's extent: the spheres' radius is at most 1
+SIGMAS = 4.0  # standard errors an estimated mean may stray from its closed form
+
+
+def _scene(media, spheres):
+    """Null spheres centred at the origin, ``(radius, interior, exterior)`` each (medium names or
+    None), under a uniform environment; orthographic camera along -z, path integrator."""
+    camera = {"type": "orthographic", "origin": [0.0, 0.0, 3.0], "look_at": [0.0, 0.0, 0.0], "width": WIDTH}
+    shapes = []
+    for radius, inside, outside in spheres:
+        shape = {"type": "sphere", "center": [0.0, 0.0, 0.0], "radius": radius, "material": "boundary"}
+        shape.update({key: name for key, name in (("interior", inside), ("exterior", outside)) if name})
+        shapes.append(shape)
+    doc = {
+        "render": {"integrator": "path", "width": SIZE, "height": SIZE, "spp": SPP, "max_depth": 64, "seed": 5},
+        "camera": camera,
+        "medium": media,
+        "material": [{"name": "boundary", "type": "null"}],
+        "shape": shapes,
+        "light": [{"type": "environment", "radiance": [1.0, 1.0, 1.0]}],
+    }
+    return parse_scene(doc, file="<stress>")
+
+
+def _chords(radius: float, sub: int = 16) -> np.ndarray:
+    """(SIZE, SIZE, sub * sub) float64: per pixel, the length of the chord through a sphere of
+    ``radius`` about the origin of the rays through a ``sub`` x ``sub`` grid of its area (0 for
+    one that misses it): the box filter's samples fall uniformly over the pixel."""
+    offsets = (np.arange(sub) + 0.5) / sub
+    positions = ((np.arange(SIZE)[:, None] + offsets[None, :]).ravel() / SIZE * 2.0 - 1.0) * WIDTH / 2
+    x, y = np.meshgrid(positions, -positions)
+    chords = 2.0 * np.sqrt(np.maximum(radius * radius - x * x - y * y, 0.0))
+    return chords.reshape(SIZE, sub, SIZE, sub).transpose(0, 2, 1, 3).reshape(SIZE, SIZE, sub * sub)
+
+
+def _absorbed(optical: np.ndarray) -> tuple[float, float]:
+    """The image mean of a pure absorber of per-ray optical depths ``optical`` (``_chords``'
+    shape) and its standard error: each sample is 1 with probability its transmittance, else 0."""
+    per_pixel = np.exp(-optical).mean(axis=-1)
+    noise = math.sqrt(float(np.sum(per_pixel * (1.0 - per_pixel))) / SPP) / per_pixel.size
+    return float(per_pixel.mean()), noise
+
+
+def _row(case: str, got: np.ndarray, expected: float, noise: float, detail: dict) -> CaseResult:
+    finite = bool(np.isfinite(got).all())
+    error = abs(got.mean() - expected) if finite else math.inf
+    bound = SIGMAS * noise + 1e-6 * expected
+    return CaseResult(
+        f"media: {case}",
+        SIZE * SIZE * SPP,
+        int(not error <= bound),
+        error,
+        bound,
+        detail={"mean": float(got.mean()) if finite else None, "closed_form": expected, **detail},
+    )
+
+
+def dense_case() -> list[CaseResult]:
+    """Optical depth 1e4 (sigma_t 5000 through a unit-radius sphere): an absorber lets nothing
+    through (the image mean is the fraction of the view the sphere leaves free), and an albedo-1
+    scatterer of the same density under the uniform sky never brightens it (energy is lost only
+    to max_depth): finite, at most 1."""
+    rows = []
+    absorber = _scene([{"name": "ink", "sigma_t": 5000.0, "albedo": 0.0}], [(1.0, "ink", None)])
+    expected, noise = _absorbed(5000.0 * _chords(1.0))
+    rows.append(_row("optical depth 1e4, absorbing", render(absorber).rgb.astype(np.float64), expected, noise, {}))
+    scatterer = _scene([{"name": "milk", "sigma_t": 5000.0, "albedo": 1.0}], [(1.0, "milk", None)])
+    got = render(scatterer).rgb.astype(np.float64)
+    finite = bool(np.isfinite(got).all())
+    gain = float(got.mean() - 1.0) if finite else math.inf
+    bound = SIGMAS * float(got.std()) / math.sqrt(SPP) + 1e-6
+    rows.append(
+        CaseResult(
+            "media: optical depth 1e4, albedo 1 (no gain)",
+            SIZE * SIZE * SPP,
+            int(not gain <= bound),
+            max(gain, 0.0),
+            bound,
+            detail={"mean": float(got.mean()) if finite else None},
+        )
+    )
+    return rows
+
+
+def thin_case() -> list[CaseResult]:
+    """Optical depth 1e-6 (sigma_t 5e-7 through the unit sphere): the absorber's image is
+    ``exp(-5e-7 chord)``, to within its (tiny) noise: float32 must not round a free-flight
+    distance into a collision."""
+    scene = _scene([{"name": "air", "sigma_t": 5e-7, "albedo": 0.0}], [(1.0, "air", None)])
+    expected, noise = _absorbed(5e-7 * _chords(1.0))
+    return [_row("optical depth 1e-6, absorbing", render(scene).rgb.astype(np.float64), expected, noise, {})]
+
+
+def nested_case() -> list[CaseResult]:
+    """Four concentric null spheres (radii 1, 0.8, 0.6, 0.4), each bounding its own absorber
+    inside and the next outer one outside, sigma_t 0.3, 0.6, 0.9, 1.2 from the outside in: a
+    ray's transmittance is ``exp(-sum_k sigma_k (chord_k - chord_{k+1}))``."""
+    radii, sigmas = (1.0, 0.8, 0.6, 0.4), (0.3, 0.6, 0.9, 1.2)
+    names = [f"shell{k}" for k in range(4)]
+    media = [{"name": name, "sigma_t": sigma, "albedo": 0.0} for name, sigma in zip(names, sigmas)]
+    spheres = [(r, names[k], names[k - 1] if k else None) for k, r in enumerate(radii)]
+    chords = [_chords(r) for r in radii] + [np.zeros_like(_chords(1.0))]
+    expected, noise = _absorbed(sum(s * (chords[k] - chords[k + 1]) for k, s in enumerate(sigmas)))
+    got = render(_scene(media, spheres)).rgb.astype(np.float64)
+    return [_row("nested four deep, absorbing", got, expected, noise, {})]
+
+
+def case_media(n, rng) -> list[CaseResult]:
+    """The group ``media``: fixed small images whatever the ray budget."""
+    return [*dense_case(), *thin_case(), *nested_case()]
