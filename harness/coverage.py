@@ -6,7 +6,8 @@ listed here: camera types (``wrt.scene.CAMERA_TYPES``; a perspective camera with
 modes (``wrt.loader.MESH_SHADING``), material types (``wrt.scene.MATERIAL_TYPES``), the texture
 slots of materials (``wrt.kernels.textures.SLOTS``, ``normal_map`` among them), light types
 (``wrt.loader.LIGHT_TYPES``; the environment without and with a map), texture kinds
-(``wrt.textures.KINDS``), samplers, pixel filters and integrators (``wrt.scene``). A few kinds
+(``wrt.textures.KINDS``), medium and phase function types, samplers, pixel filters and
+integrators (``wrt.scene``). A few kinds
 are properties rather than names of a table, each defined once below: one- and two-sided
 materials, emissive shapes, an instance's transform (rotation, non-uniform scale, shear,
 mirroring), motion blur, and progressive and adaptive rendering (keys of the feature, not of its
@@ -21,7 +22,8 @@ render settings of the feature applied), with what each integrator runs:
   shape); the sampler where random numbers are drawn (``spp > 1``, or the path integrator); the
   pixel filter where ``spp > 1`` (one sample sits at the pixel centre);
 - whitted and path only (raycast shades flat and ignores lights): the materials the shapes use
-  (a mask's material too), their textures and sidedness, the lights and emissive shapes.
+  (a mask's material too), their textures and sidedness, the media and their phase functions,
+  the lights and emissive shapes.
 """
 
 from __future__ import annotations
@@ -74,6 +76,8 @@ def kinds() -> list[tuple[str, str]]:
         "instance transform": INSTANCE_TRANSFORMS,
         "material": model.MATERIAL_TYPES,
         "material option": [f"texture: {slot}" for slot in texture_slots.SLOTS] + list(SIDES),
+        "medium": model.MEDIUM_TYPES,
+        "phase function": model.PHASE_TYPES,
         "texture": textures.KINDS,
         "light": [*lights, EMISSIVE_SHAPE],
         "sampler": model.SAMPLERS,
@@ -167,6 +171,8 @@ def exercised(feature: Feature, scene: model.Scene | None) -> set[tuple[str, str
             found.add(("material option", SIDES[material.two_sided]))  # SIDES[False] is one-sided
     if any(not isinstance(s, model.Instance) and s.material in emitting for s in shapes):
         found.add(("light", EMISSIVE_SHAPE))
+    for medium in scene.media:
+        found |= {("medium", medium.type), ("phase function", medium.phase)}
     for light in scene.lights:
         if isinstance(light, model.EnvironmentLight):
             found.add(("light", CONSTANT_ENVIRONMENT if light.image is None else ENVIRONMENT_MAP))

@@ -40,6 +40,7 @@ def assert_all_pass(rows):
         "degenerate",
         "small-lights",
         "transport",
+        "media",
         "zero-radius",
         "coincident",
         "zero-components",
