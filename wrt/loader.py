@@ -21,7 +21,7 @@ from .envmap import EnvironmentMapError, read_environment_map
 from .errors import MeshFileError, SceneError, listed
 from .files import TomlError, read_toml
 from .kernels.lights import LIGHT_TYPES
-from .kernels.materials import FAMILY_OF, TYPES
+from .kernels.materials import TYPES
 from .kernels.volumes import MEDIUM_TYPES as MEDIUM_REGISTRY
 from .kernels.volumes import PHASE_TYPES as PHASE_REGISTRY
 from .limits import MAX_DEPTH, MAX_IMAGE_SIDE, MAX_MAGNITUDE, MAX_SEED, MAX_SPP
@@ -875,7 +875,7 @@ def _check_whitted(source: str, lights, materials, media) -> None:
                 light.type,
             )
     for i, material in enumerate(materials):
-        if not FAMILY_OF[material.type].whitted:
+        if material.type in ("rough_dielectric", "mask", "null"):
             raise SceneError(
                 source,
                 f"material[{i}]",
@@ -936,5 +936,5 @@ def override_render(scene: Scene, *, source: str = "command line", **changes) ->
     }
     render = _render(source, merged)
     if render.integrator == "whitted" and scene.render.integrator != "whitted":
-        _check_whitted(source, scene.lights, scene.materials)
+        _check_whitted(source, scene.lights, scene.materials, scene.media)
     return dataclasses.replace(scene, render=render)

@@ -53,7 +53,9 @@ def test_features_follow_the_scene():
         rough_dielectric=False,
         plastic=False,
         mask=False,
+        null=False,
         normal_map=False,
+        media=False,
     )
     mesh = make_scene([{"type": "mesh", "file": "examples/meshes/tetra.obj"}], scene_dir=".")
     assert (scene_features(mesh).triangles, scene_features(mesh).spheres, scene_features(mesh).polygons) == (

@@ -45,6 +45,7 @@ PARAMETERS = {  # one [[material]] table per type, besides its name
     "plastic": {},
     "rough_plastic": {"roughness": 0.2},
     "mask": {"opacity": 0.5, "material": "inner"},
+    "null": {},
 }
 # What a scene of each type asks of the kernels, written out here (not derived from the registry):
 # reflected or refracted rays (specular), a medium (dielectric), and the families compiled in only
@@ -62,6 +63,7 @@ EXPECTED = {
     "plastic": (True, False, {"plastic"}),
     "rough_plastic": (False, False, {"plastic"}),
     "mask": (False, False, {"mask"}),
+    "null": (False, False, {"null"}),
 }
 
 
@@ -79,10 +81,10 @@ def test_the_types_and_codes_are_each_familys_and_unique():
 
 def test_the_material_flags_are_features_and_relevant_to_path():
     fields = [f.name for f in dataclasses.fields(Features)]
-    assert MATERIAL_FLAGS == ("rough_dielectric", "plastic", "mask")
+    assert MATERIAL_FLAGS == ("rough_dielectric", "plastic", "mask", "null")
     assert set(MATERIAL_FLAGS) <= set(fields) and set(MATERIAL_FLAGS) <= set(RELEVANT["path"])
     assert Features(plastic=False).plastic is False and ALL.plastic is True
-    assert families_for(Features(plastic=False, mask=False)) == (
+    assert families_for(Features(plastic=False, mask=False, null=False)) == (
         "diffuse",
         "phong",
         "conductor",
@@ -123,6 +125,7 @@ MITSUBA_BODIES = {
     "plastic": "",
     "roughplastic": '<string name="distribution" value="ggx"/>',
     "mask": '<bsdf type="diffuse"/>',
+    "null": "",
 }
 
 

@@ -632,16 +632,20 @@ def test_unsupported_input_is_refused_or_approximated(tmp_path):
     <shape type="sphere"><float name="foo" value="1"/></shape>
     <bsdf type="principled" id="p"/>
     <shape type="sphere"><ref id="p"/></shape>
-    <medium type="homogeneous"/>"""
+    <shape type="sphere"><bsdf type="null"/><medium type="heterogeneous" name="interior"/></shape>"""
     doc, warnings = convert(tmp_path, body)
     assert [w.split(": ", 2)[:2] for w in warnings] == [
         [f"{tmp_path / 'scene.xml'}:2", '<shape type="linearcurve">'],
         [f"{tmp_path / 'scene.xml'}:3", '<float name="foo">'],
         [f"{tmp_path / 'scene.xml'}:4", '<bsdf type="principled" id="p">'],
-        [f"{tmp_path / 'scene.xml'}:6", '<medium type="homogeneous">'],
+        [f"{tmp_path / 'scene.xml'}:6", '<medium type="heterogeneous" name="interior">'],
     ]
-    assert len(doc["shape"]) == 2
-    assert doc["material"] == [DEFAULT_BSDF, {"name": "p", "type": "diffuse", "albedo": [0.5] * 3, "two_sided": False}]
+    assert len(doc["shape"]) == 3
+    assert doc["material"] == [
+        DEFAULT_BSDF,
+        {"name": "p", "type": "diffuse", "albedo": [0.5] * 3, "two_sided": False},
+        {"name": "null@6", "type": "null"},
+    ]
     with pytest.raises(WrtError, match=r"scene.xml:2: <shape type=\"linearcurve\">: .*--approximate"):
         convert(tmp_path, body, approximate=False)
 
@@ -663,6 +667,7 @@ def test_one_approximation_per_cause(tmp_path):
         ),
         ('<integrator type="moment"><integrator type="direct"/></integrator>', ("path", 2)),
         ('<integrator type="volpath"><integer name="max_depth" value="3"/></integrator>', ("path", 3)),
+        ('<integrator type="volpathmis"><integer name="max_depth" value="4"/></integrator>', ("path", 4)),
     ],
 )
 def test_integrators_convert_exactly(tmp_path, body, expected):
@@ -670,7 +675,7 @@ def test_integrators_convert_exactly(tmp_path, body, expected):
     assert (doc["render"]["integrator"], doc["render"]["max_depth"]) == expected and warnings == []
 
 
-@pytest.mark.parametrize("kind", ["ptracer", "aov", "volpathmis"])
+@pytest.mark.parametrize("kind", ["ptracer", "aov"])
 def test_other_integrators_are_refused(tmp_path, kind):
     with pytest.raises(WrtError, match=rf'scene.xml:2: <integrator type="{kind}">: integrator not supported'):
         convert(tmp_path, f'<integrator type="{kind}"/>', approximate=False)

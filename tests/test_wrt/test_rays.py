@@ -492,7 +492,7 @@ MIN_EDGE_ANGLE = 25.0  # degrees between the view and the plane the tree lies in
 
 
 SEGMENT_FIELDS = ("pixel", "sample", "kind", "depth", "parent", "shape", "origin", "end", "direction", "normal")
-SEGMENT_FIELDS += ("throughput", "hit", "entering", "escaped", "time")
+SEGMENT_FIELDS += ("throughput", "hit", "entering", "escaped", "in_medium", "time")
 
 
 def pixel_tree(tree, x, y):
