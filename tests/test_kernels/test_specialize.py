@@ -91,7 +91,9 @@ def test_features_follow_the_scene():
         rough_dielectric=False,
         plastic=False,
         mask=False,
+        null=False,
         normal_map=False,
+        media=False,
     )
     for material, flags in [
         (ROUGH_GLASS, (True, True, True, False)),  # a rough dielectric bounds a medium: dielectric too
