@@ -109,12 +109,12 @@ def bake_materials(scene: Scene) -> BakedMaterials:
     )
 
 
-def bake_media(scene: Scene) -> dict[str, np.ndarray]:
-    """``MediumData``'s columns: per surface (``surface_materials``' numbering) the media its shape
-    bounds (``UNSET`` for none), per medium its extinction (``scale`` applied), albedo and phase
-    asymmetry (0 for isotropic); one placeholder row where there are none."""
-    surfaces = len(surface_materials(scene)[0])
-    interior = np.full(max(surfaces, 1), UNSET, dtype=np.int32)
+def bake_media(scene: Scene, surfaces: int) -> dict[str, np.ndarray]:
+    """``MediumData``'s columns: per surface (``surfaces`` of them, ``surface_materials``'
+    numbering: ``BakedMaterials.shape_material``'s length) the media its shape bounds (``UNSET``
+    for none), per medium its extinction (``scale`` applied), albedo and phase asymmetry (0 for
+    isotropic); one placeholder row where there are none."""
+    interior = np.full(surfaces, UNSET, dtype=np.int32)
     exterior = interior.copy()
     for shape, inside, outside in scene.boundaries:
         interior[shape], exterior[shape] = inside, outside

@@ -163,7 +163,7 @@ def upload_materials(scene: Scene, device) -> MaterialData:
     for family in FAMILIES:
         if family.data is not None:
             setattr(m, family.name, _table(family.data, baked.tables[family.name], device))
-    m.media = _table(MediumData, bake_media(scene), device)
+    m.media = _table(MediumData, bake_media(scene, len(baked.shape_material)), device)
     m.media.count = len(scene.media)
     return m
 
