@@ -39,7 +39,9 @@ dimensions 0-4 are the camera's (pixel position, lens, time), ``bounce_dim(depth
 BSDF sample (j = 0, 1: a 2D pair), the Fresnel choice (2) and roulette (3) at each bounce, and
 ``light_dim(depth, i)`` the 2D sample of light i; with n lights, ``light_dim(depth, n)`` is the
 point on (or direction toward) an emissive primitive and ``light_dim(depth, n + 1)`` (1D) the
-choice of the primitive.
+choice of the primitive; ``flight_dim(vertex)`` is a free flight's first number in a medium, and
+``track_dim`` and ``shadow_track_dim`` key the streams a heterogeneous medium tracks with
+(``wrt.kernels.volumes.tracking_key``).
 A path's shapes stay at its camera ray's time.
 """
 
@@ -56,6 +58,7 @@ from .materials import (
     BSDF_TOTAL_INTERNAL,
     BSDF_TRANSMISSION,
     NULL,
+    THIN_DIELECTRIC,
     MaterialData,
     bsdf_flags_from,
     families_for,
@@ -86,7 +89,7 @@ from .sampling import Sampler, sample_1d, sample_2d
 from .shadow import make_shadow_ray
 from .spawn import past_hit, spawn_origin
 from .traverse import NO_HIT, GeometryData, Traversal, traversal
-from .volumes import boundary_medium, free_flight, phase_sample, phase_value
+from .volumes import boundary_medium, free_flight, has_media, phase_sample, phase_value, tracking_key
 
 RR_DEPTH = wp.constant(5)
 
@@ -104,6 +107,16 @@ def light_dim(depth: wp.int32, i: wp.int32) -> wp.int32:
 @wp.func
 def flight_dim(vertex: wp.int32) -> wp.int32:
     return 33554432 + vertex
+
+
+@wp.func
+def track_dim(vertex: wp.int32) -> wp.int32:
+    return 50331648 + vertex
+
+
+@wp.func
+def shadow_track_dim(vertex: wp.int32, i: wp.int32) -> wp.int32:
+    return 67108864 + 2048 * vertex + i
 
 
 @wp.func
@@ -161,13 +174,6 @@ def start_path(materials: MaterialData, settings: IntegratorSettings, ray: Camer
     path.medium = settings.camera_medium
     path.nulls = 0
     return path
-
-
-@wp.func
-def scatters_in(materials: MaterialData) -> bool:
-    """The scene has participating media: the path follows Mitsuba 3's ``volpath`` (shadow rays
-    pass null surfaces; null events are not segments)."""
-    return materials.media.count > 0
 
 
 def make_next_event(record: bool, trace: Traversal, features: Features):
@@ -253,7 +259,7 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
                 shadow_medium = medium
                 o = hit.p
                 if wp.static(features.media):
-                    if scatter_medium < 0 and scatters_in(materials):
+                    if scatter_medium < 0 and has_media(materials.media):
                         shadow_medium = boundary_medium(materials.media, hit.shape, wp.dot(ls.wi, hit.n) > 0.0, medium)
                 if scatter_medium < 0:
                     o = spawn_origin(hit.p, hit.n, hit.err, ls.wi)
@@ -276,6 +282,7 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
                     parent,
                     throughput,
                     shadow_medium,
+                    tracking_key(sampler.seed, ray.pixel, ray.sample, shadow_track_dim(vertex, i)),
                 )
                 if max_component(visible) > 0.0:
                     total += wp.cw_mul(contribution, visible)
@@ -352,11 +359,15 @@ def make_path_radiance(record: bool, features: Features = ALL, inline: bool | No
             in_medium = bool(False)
             if wp.static(features.media):
                 if path.medium >= 0:
+                    vertex = path.depth + path.nulls
                     flight = free_flight(
                         materials.media,
                         path.medium,
+                        path.o + path.t_last * path.d,
+                        path.d,
                         found.t - path.t_last,
-                        sample_1d(sampler, ray.pixel, ray.sample, flight_dim(path.depth + path.nulls)),
+                        sample_1d(sampler, ray.pixel, ray.sample, flight_dim(vertex)),
+                        tracking_key(sampler.seed, ray.pixel, ray.sample, track_dim(vertex)),
                     )
                     path.throughput = wp.cw_mul(path.throughput, flight.weight)
                     if flight.scattered:
@@ -430,7 +441,7 @@ def make_path_radiance(record: bool, features: Features = ALL, inline: bool | No
                         path.media = interface.media
                         path.n_media = interface.n_media
                         if wp.static(features.media):
-                            if scatters_in(materials):  # and a null event: the next segment's samples are new
+                            if has_media(materials.media):  # and a null event: the next segment's samples are new
                                 path.medium = boundary_medium(materials.media, hit.shape, not hit.entering, path.medium)
                                 path.nulls += 1
                         path.t_from = past_hit(path.o, hit.p, found.t)
@@ -445,7 +456,7 @@ def make_path_radiance(record: bool, features: Features = ALL, inline: bool | No
                 # lobe, a thin dielectric's transmission) is no segment, so the last segment's
                 # surface may still let the path through (Mitsuba 3's volpath)
                 if wp.static(features.media):
-                    volumetric = scatters_in(materials)
+                    volumetric = has_media(materials.media)
                 last = path.depth >= settings.max_depth
                 if last and not (volumetric and (flags & BSDF_THIN) != 0):
                     break
@@ -518,8 +529,10 @@ def make_path_radiance(record: bool, features: Features = ALL, inline: bool | No
                 else:
                     path.depth += 1
                 if (bs.flags & BSDF_SPECULAR) != 0:
-                    # a null surface keeps the last scattering's MIS state: shadow rays pass it
-                    if not (null_event and materials.type[hit.material] == NULL):
+                    # a null surface or a thin dielectric's straight lobe keeps the last
+                    # scattering's MIS state: shadow rays pass them (Mitsuba 3's null lobes)
+                    passed = materials.type[hit.material] == NULL or materials.type[hit.material] == THIN_DIELECTRIC
+                    if not (null_event and passed):
                         path.specular = True
                     path.segment_kind = wp.where((bs.flags & BSDF_TOTAL_INTERNAL) != 0, TOTAL_INTERNAL, REFLECTED)
                     if (bs.flags & BSDF_TRANSMISSION) != 0:

@@ -8,9 +8,10 @@
   as the point it lights, as a path reaching it by BSDF sampling is attenuated), from one any-hit
   query;
 - through media (the path integrator in a scene with participating media, Mitsuba 3's
-  ``volpath``): null surfaces let the shadow ray through, changing the medium it is in, and the
-  transmittance of each medium it crosses (``wrt.kernels.volumes``) attenuates it; any other
-  surface blocks it;
+  ``volpath``): null surfaces and thin dielectrics (whose straight-through lobe Mitsuba counts as
+  a null one, attenuated by ``thin_transmittance``) let the shadow ray through, changing the
+  medium it is in, and the transmittance of each medium it crosses (``wrt.kernels.volumes``)
+  attenuates it; any other surface blocks it;
 - filtered (the lecture's, whitted's ``dielectric_shadows = "filtered"``): dielectrics let the
   shadow ray through in a straight line, attenuated by Beer-Lambert over the length inside them:
   up to the first surface in the medium it starts in, between an entering and a leaving surface
@@ -26,9 +27,18 @@ that decides visibility does not say where the blocker is).
 
 import warp as wp
 
-from .materials import BSDF_THIN, BSDF_TRANSMISSION, NULL, MaterialData, bsdf_flags, thin_transmittance
+from .materials import (
+    BSDF_THIN,
+    BSDF_TRANSMISSION,
+    NULL,
+    THIN_DIELECTRIC,
+    MaterialData,
+    bsdf_flags,
+    thin_transmittance,
+)
 from .media import beer_lambert, max_component
 from .record import SHADOW_BLOCKED, SHADOW_LIT, RayRecord, record_ray
+from .sampling import pcg_hash
 from .spawn import spawn_origin
 from .traverse import (
     NO_HIT,
@@ -40,7 +50,7 @@ from .traverse import (
     prim_shape,
     ray_hit,
 )
-from .volumes import boundary_medium, volume_transmittance
+from .volumes import boundary_medium, has_media, volume_transmittance
 
 SHADOW_CROSSINGS = wp.constant(16)  # dielectric surfaces a filtered shadow ray may pass
 
@@ -66,10 +76,12 @@ def make_shadow_ray(record: bool, trace: Traversal, media: bool = False):
         t_max: float,
         time: float,
         medium: wp.int32,
+        key: wp.uint32,
     ):
         """Follow a shadow ray ``o + s w`` that starts in participating medium ``medium`` through
-        the null surfaces on its way, changing medium at each (Mitsuba 3's ``volpath``): ``(transmittance,
-        t, prim, inst)`` as ``filtered``'s; any other surface blocks it."""
+        the null surfaces and thin dielectrics on its way, changing medium at each (Mitsuba 3's
+        ``volpath``): ``(transmittance, t, prim, inst)`` as ``filtered``'s; any other surface blocks
+        it. ``key`` is the stream of the media's tracking, a new one past each surface."""
         out = wp.vec3(1.0)
         t_total = float(0.0)
         current = medium
@@ -77,15 +89,19 @@ def make_shadow_ray(record: bool, trace: Traversal, media: bool = False):
             t, prim, inst = trace.closest_hit(geometry, o, w, time, 0.0, t_max)
             if prim == NO_HIT:
                 return (
-                    wp.cw_mul(out, volume_transmittance(materials.media, current, t_max)),
+                    wp.cw_mul(out, volume_transmittance(materials.media, current, o, w, t_max, key)),
                     t_total + t_max,
                     prim,
                     inst,
                 )
-            if materials.type[materials.shape_material[prim_shape(geometry, prim)]] != NULL:
+            m = materials.shape_material[prim_shape(geometry, prim)]
+            if materials.type[m] != NULL and materials.type[m] != THIN_DIELECTRIC:
                 return wp.vec3(0.0), t_total + t, prim, inst
-            out = wp.cw_mul(out, volume_transmittance(materials.media, current, t))
+            out = wp.cw_mul(out, volume_transmittance(materials.media, current, o, w, t, key))
+            key = pcg_hash(key)
             p, n, err = crossing(geometry, prim, inst, o, w, t, time)
+            if materials.type[m] == THIN_DIELECTRIC:  # its straight lobe is a null one (Mitsuba 3's)
+                out = wp.cw_mul(out, thin_transmittance(materials, m, wp.dot(w, n)))
             current = boundary_medium(materials.media, hit_shape(geometry, prim, inst), wp.dot(w, n) > 0.0, current)
             o = spawn_origin(p, n, err, w)
             t_max = t_max - t
@@ -153,11 +169,13 @@ def make_shadow_ray(record: bool, trace: Traversal, media: bool = False):
         parent: wp.int32,
         throughput: wp.vec3,
         medium: wp.int32 = -1,
+        key: wp.uint32 = wp.uint32(0),
     ) -> wp.vec3:
         """Transmittance of the shadow ray ``o + s w``, ``0 < s < t_max``, toward a light (unit
         ``w``), starting in a dielectric of absorption coefficient ``sigma`` (``medium_sigma``),
         passing dielectrics when ``is_filtered``; in a scene with participating media (compiled in
-        with ``media``) starting in ``medium`` and passing null surfaces (``through_media``).
+        with ``media``) starting in ``medium`` and passing null surfaces (``through_media``), its
+        media tracked with the random stream ``key`` (``wrt.kernels.volumes.tracking_key``).
 
         Recording: the ray is segment ``depth`` of its path, child of record ``parent``, carrying
         ``throughput`` times its transmittance."""
@@ -168,8 +186,8 @@ def make_shadow_ray(record: bool, trace: Traversal, media: bool = False):
         followed = is_filtered  # the blocker is known: no query to find it for the record
         if is_filtered:
             visible, t_stop, prim_stop, inst_stop = filtered(geometry, materials, o, w, t_max, time, sigma)
-        elif wp.static(media) and materials.media.count > 0:
-            visible, t_stop, prim_stop, inst_stop = through_media(geometry, materials, o, w, t_max, time, medium)
+        elif wp.static(media) and has_media(materials.media):
+            visible, t_stop, prim_stop, inst_stop = through_media(geometry, materials, o, w, t_max, time, medium, key)
             visible = wp.cw_mul(visible, beer_lambert(sigma, t_max))
             followed = True
         elif not trace.any_hit(geometry, o, w, time, 0.0, t_max):

@@ -22,7 +22,7 @@ import numpy as np
 
 from wrt.kernels.lights import light_row
 from wrt.kernels.materials import FAMILIES, FAMILY_OF, TYPES, lobe_flags, mask_flags
-from wrt.kernels.volumes import UNSET
+from wrt.kernels.volumes import GRID, HOMOGENEOUS, UNSET
 
 from .emitting import EmittingPrimitives, emitting_primitives
 from .envmap import environment_distribution
@@ -35,6 +35,7 @@ from .scene import (
     Mesh,
     Scene,
     Sphere,
+    Volume,
 )
 from .textures import TextureTable, texture_table
 
@@ -112,19 +113,44 @@ def bake_materials(scene: Scene) -> BakedMaterials:
 def bake_media(scene: Scene, surfaces: int) -> dict[str, np.ndarray]:
     """``MediumData``'s columns: per surface (``surfaces`` of them, ``surface_materials``'
     numbering: ``BakedMaterials.shape_material``'s length) the media its shape bounds (``UNSET``
-    for none), per medium its extinction (``scale`` applied), albedo and phase asymmetry (0 for
-    isotropic); one placeholder row where there are none."""
+    for none), per medium its kind, extinction (``scale`` applied), albedo and phase asymmetry (0
+    for isotropic), and for a heterogeneous one the volume rows of its extinction (``scale``
+    applied) and albedo and its majorant; the volumes' frames, resolutions and texels (grey ones
+    in all three channels). One placeholder row where a table would be empty."""
     interior = np.full(surfaces, UNSET, dtype=np.int32)
     exterior = interior.copy()
     for shape, inside, outside in scene.boundaries:
         interior[shape], exterior[shape] = inside, outside
     media = scene.media or (Medium(name="placeholder"),)
+    volumes: list[tuple[np.ndarray, np.ndarray]] = []  # (to_local, texels (z, y, x, 3))
+
+    def row(volume, factor: float = 1.0) -> int:
+        if not isinstance(volume, Volume):
+            volume = Volume(values=np.asarray(volume, np.float32).reshape(1, 1, 1, 3), to_world=np.eye(4))
+        texels = np.broadcast_to(volume.values, volume.values.shape[:3] + (3,)) * np.float32(factor)
+        volumes.append((np.linalg.inv(volume.to_world), texels))
+        return len(volumes) - 1
+
+    grid = [m.type == "heterogeneous" for m in media]
+    density = [row(m.sigma_t, m.scale) if g else -1 for m, g in zip(media, grid)]
+    tint = [row(m.albedo) if g else -1 for m, g in zip(media, grid)]
+    if not volumes:
+        row((0.0, 0.0, 0.0))
+    offsets = np.cumsum([0] + [v.shape[0] * v.shape[1] * v.shape[2] for _, v in volumes])[:-1]
     return {
         "shape_interior": interior,
         "shape_exterior": exterior,
-        "sigma_t": np.array([np.multiply(m.sigma_t, m.scale) for m in media]),
-        "albedo": np.array([m.albedo for m in media]),
+        "sigma_t": np.array([(0.0,) * 3 if g else np.multiply(m.sigma_t, m.scale) for m, g in zip(media, grid)]),
+        "albedo": np.array([(0.0,) * 3 if g else m.albedo for m, g in zip(media, grid)]),
         "g": np.array([m.g for m in media]),
+        "kind": np.array([GRID if g else HOMOGENEOUS for g in grid], dtype=np.int32),
+        "density": np.array(density, dtype=np.int32),
+        "tint": np.array(tint, dtype=np.int32),
+        "majorant": np.array([float(volumes[d][1].max()) if d >= 0 else 0.0 for d in density]),
+        "volume_to_local": np.array([m for m, _ in volumes]),
+        "volume_res": np.array([v.shape[2::-1] for _, v in volumes], dtype=np.int32),
+        "volume_offset": offsets.astype(np.int32),
+        "volume_values": np.concatenate([v.reshape(-1, 3) for _, v in volumes]),
     }
 
 

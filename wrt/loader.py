@@ -56,8 +56,11 @@ from .scene import (
     SphereLight,
     SpotLight,
     Triangle,
+    Volume,
 )
 from .textures import SLOTS, Bitmap, read_texture
+from .volumes import KINDS as VOLUME_KINDS
+from .volumes import VolumeFileError, box_matrix, read_vol
 
 TOP_LEVEL = ("render", "camera", "material", "medium", "group", "shape", "light")
 SHAPE_TYPES = ("sphere", "plane", "triangle", "polygon", "mesh", "disk", "cylinder", "instance")
@@ -427,12 +430,51 @@ def _colour(t: _Table, key: str, default: tuple, hi: float = math.inf) -> tuple[
     return t.vec3(key, default, lo=0.0, hi=hi)
 
 
-def _medium(file: str, index: int, data) -> Medium:
+def _volume(t: _Table, key: str, scene_dir: str, hi: float = math.inf) -> Volume:
+    """The volume table of a heterogeneous medium's ``key`` (``wrt.volumes``), its values in
+    ``[0, hi]``."""
+    value = t.get(key, _REQUIRED)
+    if not isinstance(value, Mapping):
+        raise t.error(
+            key,
+            'must be a volume table ({ volume = "grid", file = ... } or { volume = "constant", value = ... });'
+            ' a medium constant everywhere is type = "homogeneous"',
+            value,
+        )
+    vt = _Table(t.file, f"{t.name}.{key}", value)
+    kind = vt.string("volume", choices=VOLUME_KINDS)
+    to_world = _transform(vt)
+    source = ""
+    if kind == "constant":
+        values = np.array(_colour(vt, "value", (1.0, 1.0, 1.0), hi=hi), np.float32).reshape(1, 1, 1, 3)
+    else:
+        name = vt.string("file")
+        source = os.path.join(scene_dir, name)
+        try:
+            values, box = read_vol(source)
+        except VolumeFileError as e:
+            raise vt.error("file", str(e), name) from None
+        if values.max() > hi:
+            raise vt.error("file", f"holds values up to {values.max():g}: must be at most {hi:g}", name)
+        if vt.boolean("use_grid_bbox", False):
+            to_world = to_world @ box_matrix(box)
+    vt.finish()
+    if abs(np.linalg.det(to_world[:3, :3])) < 1e-30:
+        raise vt.error("transform", "is singular")
+    return Volume(values=values, to_world=to_world, source=source)
+
+
+def _medium(file: str, index: int, data, scene_dir: str = ".") -> Medium:
     t = _Table(file, f"medium[{index}]", data)
     kind = t.string("type", Medium.type, MEDIUM_TYPES)
+    heterogeneous = kind == "heterogeneous"
     readers = {
-        "sigma_t": lambda: _colour(t, "sigma_t", Medium.sigma_t),
-        "albedo": lambda: _colour(t, "albedo", Medium.albedo, hi=1.0),
+        "sigma_t": lambda: _volume(t, "sigma_t", scene_dir) if heterogeneous else _colour(t, "sigma_t", Medium.sigma_t),
+        "albedo": lambda: (
+            _volume(t, "albedo", scene_dir, hi=1.0)
+            if heterogeneous and isinstance(t.get("albedo", None), Mapping)
+            else _colour(t, "albedo", Medium.albedo, hi=1.0)
+        ),
         "scale": lambda: t.number("scale", Medium.scale, lo=0.0),
     }
     values = {"name": t.string("name"), "type": kind}
@@ -444,9 +486,10 @@ def _medium(file: str, index: int, data) -> Medium:
     phase.finish()
     t.finish()
     medium = Medium(**values)
-    extinction = np.multiply(medium.sigma_t, medium.scale)
-    if not np.all(extinction <= MAX_MAGNITUDE):
-        raise t.error("scale", f"times sigma_t = {list(medium.sigma_t)}: {BEYOND_FLOAT32}", medium.scale)
+    extinction = np.max(medium.sigma_t.values if heterogeneous else medium.sigma_t) * medium.scale
+    if not extinction <= MAX_MAGNITUDE:
+        shown = "its largest sigma_t" if heterogeneous else f"sigma_t = {list(medium.sigma_t)}"
+        raise t.error("scale", f"times {shown}: {BEYOND_FLOAT32}", medium.scale)
     return medium
 
 
@@ -778,7 +821,7 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
     if "camera" not in doc:
         raise SceneError(file, "camera", None, "is required")
     render = _render(file, doc.get("render", {}))
-    media = [_medium(file, i, m) for i, m in enumerate(_array_of_tables(file, doc, "medium"))]
+    media = [_medium(file, i, m, scene_dir) for i, m in enumerate(_array_of_tables(file, doc, "medium"))]
     media_index: dict[str, int] = {}
     for i, m in enumerate(media):
         if media_index.setdefault(m.name, i) != i:

@@ -148,18 +148,32 @@ PHASE_TYPES = tuple(PHASE_REGISTRY)
 """The ``type`` values of a medium's ``phase`` table."""
 
 
+@dataclass(frozen=True, eq=False)
+class Volume:
+    """Values over the unit cube of a frame (``wrt.volumes``): ``values`` ``(z, y, x, channels)``
+    (float32, 1 or 3 channels: linear RGB, or grey in all three), ``to_world`` the 4x4 matrix
+    placing that cube in the world, ``source`` the ``.vol`` file they came from ('' for a
+    constant). Looked up trilinearly between texel centres, clamped at the faces."""
+
+    values: np.ndarray
+    to_world: np.ndarray
+    source: str = ""
+
+
 @dataclass(frozen=True)
 class Medium:
     """``[[medium]]``: a participating medium (Mitsuba 3's ``homogeneous``): extinction ``sigma_t``
     (per scene unit, times ``scale``) and single-scattering ``albedo`` (``sigma_s / sigma_t``, in
     [0, 1]), both linear RGB; its phase function ``phase`` (``isotropic``, or ``hg``:
     Henyey-Greenstein of asymmetry ``g`` in (-1, 1), ``g > 0`` forward). A shape's ``interior`` and
-    ``exterior`` and the camera's ``medium`` name media (``Scene.boundaries``, ``Scene.camera_medium``)."""
+    ``exterior`` and the camera's ``medium`` name media (``Scene.boundaries``, ``Scene.camera_medium``).
+    A ``heterogeneous`` medium's ``sigma_t`` is a `Volume` (whose box bounds the medium) and its
+    ``albedo`` one or a constant."""
 
     name: str
     type: str = "homogeneous"
-    sigma_t: tuple[float, float, float] = (1.0, 1.0, 1.0)
-    albedo: tuple[float, float, float] = (0.75, 0.75, 0.75)
+    sigma_t: tuple[float, float, float] | Volume = (1.0, 1.0, 1.0)
+    albedo: tuple[float, float, float] | Volume = (0.75, 0.75, 0.75)
     scale: float = 1.0
     phase: str = "isotropic"
     g: float = 0.0

@@ -10,6 +10,8 @@ medium's ``scale`` applied.
 
 import warp as wp
 
+HOMOGENEOUS = wp.constant(0)  # MediumData.kind: constant coefficients (kernels/volumes/homogeneous.py)
+GRID = wp.constant(1)  # coefficients from volumes (kernels/volumes/grid.py)
 UNSET = wp.constant(-2)  # a surface's interior / exterior: the shape names no medium on either side
 VACUUM = wp.constant(-1)
 
@@ -22,6 +24,14 @@ class MediumData:
     sigma_t: wp.array(dtype=wp.vec3)  # per medium: extinction coefficient, 1/length
     albedo: wp.array(dtype=wp.vec3)  # single-scattering albedo sigma_s / sigma_t, in [0, 1]
     g: wp.array(dtype=float)  # its phase function's Henyey-Greenstein asymmetry, in (-1, 1); 0: isotropic
+    kind: wp.array(dtype=wp.int32)  # per medium: HOMOGENEOUS or GRID
+    density: wp.array(dtype=wp.int32)  # per GRID medium: the volume row of its extinction (scale applied)
+    tint: wp.array(dtype=wp.int32)  # and of its albedo
+    majorant: wp.array(dtype=float)  # and the largest extinction in it, any channel, 1/length
+    volume_to_local: wp.array(dtype=wp.mat44)  # per volume: world to the unit cube of its grid
+    volume_res: wp.array(dtype=wp.vec3i)  # its texels along x, y, z
+    volume_offset: wp.array(dtype=wp.int32)  # where its texels start in volume_values
+    volume_values: wp.array(dtype=wp.vec3)  # every volume's texels, x fastest, then y, then z
 
 
 @wp.struct

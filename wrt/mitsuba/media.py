@@ -1,12 +1,21 @@
 """Converting Mitsuba's participating media into wrt media: ``homogeneous`` (``sigma_t``,
-``albedo``, ``scale``) with its ``isotropic`` or ``hg`` phase function, each ``<medium>`` once,
-named when a shape's ``interior`` or ``exterior`` or the sensor first uses it."""
+``albedo``, ``scale``) and ``heterogeneous`` (``sigma_t`` and ``albedo`` a ``gridvolume`` or a
+``constvolume``, or one value) with its ``isotropic`` or ``hg`` phase function, each ``<medium>``
+once, named when a shape's ``interior`` or ``exterior`` or the sensor first uses it. A
+heterogeneous medium's plain ``sigma_t`` value is a constant volume over the unit cube, as
+Mitsuba makes it; emissive media (``volumelight``, ``sigma_n``) are refused."""
 
 from __future__ import annotations
 
+import numpy as np
+
+from .transforms import as_list
 from .xml import Document, Element, Plugin
 
 HARMLESS_MEDIUM = ("sample_emitters",)
+HARMLESS_GRID = ("raw",)
+"""Grid volume parameters of no effect in RGB: ``raw`` turns off the spectral upsampling of RGB
+texels, which Mitsuba's RGB variants do not do."""
 """Medium parameters that change only the noise: whether scattering events sample the emitters
 (wrt always does, MIS-weighted against the phase function: the same image)."""
 
@@ -50,14 +59,21 @@ class Media:
 def convert(doc: Document, element: Element) -> dict:
     """The ``[[medium]]`` table (without its name) of a ``<medium>``."""
     p = Plugin(doc, element)
-    if p.type != "homogeneous":
+    if p.type not in ("homogeneous", "heterogeneous"):
         doc.warn(element, f"medium type {p.type!r} is not supported: converted as a homogeneous medium of its defaults")
-    table = {
-        "type": "homogeneous",
-        "sigma_t": p.color("sigma_t", 1.0, unbounded=True),
-        "albedo": p.color("albedo", 0.75),
-        "scale": p.number("scale", 1.0),
-    }
+    if p.type == "heterogeneous":
+        table = {
+            "type": "heterogeneous",
+            "sigma_t": volume(doc, p, "sigma_t", 1.0),
+            "albedo": volume(doc, p, "albedo", 0.75),
+        }
+    else:
+        table = {
+            "type": "homogeneous",
+            "sigma_t": p.color("sigma_t", 1.0, unbounded=True),
+            "albedo": p.color("albedo", 0.75),
+        }
+    table["scale"] = p.number("scale", 1.0)
     if table["scale"] < 0.0:
         raise doc.error(p.params["scale"], f"'scale' = {table['scale']:g} must not be negative")
     phases = p.children("phase")
@@ -65,10 +81,41 @@ def convert(doc: Document, element: Element) -> dict:
         doc.warn(extra, "a medium takes one phase function: ignored")
     if phases:
         table["phase"] = phase(doc, phases[0])
-    if p.type == "homogeneous":
+    if p.type in ("homogeneous", "heterogeneous"):
         for name in HARMLESS_MEDIUM:
             p.boolean(name, True)
         p.finish()
+    return table
+
+
+def volume(doc: Document, p: Plugin, name: str, default: float) -> dict | list[float]:
+    """A heterogeneous medium's ``sigma_t`` or ``albedo``: its nested ``<volume>`` as a volume
+    table, or its plain value (``sigma_t``'s a constant volume over the unit cube, as Mitsuba's
+    ``constvolume`` of identity ``to_world``)."""
+    element = next((child for key, child in p.nested if key == name and child.tag == "volume"), None)
+    if element is None:
+        value = p.color(name, default, unbounded=name == "sigma_t")
+        return {"volume": "constant", "value": value} if name == "sigma_t" else value
+    p.used_nested.add(id(element))
+    v = Plugin(doc, element)
+    matrix, _ = v.transform("to_world")
+    if v.type == "constvolume":
+        table = {"volume": "constant", "value": v.color("value", 1.0, unbounded=True)}
+    else:
+        if v.type != "gridvolume":
+            doc.warn(element, f"volume type {v.type!r} is not supported")
+        table = {"volume": "grid", "file": v.file("a gridvolume", "volume file")}
+        if v.boolean("use_grid_bbox", False):
+            table["use_grid_bbox"] = True
+        for key, supported in (("filter_type", "bilinear"), ("wrap_mode", "clamp")):
+            value = v.string(key, supported)
+            if value != supported:
+                doc.warn(element, f"'{key}' = {value!r} is not supported (wrt's volumes are {supported})")
+        for key in HARMLESS_GRID:
+            v.boolean(key, False)
+    if not np.array_equal(matrix, np.eye(4)):
+        table["transform"] = {"matrix": [x for row in matrix for x in as_list(row)]}
+    v.finish()
     return table
 
 

@@ -1,15 +1,19 @@
-"""Participating media at the ends of their range: an optical depth of 1e4 and of 1e-6, and media
-nested four deep, each against a closed form (``docs/stress.md``). Every medium is homogeneous,
-held by null spheres, and seen by an orthographic camera under a uniform environment of
-radiance 1, so that each pixel's transmittance is ``exp(-sum sigma_t chord)`` along its ray."""
+"""Participating media at the ends of their range: an optical depth of 1e4 and of 1e-6, media
+nested four deep, and heterogeneous grids of zero majorant and of optical depth 1e4, each against
+a closed form (``docs/stress.md``). Every medium is held by null spheres and seen by an
+orthographic camera under a uniform environment of radiance 1, so that each pixel's
+transmittance is ``exp(-sum sigma_t chord)`` along its ray."""
 
 from __future__ import annotations
 
 import math
+import os
+import tempfile
 
 import numpy as np
 
 from ..loader import parse_scene
+from ..volumes import write_vol
 from .refraction import render
 from .report import CaseResult
 
@@ -19,7 +23,7 @@ WIDTH = 2.4  # the orthographic view's extent: the spheres' radius is at most 1
 SIGMAS = 4.0  # standard errors an estimated mean may stray from its closed form
 
 
-def _scene(media, spheres):
+def _scene(media, spheres, scene_dir="."):
     """Null spheres centred at the origin, ``(radius, interior, exterior)`` each (medium names or
     None), under a uniform environment; orthographic camera along -z, path integrator."""
     camera = {"type": "orthographic", "origin": [0.0, 0.0, 3.0], "look_at": [0.0, 0.0, 0.0], "width": WIDTH}
@@ -36,7 +40,7 @@ def _scene(media, spheres):
         "shape": shapes,
         "light": [{"type": "environment", "radiance": [1.0, 1.0, 1.0]}],
     }
-    return parse_scene(doc, file="<stress>")
+    return parse_scene(doc, file="<stress>", scene_dir=scene_dir)
 
 
 def _chords(radius: float, sub: int = 16) -> np.ndarray:
@@ -122,6 +126,22 @@ def nested_case() -> list[CaseResult]:
     return [_row("nested four deep, absorbing", got, expected, noise, {})]
 
 
+def grid_case() -> list[CaseResult]:
+    """Heterogeneous grids over the unit sphere's box: one of zero majorant (all texels 0) must
+    render as vacuum, exactly 1 (delta tracking takes no step), and one of extinction 5000
+    everywhere (optical depth 1e4 along the diameter) absorbs as the homogeneous absorber does."""
+    rows = []
+    with tempfile.TemporaryDirectory() as folder:
+        for case, density in (("zero majorant", 0.0), ("optical depth 1e4, absorbing", 5000.0)):
+            write_vol(os.path.join(folder, "grid.vol"), np.full((2, 2, 2), density))
+            grid = {"volume": "grid", "file": "grid.vol", "transform": {"translate": [-1.0] * 3, "scale": 2.0}}
+            medium = {"name": "grid", "type": "heterogeneous", "sigma_t": grid, "albedo": 0.0}
+            got = render(_scene([medium], [(1.0, "grid", None)], folder)).rgb.astype(np.float64)
+            expected, noise = _absorbed(density * _chords(1.0))
+            rows.append(_row(f"grid of {case}", got, expected, noise, {}))
+    return rows
+
+
 def case_media(n, rng) -> list[CaseResult]:
     """The group ``media``: fixed small images whatever the ray budget."""
-    return [*dense_case(), *thin_case(), *nested_case()]
+    return [*dense_case(), *thin_case(), *nested_case(), *grid_case()]
