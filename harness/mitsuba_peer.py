@@ -92,15 +92,18 @@ SRGB_TO_XYZ = np.array([[0.412453, 0.357580, 0.180423], [0.212671, 0.715160, 0.0
 
 
 def render_mitsuba_moments(xml_path, spp: int, seed: int = 0, **params) -> tuple[np.ndarray, np.ndarray]:
-    """Mitsuba's render of a scene whose integrator is a ``moment`` integrator, read as Mitsuba's
-    own render tests read their references: ``(mean, variance)``, float64 (H, W, 3) in CIE XYZ,
-    the variance per sample (second moment minus the squared mean). ``params`` as in
-    `render_mitsuba`."""
+    """Mitsuba's render of a scene through a ``moment`` integrator (the scene's own, or its
+    integrator wrapped in one, as Mitsuba's render tests wrap theirs), read as those tests read
+    their references: ``(mean, variance)``, float64 (H, W, 3) in CIE XYZ, the variance per
+    sample (second moment minus the squared mean). ``params`` as in `render_mitsuba`."""
     import mitsuba as mi
 
     mi.set_variant(variant())
     scene = mi.load_file(os.fspath(xml_path), **{k: str(v) for k, v in params.items()})
-    image = np.array(mi.render(scene, spp=spp, seed=seed), dtype=np.float64)
+    integrator = scene.integrator()
+    if not any(name.startswith("m2_") for name in integrator.aov_names()):  # not a moment integrator
+        integrator = mi.load_dict({"type": "moment", "integrator": integrator})
+    image = np.array(mi.render(scene, integrator=integrator, spp=spp, seed=seed), dtype=np.float64)
     if image.shape[-1] != 9:
         raise ValueError(f"{xml_path}: not a moment integrator's image ({image.shape[-1]} channels, not 9)")
     mean, second = image[..., 3:6], image[..., 6:9]

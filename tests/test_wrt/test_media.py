@@ -8,9 +8,8 @@ import math
 
 import numpy as np
 import pytest
-from conftest import EXAMPLES
 from test_bad_input import GOOD, run_bad
-from wrt_harness.mitsuba_peer import mitsuba_available, render_mitsuba
+from wrt_harness.mitsuba_suite import CROSSCHECKS
 from wrt_harness.score import ssim
 
 import wrt
@@ -18,7 +17,6 @@ from wrt.errors import WrtError
 from wrt.loader import override_render, parse_scene
 from wrt.mitsuba import load_mitsuba
 
-AVAILABLE, REASON = mitsuba_available()
 ORTHOGRAPHIC = {"type": "orthographic", "origin": [0.0, 0.0, 5.0], "look_at": [0.0, 0.0, 0.0], "width": 1.0}
 NULL = {"name": "boundary", "type": "null"}
 
@@ -202,32 +200,31 @@ def test_the_mitsuba_importer_converts_media_exactly(tmp_path):
     scene = wrt.load_scene(xml)
     assert scene.camera_medium == 0 and scene.boundaries == ((0, 0, 1),)
     assert scene.media[0].sigma_t == (0.5, 1.0, 1.0) and scene.media[0].scale == 2.0
-    xml.write_text(xml.read_text().replace('type="homogeneous" id="fog"', 'type="heterogeneous" id="fog"'))
-    with pytest.raises(WrtError, match="heterogeneous.*not supported"):
+    xml.write_text(xml.read_text().replace('type="homogeneous" id="fog"', 'type="rayleigh" id="fog"'))
+    with pytest.raises(WrtError, match="rayleigh.*not supported"):
         load_mitsuba(xml)
 
 
-MITSUBA_MEDIA = {  # scene: (width, height, spp, SSIM above)
-    "fog_area_light": (48, 36, 1024, 0.98),  # fog in a null sphere lit by an area light (measured: SSIM 0.990)
+MITSUBA_MEDIA = {  # scene: SSIM above
+    "fog_area_light": 0.98,  # fog in a null sphere lit by an area light (measured: SSIM 0.990)
     # chromatic milk inside glass, and a camera and an emitter inside fog: noisier at this budget
     # (refracted and near-emitter light), their SSIM limited by noise: measured 0.90 at 1024 spp,
     # 0.956 and 0.972 at 4096 (means within 0.63% and 0.07%)
-    "milk_in_glass": (48, 36, 1024, 0.85),
-    "camera_in_fog": (48, 36, 1024, 0.85),
+    "milk_in_glass": 0.85,
+    "camera_in_fog": 0.85,
 }
 
 
-@pytest.mark.skipif(not AVAILABLE, reason=REASON)
 @pytest.mark.parametrize("name", list(MITSUBA_MEDIA))
 def test_media_agree_with_mitsuba(name):
     """Equal spp, box filter, same camera: every channel's image mean within 2% of Mitsuba's
-    volpath (the rule of test_mitsuba_crosscheck) and SSIM of the tone-mapped images above the
+    volpath (the rule of test_mitsuba_crosscheck; Mitsuba's image stored,
+    ``wrt_harness.mitsuba_suite.CROSSCHECKS``) and SSIM of the tone-mapped images above the
     scene's bound."""
-    width, height, spp, least_ssim = MITSUBA_MEDIA[name]
-    path = EXAMPLES / "mitsuba" / "media" / f"{name}.xml"
-    scene = override_render(wrt.load_scene(path), width=width, height=height, sampler="sobol")
-    ours = wrt.render(scene, spp=spp, specialize=False).rgb.astype(np.float64)
-    theirs = render_mitsuba(str(path), spp=spp, width=width, height=height).astype(np.float64)
-    assert ours.shape == theirs.shape == (height, width, 3) and np.isfinite(ours).all()
+    check = CROSSCHECKS[name]
+    scene = override_render(wrt.load_scene(check.path), width=check.width, height=check.height, sampler="sobol")
+    ours = wrt.render(scene, spp=check.spp, specialize=False).rgb.astype(np.float64)
+    theirs = check.image()
+    assert ours.shape == theirs.shape and np.isfinite(ours).all()
     np.testing.assert_allclose(ours.mean(axis=(0, 1)), theirs.mean(axis=(0, 1)), rtol=0.02)
-    assert ssim(ours.astype(np.float32), theirs.astype(np.float32)) > least_ssim
+    assert ssim(ours.astype(np.float32), theirs.astype(np.float32)) > MITSUBA_MEDIA[name]

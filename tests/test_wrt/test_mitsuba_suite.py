@@ -1,43 +1,56 @@
-"""Mitsuba 3 render-test-style scenes (``examples/mitsuba/suite``: ``<include>``d fragments,
-``<path>``, ``<matrix>``, spectra, instances, an orthographic sensor, the ``direct`` and
-``moment`` integrators), imported without ``approximate`` and rendered by wrt, judged by
-Mitsuba's own render-test criterion (``wrt_harness.mitsuba_peer.mitsuba_z_test``) against a
-Mitsuba render with a moment integrator made in the test. Skipped where Mitsuba is missing."""
+"""Scenes judged by Mitsuba 3's own render-test criterion (``wrt_harness.mitsuba_peer.mitsuba_z_test``)
+against the stored Mitsuba references of ``wrt_harness.mitsuba_suite``: ``examples/mitsuba/suite``
+(render-test-style scenes: ``<include>``d fragments, ``<path>``, ``<matrix>``, spectra, instances,
+an orthographic sensor, the ``direct`` and ``moment`` integrators) and
+``examples/mitsuba/participating_media`` (the scenes of Mitsuba 3's participating-media render
+tests: homogeneous and heterogeneous media, null, dielectric and thin dielectric boundaries,
+chromatic media, ``volpath``), each imported without ``approximate`` and rendered by wrt at the
+suite's budget of 2e6 samples an image. Needs no Mitsuba: the references are in the repository."""
 
 import numpy as np
 import pytest
-from conftest import EXAMPLES
-from wrt_harness.mitsuba_peer import mitsuba_available, mitsuba_z_test, render_mitsuba_moments
+from wrt_harness.mitsuba_peer import mitsuba_z_test
+from wrt_harness.mitsuba_suite import SUITES
 
 import wrt
+from wrt.errors import WrtError
 from wrt.loader import override_render
 
-SUITE = EXAMPLES / "mitsuba" / "suite"
-SCENES = sorted(SUITE.glob("*.xml"))
-AVAILABLE, REASON = mitsuba_available()
-RES = 32
-SPP = 2_000_000 // (RES * RES)  # wrt's samples per pixel: the 2e6 samples an image of Mitsuba's own tests
-REFERENCE_SPP = 4 * SPP
+CASES = [(suite, name) for suite in SUITES.values() for name in suite.scenes]
 
 
-@pytest.mark.skipif(not AVAILABLE, reason=REASON)
-@pytest.mark.parametrize("path", SCENES, ids=lambda p: p.stem)
-def test_suite_scene_passes_mitsubas_z_test(path):
-    scene = override_render(wrt.load_scene(path), width=RES, height=RES)  # no approximation allowed
-    ours = wrt.render(scene, spp=SPP, seed=1, specialize=False).rgb
-    reference, variance = render_mitsuba_moments(path, REFERENCE_SPP, res=RES)
-    passed, fraction, p_min = mitsuba_z_test(ours, SPP, reference, variance, REFERENCE_SPP)
+def render(suite, name, seed=1):
+    scene = override_render(wrt.load_scene(suite.scene_path(name)), width=suite.res, height=suite.res)
+    return wrt.render(scene, spp=suite.spp, seed=seed, specialize=False).rgb
+
+
+@pytest.mark.parametrize("suite, name", CASES, ids=[f"{s.name}/{n}" for s, n in CASES])
+def test_scene_passes_mitsubas_z_test(suite, name):
+    ours = render(suite, name)
+    mean, variance, reference_spp = suite.reference(name)
+    passed, fraction, p_min = mitsuba_z_test(ours, suite.spp, mean, variance, reference_spp)
     assert passed, f"{fraction:.4%} of pixel channels pass (99.75% needed), smallest p-value {p_min:.3g}"
     assert np.isfinite(ours).all() and ours.mean() > 0.01
 
 
-@pytest.mark.skipif(not AVAILABLE, reason=REASON)
-def test_the_z_test_rejects_a_one_percent_brighter_image():
-    """The criterion has teeth at this sample count: a 1% gain fails where the true image passes
-    (measured: 96.0% of pixel channels pass; it fails on three of the four suite scenes)."""
-    path = SUITE / "include_path_direct.xml"
-    scene = override_render(wrt.load_scene(path), width=RES, height=RES)
-    ours = wrt.render(scene, spp=SPP, seed=1, specialize=False).rgb
-    reference, variance = render_mitsuba_moments(path, REFERENCE_SPP, res=RES)
-    assert mitsuba_z_test(ours, SPP, reference, variance, REFERENCE_SPP)[0]
-    assert not mitsuba_z_test(1.01 * ours, SPP, reference, variance, REFERENCE_SPP)[0]
+@pytest.mark.parametrize(
+    "suite, name, gain",
+    [
+        (SUITES["suite"], "include_path_direct", 1.01),
+        (SUITES["participating_media"], "test_homo_dielectric_envmap", 1.02),
+    ],
+    ids=["suite", "participating_media"],
+)
+def test_the_z_test_rejects_a_brighter_image(suite, name, gain):
+    """The criterion has teeth at this budget: the true image passes, the same image made 1%
+    (2% for the noisier media) brighter fails."""
+    ours = render(suite, name)
+    mean, variance, reference_spp = suite.reference(name)
+    assert mitsuba_z_test(ours, suite.spp, mean, variance, reference_spp)[0]
+    assert not mitsuba_z_test(gain * ours, suite.spp, mean, variance, reference_spp)[0]
+
+
+@pytest.mark.parametrize("name", sorted(SUITES["participating_media"].refused))
+def test_the_other_media_scenes_are_refused_naming_what_stops_them(name):
+    with pytest.raises(WrtError, match="beckmann"):
+        wrt.load_scene(SUITES["participating_media"].scene_path(name))

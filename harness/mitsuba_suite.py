@@ -1,0 +1,231 @@
+"""Scenes judged by Mitsuba 3's render-test criterion against stored Mitsuba references, as
+Mitsuba's own suite stores its references.
+
+Two suites (``SUITES``): ``suite`` (``examples/mitsuba/suite``: scenes written the way Mitsuba's
+render tests write theirs, 32 x 32) and ``participating_media`` (``examples/mitsuba/
+participating_media``: the scenes of Mitsuba 3's participating-media render tests, 48 x 48, their
+own resolution). Each scene is rendered by wrt at the suite's budget of 2e6 samples an image
+(``Suite.spp`` per pixel) and judged by `wrt_harness.mitsuba_peer.mitsuba_z_test` against
+Mitsuba's render of the same file through a ``moment`` integrator at ``Suite.reference_spp``
+(mean and per-sample variance in CIE XYZ), stored in ``reference_images/mitsuba/SUITE/NAME.npz``
+with the Mitsuba version, variant, seed and spp that made it. References are made only on
+purpose (scalar_rgb on 2 cores: about a minute a scene)::
+
+    python -m wrt_harness.mitsuba_suite regenerate SUITE [NAME ...]
+
+``Suite.scenes`` lists the scenes wrt imports exactly and that pass; ``Suite.refused`` those it
+refuses, with the element that stops each; ``Suite.failing`` those it imports but that fail the
+criterion, with what was measured (its reference is stored: regenerate and test it by name).
+
+The cross-checks of wrt's own Mitsuba examples (``CROSSCHECKS``: image means within 2% and SSIM,
+at equal spp) compare with Mitsuba's image of each scene, stored likewise in
+``reference_images/mitsuba/crosscheck/NAME.npz`` (``python -m wrt_harness.mitsuba_suite images
+[NAME ...]``): the tests need no Mitsuba, and spend no time on it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import sys
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from wrt.files import write_atomic
+
+from .mitsuba_peer import render_mitsuba, render_mitsuba_moments, variant
+
+EXAMPLES = Path(str(resources.files("wrt.examples"))) / "mitsuba"
+REFERENCES = Path(str(resources.files("wrt_harness.reference_images"))) / "mitsuba"
+SAMPLES = 2_000_000  # samples an image in Mitsuba's render tests
+SEED = 7
+
+
+@dataclass(frozen=True)
+class Suite:
+    name: str
+    res: int
+    scenes: tuple[str, ...]
+    refused: dict[str, str] = field(default_factory=dict)
+    failing: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def spp(self) -> int:
+        return SAMPLES // (self.res * self.res)
+
+    @property
+    def reference_spp(self) -> int:
+        return 4 * self.spp
+
+    def scene_path(self, name: str) -> Path:
+        return EXAMPLES / self.name / f"{name}.xml"
+
+    def reference_path(self, name: str) -> Path:
+        return REFERENCES / self.name / f"{name}.npz"
+
+    def reference(self, name: str) -> tuple[np.ndarray, np.ndarray, int]:
+        """The stored ``(mean, variance, spp)`` of scene ``name`` (XYZ, float64)."""
+        with np.load(self.reference_path(name)) as data:
+            return data["mean"].astype(np.float64), data["variance"].astype(np.float64), int(data["spp"])
+
+    def regenerate(self, name: str, spp: int | None = None) -> Path:
+        """Render and store the reference of scene ``name`` (atomically)."""
+        import mitsuba
+
+        spp = spp or self.reference_spp
+        mean, var = render_mitsuba_moments(self.scene_path(name), spp, seed=SEED, res=self.res)
+        buffer = io.BytesIO()
+        np.savez_compressed(
+            buffer,
+            mean=mean.astype(np.float32),
+            variance=var.astype(np.float32),
+            spp=spp,
+            seed=SEED,
+            mitsuba=mitsuba.__version__,
+            variant=variant(),
+        )
+        out = self.reference_path(name)
+        write_atomic(out, buffer.getvalue())
+        return out
+
+
+SUITES = {
+    suite.name: suite
+    for suite in (
+        Suite(
+            "suite",
+            32,
+            ("envmap_path", "include_path_direct", "instances_path", "orthographic_direct", "spectra_path"),
+        ),
+        Suite(
+            "participating_media",
+            48,
+            (
+                "test_hetero_sigmat",
+                "test_hetero_sigmat_albedo",
+                "test_hetero_spectral_sigmat",
+                "test_hetero_spectral_sigmat_no_scattering_volpath",
+                "test_homo_dielectric_envmap",
+                "test_homo_null_envmap",
+                "test_homo_spectral_sigmat",
+            ),
+            {
+                "test_homo_emitter_inside_medium": "roughplastic with distribution beckmann",
+                "test_homo_obj_inside_medium": "roughplastic with distribution beckmann",
+                "test_homo_roughdielectric_spot_volpath": "roughdielectric with distribution beckmann",
+                "test_surf_area_light": "roughplastic with distribution beckmann",
+            },
+            {
+                "test_homo_area_light": "99.64% of the pixel channels pass, 99.75% needed: around the thin-dielectric"
+                " sphere holding fog wrt's image is about 5% brighter (4.7 standard errors over 169 pixels at"
+                " 1024 spp; the whole image +0.3%, 1.8 standard errors); not yet understood",
+            },
+        ),
+    )
+}
+
+
+@dataclass(frozen=True)
+class Crosscheck:
+    """A scene of ``examples/mitsuba`` (``folder`` below it) rendered by both renderers at
+    ``width`` x ``height`` and ``spp``; ``res``: the XML sets its film by ``$res``, not
+    ``$width`` and ``$height``."""
+
+    name: str
+    width: int
+    height: int
+    spp: int
+    folder: str = ""
+    res: bool = False
+
+    @property
+    def path(self) -> Path:
+        return EXAMPLES / self.folder / f"{self.name}.xml"
+
+    @property
+    def image_path(self) -> Path:
+        return REFERENCES / "crosscheck" / f"{self.name}.npz"
+
+    def params(self) -> dict:
+        return {"res": self.width} if self.res else {"width": self.width, "height": self.height}
+
+    def image(self) -> np.ndarray:
+        """Mitsuba's stored image (linear RGB, float64), checked to be of this size and spp."""
+        with np.load(self.image_path) as data:
+            image, spp = data["rgb"].astype(np.float64), int(data["spp"])
+        if image.shape != (self.height, self.width, 3) or spp != self.spp:
+            raise ValueError(
+                f"{self.image_path}: {image.shape} at {spp} spp, not {self.width} x {self.height} at {self.spp}"
+            )
+        return image
+
+    def regenerate(self) -> Path:
+        import mitsuba
+
+        rgb = render_mitsuba(str(self.path), spp=self.spp, seed=SEED, **self.params())
+        buffer = io.BytesIO()
+        np.savez_compressed(buffer, rgb=rgb, spp=self.spp, seed=SEED, mitsuba=mitsuba.__version__, variant=variant())
+        write_atomic(self.image_path, buffer.getvalue())
+        return self.image_path
+
+
+CROSSCHECKS = {
+    check.name: check
+    for check in (
+        Crosscheck("cornell_box", 32, 32, 4096, res=True),
+        Crosscheck("glossy_sphere", 64, 48, 2048),
+        Crosscheck("thin_lens", 64, 48, 1024),
+        Crosscheck("sheared_mesh", 64, 48, 1024),
+        Crosscheck("quadrics", 64, 48, 2048),
+        Crosscheck("one_sided", 64, 48, 1024),
+        Crosscheck("instances", 64, 48, 1024),
+        Crosscheck("smooth_meshes", 64, 48, 1024),
+        Crosscheck("conductors", 64, 48, 1024),
+        Crosscheck("envmap", 64, 48, 1024),
+        Crosscheck("thin_dielectric", 64, 48, 1024),
+        Crosscheck("emissive_mesh", 64, 48, 1024),
+        Crosscheck("rough_dielectric", 64, 48, 1024),
+        Crosscheck("plastics", 64, 48, 1024),
+        Crosscheck("textures", 64, 48, 1024),
+        Crosscheck("textured_roughness", 64, 48, 1024),
+        Crosscheck("normal_map", 64, 48, 1024),
+        Crosscheck("mask", 64, 48, 1024),
+        Crosscheck("fog_area_light", 48, 36, 1024, folder="media"),
+        Crosscheck("milk_in_glass", 48, 36, 1024, folder="media"),
+        Crosscheck("camera_in_fog", 48, 36, 1024, folder="media"),
+    )
+}
+"""Every cross-check by scene name (tests/test_wrt/test_mitsuba_crosscheck.py, test_media.py)."""
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m wrt_harness.mitsuba_suite")
+    sub = parser.add_subparsers(dest="command", required=True)
+    regen = sub.add_parser("regenerate", help="render and store Mitsuba's references")
+    regen.add_argument("suite", choices=sorted(SUITES))
+    regen.add_argument("names", nargs="*", help="scenes (default: every scene of the suite wrt imports)")
+    regen.add_argument("--spp", type=int, default=None, help="reference samples per pixel (default: 4x the test's)")
+    images = sub.add_parser("images", help="render and store Mitsuba's images of the cross-checks")
+    images.add_argument("names", nargs="*", help="scenes (default: all)")
+    args = parser.parse_args(argv)
+    if args.command == "images":
+        for name in args.names or CROSSCHECKS:
+            if name not in CROSSCHECKS:
+                print(f"no such cross-check: {name} (known: {', '.join(CROSSCHECKS)})", file=sys.stderr)
+                return 2
+            print(f"wrote {CROSSCHECKS[name].regenerate()}", flush=True)
+        return 0
+    suite = SUITES[args.suite]
+    for name in args.names or (*suite.scenes, *suite.failing):
+        if not suite.scene_path(name).is_file():
+            print(f"no such scene: {suite.scene_path(name)}", file=sys.stderr)
+            return 2
+        print(f"wrote {suite.regenerate(name, args.spp)}", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
