@@ -184,7 +184,7 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
     path kernel calls it once, from surfaces and from media alike)."""
     shadow_ray = make_shadow_ray(record, trace, features.media)
     lighting = lighting_for(features)
-    bsdf = make_bsdf(families_for(features), features.textures, trace.inline)
+    bsdf = make_bsdf(families_for(features), features.textures, trace.inline, features.beckmann)
 
     @wp.func
     def scattered(
@@ -299,7 +299,7 @@ def make_path_radiance(record: bool, features: Features = ALL, inline: bool | No
     trace_segment = make_trace_segment(record, trace)
     next_event = make_next_event(record, trace, features)
     lighting = lighting_for(features)
-    bsdf = make_bsdf(families_for(features), features.textures, inline)
+    bsdf = make_bsdf(families_for(features), features.textures, inline, features.beckmann)
     surface_hit = make_surface_hit_for(features)
 
     @wp.func

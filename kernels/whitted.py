@@ -109,12 +109,14 @@ def heaviest_branch(weight: BranchFloat, count: wp.int32) -> wp.int32:
     return best
 
 
-def make_direct_light(record: bool, trace: Traversal, textures: bool, normal_map: bool):
+def make_direct_light(record: bool, trace: Traversal, textures: bool, normal_map: bool, beckmann: bool):
     """``direct_light``, recording its shadow rays when ``record``, with texture lookups when
-    ``textures`` and normal maps' shadowing when ``normal_map`` (each compiled out otherwise); its
-    BSDF interface has ``trace``'s inline hint."""
+    ``textures``, normal maps' shadowing when ``normal_map`` and Beckmann microfacets when
+    ``beckmann`` (each compiled out otherwise); its BSDF interface has ``trace``'s inline hint."""
     shadow_ray = make_shadow_ray(record, trace)
-    bsdf = make_bsdf(families_for(ALL, whitted=True), textures, trace.inline)  # masks need the path integrator
+    bsdf = make_bsdf(
+        families_for(ALL, whitted=True), textures, trace.inline, beckmann
+    )  # masks need the path integrator
 
     @wp.func
     def direct_light(
@@ -175,8 +177,8 @@ def make_whitted_radiance(record: bool, features: Features = ALL, inline: bool |
     traversal and BSDF interface with the inline hint ``inline`` (``variants.CUDA_INLINE``)."""
     trace = traversal(features, inline)
     trace_segment = make_trace_segment(record, trace)
-    direct_light = make_direct_light(record, trace, features.textures, features.normal_map)
-    bsdf = make_bsdf(families_for(features, whitted=True), features.textures, inline)
+    direct_light = make_direct_light(record, trace, features.textures, features.normal_map, features.beckmann)
+    bsdf = make_bsdf(families_for(features, whitted=True), features.textures, inline, features.beckmann)
     surface_hit = make_surface_hit_for(features)
 
     @wp.func

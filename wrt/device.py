@@ -19,6 +19,7 @@ from wrt.kernels.integrator import IntegratorSettings
 from wrt.kernels.lights import LightData
 from wrt.kernels.materials import FAMILIES, MaterialData
 from wrt.kernels.media import MEDIA, Media
+from wrt.kernels.microfacet import DISTRIBUTIONS
 from wrt.kernels.sampling import INDEPENDENT, SOBOL, STRATIFIED, Sampler
 from wrt.kernels.textures import TextureData
 from wrt.kernels.traverse import GeometryData, mat24
@@ -156,6 +157,7 @@ def upload_materials(scene: Scene, device) -> MaterialData:
     m.transmittance = _vec3([mat.transmittance for mat in mats], device)
     m.priority = _int([mat.priority for mat in mats], device)
     m.roughness = _float([mat.roughness for mat in mats], device)
+    m.distribution = _int([DISTRIBUTIONS[mat.distribution] for mat in mats], device)
     m.eta = _vec3([mat.eta for mat in mats], device)
     m.k = _vec3([mat.k for mat in mats], device)
     m.emission = _vec3([mat.emission for mat in mats], device)

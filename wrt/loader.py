@@ -22,6 +22,7 @@ from .errors import MeshFileError, SceneError, listed
 from .files import TomlError, read_toml
 from .kernels.lights import LIGHT_TYPES
 from .kernels.materials import TYPES
+from .kernels.microfacet import DISTRIBUTIONS
 from .kernels.volumes import MEDIUM_TYPES as MEDIUM_REGISTRY
 from .kernels.volumes import PHASE_TYPES as PHASE_REGISTRY
 from .limits import MAX_DEPTH, MAX_IMAGE_SIDE, MAX_MAGNITUDE, MAX_SEED, MAX_SPP
@@ -389,6 +390,7 @@ def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
         "transmittance": lambda: t.vec3("transmittance", Material.transmittance, lo=0.0, hi=1.0),
         "priority": lambda: t.number("priority", Material.priority, integer=True, lo=-1000, hi=1000),
         "roughness": lambda: t.number("roughness", Material.roughness, lo=1e-3, hi=1.0),
+        "distribution": lambda: t.string("distribution", Material.distribution, DISTRIBUTIONS),
         "two_sided": lambda: t.boolean("two_sided", Material.two_sided),
         "nonlinear": lambda: t.boolean("nonlinear", Material.nonlinear),
         "opacity": lambda: t.number("opacity", Material.opacity, lo=0.0, hi=1.0),

@@ -108,6 +108,7 @@ def scene_features(scene: Scene) -> Features:
         textures=any(m.textures for m in used),
         normal_map=any(name == "normal_map" for m in used for name, _ in m.textures),
         media=bool(scene.media),
+        beckmann=any(m.distribution == "beckmann" for m in used),
     )
 
 

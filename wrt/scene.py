@@ -116,6 +116,8 @@ class Material:
     Lambertian base of ``albedo``, its internal scattering tinting the base where ``nonlinear``;
     a mask (Mitsuba 3's ``mask``) is the material named ``material`` (not a mask, nor a dielectric or rough
     dielectric) with probability ``opacity`` (in [0, 1]) and else lets the ray straight through, on both sides;
+    ``distribution``: the normal distribution of a rough material's microfacets (glossy, conductor,
+    rough dielectric, rough plastic), ``ggx`` (the default) or ``beckmann``, of alpha ``roughness``;
     ``emission``: radiance in W/(m^2 sr) leaving the front side;
     ``two_sided``: both sides reflect (diffuse, phong, mirror, glossy, conductor; a dielectric always does), else
     the back side (facing away from the surface's normal) reflects nothing, as Mitsuba 3's one-sided BSDFs;
@@ -132,6 +134,7 @@ class Material:
     transmittance: tuple[float, float, float] = (1.0, 1.0, 1.0)
     priority: int = 0
     roughness: float = 0.2
+    distribution: str = "ggx"
     eta: tuple[float, float, float] = (0.0, 0.0, 0.0)
     k: tuple[float, float, float] = (1.0, 1.0, 1.0)
     emission: tuple[float, float, float] = (0.0, 0.0, 0.0)

@@ -30,7 +30,7 @@ pdf / flags``): integrators ask these functions and never test a material's type
   back, 0 on the back of a one-sided material: what integrators ask at a hit, and then call the
   functions below only where it is not 0. ``non_specular(flags)``: the BSDF has lobes that
   ``eval`` sees, so light sampling (next-event estimation) pays there.
-- ``make_bsdf(families, textures)``: the dispatch over the families a scene uses, a ``BSDF`` of
+- ``make_bsdf(families, textures, inline, beckmann)``: the dispatch over the families a scene uses, a ``BSDF`` of
   - ``eval(materials, m, n, wo, wi, eta, uv, front)``: f (1/sr) of the non-specular lobes, 0 for
     delta lobes; ``wi`` on ``n``'s side, or across the surface where the BSDF has glossy
     transmission (a rough dielectric: the only one that needs ``eta``, 1 by default);
@@ -217,15 +217,18 @@ class BSDF(NamedTuple):
 
 
 @functools.cache
-def make_bsdf(families: tuple[str, ...] = ALL_FAMILIES, textures: bool = True, inline: bool | None = None) -> BSDF:
+def make_bsdf(
+    families: tuple[str, ...] = ALL_FAMILIES, textures: bool = True, inline: bool | None = None, beckmann: bool = True
+) -> BSDF:
     """The BSDF interface over ``families`` (names of ``FAMILIES``; ``families_for``), with texture
     lookups of the parameters (``wrt.kernels.textures``, at the hit's ``uv``) only where
-    ``textures``, its four functions with Warp's inline hint ``inline`` (None: the compiler's
-    choice, the CPU's; False: out of line, the CUDA kernels', ``wrt.kernels.variants.CUDA_INLINE``).
+    ``textures`` and Beckmann microfacets only where ``beckmann`` (``wrt.kernels.microfacet``), its
+    four functions with Warp's inline hint ``inline`` (None: the compiler's choice, the CPU's;
+    False: out of line, the CUDA kernels', ``wrt.kernels.variants.CUDA_INLINE``).
     A family left out is not in the generated code: a material of it scatters nothing. The
     dispatch tests the families in ``FAMILIES`` order (``_dispatch``); a wrapping family (a mask)
     wraps the others'."""
-    at = parameters(textures)
+    at = parameters(textures, beckmann)
     chosen = [family for family in FAMILIES if family.name in families and family.make is not None]
     functions = [family.make(at) for family in chosen if not family.wraps]
     bsdf = _dispatch(functions, inline)

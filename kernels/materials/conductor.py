@@ -1,15 +1,15 @@
 """Metallic reflection, smooth and rough: ``MIRROR`` (perfect specular, ``reflectance``),
-``GLOSSY`` (GGX of alpha ``roughness`` with the constant Fresnel factor ``reflectance``,
-``wrt.kernels.microfacet``) and ``CONDUCTOR`` (the exact Fresnel reflectance of the complex index of
-refraction ``eta + i k`` times the tint ``reflectance``: a mirror where ``roughness`` is 0, else GGX
-of alpha ``roughness`` with the Fresnel term at the microfacet normal). Mitsuba 3's ``conductor``
+``GLOSSY`` (microfacets of alpha ``roughness``, GGX or Beckmann (``distribution``), with the constant
+Fresnel factor ``reflectance``, ``wrt.kernels.microfacet``) and ``CONDUCTOR`` (the exact Fresnel
+reflectance of the complex index of refraction ``eta + i k`` times the tint ``reflectance``: a mirror
+where ``roughness`` is 0, else microfacets of alpha ``roughness`` with the Fresnel term at the
+microfacet normal). Mitsuba 3's ``conductor``
 and ``roughconductor``; pbrt-v4's ``ConductorBxDF``.
 """
 
 import numpy as np
 import warp as wp
 
-from ..microfacet import ggx_eval, ggx_g1, ggx_pdf, ggx_sample_visible_normal
 from ..optics import fresnel_conductor
 from ..sample_warps import frame
 from ..textures import REFLECTANCE
@@ -54,6 +54,8 @@ def base_color(material) -> tuple:
 
 
 def make(at: Parameters) -> Functions:
+    mf = at.microfacet
+
     @wp.func
     def owns(material_type: wp.int32) -> bool:
         return material_type == MIRROR or material_type == GLOSSY or material_type == CONDUCTOR
@@ -70,24 +72,27 @@ def make(at: Parameters) -> Functions:
     def eval(
         materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float, uv: wp.vec2
     ) -> wp.vec3:
-        """GGX reflection of the facet reflectance at the half vector; 0 for a mirror or a smooth conductor."""
+        """Microfacet reflection of the facet reflectance at the half vector; 0 for a mirror or a smooth conductor."""
         if materials.type[m] == MIRROR or materials.roughness[m] == 0.0:
             return wp.vec3(0.0)
         alpha = at.alpha(materials, m, uv)
         to_local = wp.transpose(frame(n))
         cos_h = wp.abs(wp.dot(wo, wp.normalize(wo + wi)))
         reflectance = at.rgb(materials, m, REFLECTANCE, uv, materials.reflectance[m])
-        return specular_reflectance(materials, m, reflectance, cos_h) * ggx_eval(to_local * wo, to_local * wi, alpha)
+        distribution = at.distribution(materials, m)
+        return specular_reflectance(materials, m, reflectance, cos_h) * mf.eval(
+            to_local * wo, to_local * wi, alpha, distribution
+        )
 
     @wp.func
     def pdf(
         materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float, uv: wp.vec2
     ) -> float:
-        """GGX visible normals; 0 for a mirror or a smooth conductor."""
+        """Visible microfacet normals; 0 for a mirror or a smooth conductor."""
         if materials.type[m] == MIRROR or materials.roughness[m] == 0.0:
             return 0.0
         to_local = wp.transpose(frame(n))
-        return ggx_pdf(to_local * wo, to_local * wi, at.alpha(materials, m, uv))
+        return mf.pdf(to_local * wo, to_local * wi, at.alpha(materials, m, uv), at.distribution(materials, m))
 
     @wp.func
     def specular_lobes(
@@ -112,7 +117,7 @@ def make(at: Parameters) -> Functions:
         u: wp.vec2,
         uv: wp.vec2,
     ) -> BSDFSample:
-        """A mirror's or a smooth conductor's reflection; glossy and rough conductors by GGX visible normals."""
+        """A mirror's or a smooth conductor's reflection; glossy and rough conductors by visible normals."""
         s = lost_sample()
         material_type = materials.type[m]
         if material_type == MIRROR or (material_type == CONDUCTOR and materials.roughness[m] == 0.0):
@@ -126,15 +131,16 @@ def make(at: Parameters) -> Functions:
         to_local = wp.transpose(to_world)
         wo_local = to_local * wo
         alpha = at.alpha(materials, m, uv)
-        h = ggx_sample_visible_normal(wo_local, alpha, u[0], u[1])
+        distribution = at.distribution(materials, m)
+        h = mf.sample_visible_normal(wo_local, alpha, distribution, u[0], u[1])
         cos_h = wp.dot(wo_local, h)
         wi_local = 2.0 * cos_h * h - wo_local
         s.wi = to_world * wi_local
         s.flags = BSDF_REFLECTION | BSDF_GLOSSY
         if wi_local[2] > 0.0:
             reflectance = at.rgb(materials, m, REFLECTANCE, uv, materials.reflectance[m])
-            s.weight = specular_reflectance(materials, m, reflectance, cos_h) * ggx_g1(wi_local, alpha)
-            s.pdf = ggx_pdf(wo_local, wi_local, alpha)
+            s.weight = specular_reflectance(materials, m, reflectance, cos_h) * mf.g1(wi_local, alpha, distribution)
+            s.pdf = mf.pdf(wo_local, wi_local, alpha, distribution)
         return s
 
     return Functions(owns, eval, pdf, sample, specular_lobes)
@@ -144,8 +150,12 @@ FAMILY = Family(
     name="conductor",
     types=(
         MaterialType("mirror", MIRROR, ("reflectance", "two_sided"), BSDF_REFLECTION | BSDF_SPECULAR),
-        MaterialType("glossy", GLOSSY, ("roughness", "reflectance", "two_sided"), BSDF_REFLECTION | BSDF_GLOSSY),
-        MaterialType("conductor", CONDUCTOR, ("reflectance", "two_sided"), BSDF_REFLECTION | BSDF_GLOSSY),
+        MaterialType(
+            "glossy", GLOSSY, ("roughness", "distribution", "reflectance", "two_sided"), BSDF_REFLECTION | BSDF_GLOSSY
+        ),
+        MaterialType(
+            "conductor", CONDUCTOR, ("distribution", "reflectance", "two_sided"), BSDF_REFLECTION | BSDF_GLOSSY
+        ),
     ),
     make=make,
     lobes=lobes,

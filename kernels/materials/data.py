@@ -11,6 +11,7 @@ from typing import NamedTuple
 
 import warp as wp
 
+from ..microfacet import GGX, Microfacet, microfacet
 from ..textures import ROUGHNESS, TextureData, material_rgb, texture_float
 from ..volumes import MediumData
 from .interface import MIN_ALPHA
@@ -31,7 +32,10 @@ class MaterialData:
     sigma: wp.array(dtype=wp.vec3)  # absorption coefficient per unit length, -ln(transmittance)
     transmittance: wp.array(dtype=wp.vec3)  # thin dielectric: the tint of its straight transmission
     priority: wp.array(dtype=wp.int32)
-    roughness: wp.array(dtype=float)  # GGX alpha (conductor: 0 for a smooth one)
+    roughness: wp.array(dtype=float)  # microfacet alpha (conductor: 0 for a smooth one)
+    distribution: wp.array(
+        dtype=wp.int32
+    )  # rough materials: the microfacet distribution (wrt.kernels.microfacet.DISTRIBUTIONS)
     eta: wp.array(dtype=wp.vec3)  # conductor: real part of the index of refraction, per channel
     k: wp.array(dtype=wp.vec3)  # conductor: imaginary part (extinction coefficient)
     emission: wp.array(dtype=wp.vec3)
@@ -46,17 +50,23 @@ class MaterialData:
 class Parameters(NamedTuple):
     """The parameter lookups of a scene's materials at a hit, as ``@wp.func``s:
     ``rgb(materials, m, slot, uv, constant)``, colour parameter ``slot`` (``wrt.kernels.textures``)
-    of material ``m``; ``alpha(materials, m, uv)``, its GGX alpha. ``textures``: the scene has
-    textures (without them every parameter is its constant and ``uv`` is unused)."""
+    of material ``m``; ``alpha(materials, m, uv)``, its microfacet alpha; ``distribution(materials,
+    m)``, its microfacet distribution's code; and ``microfacet``, the microfacet functions
+    (``wrt.kernels.microfacet``). ``textures``: the scene has textures (without them every
+    parameter is its constant and ``uv`` is unused); ``beckmann``: some rough material is Beckmann
+    (without it every one is GGX and the column is not read)."""
 
     rgb: wp.Function
     alpha: wp.Function
+    distribution: wp.Function
+    microfacet: Microfacet
     textures: bool
+    beckmann: bool
 
 
 @functools.cache
-def parameters(textures: bool) -> Parameters:
-    """The lookups, with texture reads compiled in only where ``textures``."""
+def parameters(textures: bool, beckmann: bool = True) -> Parameters:
+    """The lookups, with texture reads compiled in only where ``textures``, Beckmann only where ``beckmann``."""
 
     @wp.func
     def rgb_at(materials: MaterialData, m: wp.int32, slot: wp.int32, uv: wp.vec2, constant: wp.vec3) -> wp.vec3:
@@ -67,12 +77,19 @@ def parameters(textures: bool) -> Parameters:
 
     @wp.func
     def alpha_at(materials: MaterialData, m: wp.int32, uv: wp.vec2) -> float:
-        """GGX alpha of material ``m`` at ``uv``: its roughness texture's (at least ``MIN_ALPHA``),
-        or its ``roughness``."""
+        """Microfacet alpha of material ``m`` at ``uv``: its roughness texture's (at least
+        ``MIN_ALPHA``), or its ``roughness``."""
         alpha = materials.roughness[m]
         if wp.static(textures):
             if materials.textures.slot[m, ROUGHNESS] >= 0:
                 alpha = wp.max(MIN_ALPHA, texture_float(materials.textures, materials.textures.slot[m, ROUGHNESS], uv))
         return alpha
 
-    return Parameters(rgb_at, alpha_at, textures)
+    @wp.func
+    def distribution_of(materials: MaterialData, m: wp.int32) -> wp.int32:
+        """The microfacet distribution of material ``m`` (GGX where no material is Beckmann)."""
+        if wp.static(beckmann):
+            return materials.distribution[m]
+        return GGX
+
+    return Parameters(rgb_at, alpha_at, distribution_of, microfacet(beckmann), textures, beckmann)

@@ -1,6 +1,6 @@
-"""``PLASTIC`` and ``ROUGH_PLASTIC``: Mitsuba 3's ``plastic`` and ``roughplastic``, a smooth or GGX
-(alpha ``roughness``) dielectric coating of relative index ``ior`` (the coating's over the scene's
-``exterior_ior``: ``eta`` below) over a Lambertian base of ``albedo``.
+"""``PLASTIC`` and ``ROUGH_PLASTIC``: Mitsuba 3's ``plastic`` and ``roughplastic``, a smooth or rough
+(alpha ``roughness``, GGX or Beckmann: ``distribution``) dielectric coating of relative index ``ior``
+(the coating's over the scene's ``exterior_ior``: ``eta`` below) over a Lambertian base of ``albedo``.
 
 The coating reflects ``reflectance`` times its Fresnel term. Light that enters it scatters in the
 base and is reflected back by the coating's inside, the fraction ``internal_reflectance`` (``R_i``)
@@ -13,7 +13,7 @@ table of ``cos theta`` for the rough one. The coating is chosen with probability
 The host bakes these constants (``bake``) as Mitsuba's plugins compute them when they are loaded:
 ``R_i`` is the diffuse Fresnel reflectance of a smooth coating (Egan and Hilgeman's fit, as
 Mitsuba's ``fresnel_diffuse_reflectance``), and for a rough coating the cosine-weighted mean of its
-GGX reflectance from inside; a rough coating's transmittance from outside, as a function of the
+microfacet reflectance from inside; a rough coating's transmittance from outside, as a function of the
 incidence cosine, is tabulated at ``COATING_RES`` cosines. Both are the same quadratures as
 Mitsuba's ``eval_reflectance`` and ``eval_transmittance`` (Gauss-Legendre over the visible-normal
 sample square, 32 x 32 nodes for ``eta > 1``, 128 x 128 otherwise), here in float64. Compiled in
@@ -32,7 +32,7 @@ import functools
 import numpy as np
 import warp as wp
 
-from ..microfacet import ggx_eval, ggx_pdf, ggx_sample_visible_normal
+from ..microfacet import smith_g1, visible_normals
 from ..optics import fresnel_dielectric, reflect
 from ..sample_warps import cosine_hemisphere, frame
 from ..textures import ALBEDO, REFLECTANCE
@@ -71,6 +71,8 @@ class PlasticData:
 def make(at) -> Functions:
     from .data import MaterialData  # noqa: PLC0415 (MaterialData holds PlasticData: the one import cycle of the family)
 
+    mf = at.microfacet
+
     @wp.func
     def owns(material_type: wp.int32) -> bool:
         return material_type == PLASTIC or material_type == ROUGH_PLASTIC
@@ -106,12 +108,13 @@ def make(at) -> Functions:
         albedo: wp.vec3,
         reflectance: wp.vec3,
         alpha: float,
+        distribution: wp.int32,
         n: wp.vec3,
         wo: wp.vec3,
         wi: wp.vec3,
     ) -> wp.vec3:
-        """f (1/sr) of a plastic's base, and of a rough plastic's coating (GGX, ``reflectance`` times
-        the Fresnel term at the microfacet normal)."""
+        """f (1/sr) of a plastic's base, and of a rough plastic's coating (microfacets, ``reflectance``
+        times the Fresnel term at the microfacet normal)."""
         cos_i = wp.dot(n, wi)
         if cos_i <= 0.0:
             return wp.vec3(0.0)
@@ -125,13 +128,21 @@ def make(at) -> Functions:
         if materials.type[m] == ROUGH_PLASTIC:
             to_local = wp.transpose(frame(n))
             fresnel = fresnel_dielectric(wp.dot(wo, wp.normalize(wo + wi)), 1.0 / ior)
-            f += reflectance * (fresnel * ggx_eval(to_local * wo, to_local * wi, alpha))
+            f += reflectance * (fresnel * mf.eval(to_local * wo, to_local * wi, alpha, distribution))
         return f
 
     @wp.func
-    def plastic_pdf(materials: MaterialData, m: wp.int32, alpha: float, n: wp.vec3, wo: wp.vec3, wi: wp.vec3) -> float:
+    def plastic_pdf(
+        materials: MaterialData,
+        m: wp.int32,
+        alpha: float,
+        distribution: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        wi: wp.vec3,
+    ) -> float:
         """The density of ``sample``'s non-specular lobes: the base's cosine-weighted one and
-        a rough coating's GGX visible normals, each times the probability of choosing it."""
+        a rough coating's visible normals, each times the probability of choosing it."""
         cos_i = wp.dot(n, wi)
         if cos_i <= 0.0:
             return 0.0
@@ -139,7 +150,7 @@ def make(at) -> Functions:
         pdf = (1.0 - coating) * cos_i / wp.pi
         if materials.type[m] == ROUGH_PLASTIC:
             to_local = wp.transpose(frame(n))
-            pdf += coating * ggx_pdf(to_local * wo, to_local * wi, alpha)
+            pdf += coating * mf.pdf(to_local * wo, to_local * wi, alpha, distribution)
         return pdf
 
     @wp.func
@@ -148,13 +159,14 @@ def make(at) -> Functions:
     ) -> wp.vec3:
         albedo = at.rgb(materials, m, ALBEDO, uv, materials.albedo[m])
         reflectance = at.rgb(materials, m, REFLECTANCE, uv, materials.reflectance[m])
-        return plastic_eval(materials, m, albedo, reflectance, at.alpha(materials, m, uv), n, wo, wi)
+        alpha = at.alpha(materials, m, uv)
+        return plastic_eval(materials, m, albedo, reflectance, alpha, at.distribution(materials, m), n, wo, wi)
 
     @wp.func
     def pdf(
         materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float, uv: wp.vec2
     ) -> float:
-        return plastic_pdf(materials, m, at.alpha(materials, m, uv), n, wo, wi)
+        return plastic_pdf(materials, m, at.alpha(materials, m, uv), at.distribution(materials, m), n, wo, wi)
 
     @wp.func
     def specular_lobes(
@@ -179,12 +191,13 @@ def make(at) -> Functions:
         uv: wp.vec2,
     ) -> BSDFSample:
         """The coating's reflection with probability ``coating_probability`` (a smooth coating's mirror
-        direction, weight ``reflectance F`` over that probability; a rough one's GGX visible normals),
+        direction, weight ``reflectance F`` over that probability; a rough one's visible normals),
         else the base's cosine-weighted direction; non-specular samples weigh ``f cos / pdf`` of both
         lobes together, as Mitsuba 3's ``roughplastic``."""
         albedo = at.rgb(materials, m, ALBEDO, uv, materials.albedo[m])
         reflectance = at.rgb(materials, m, REFLECTANCE, uv, materials.reflectance[m])
         alpha = at.alpha(materials, m, uv)
+        distribution = at.distribution(materials, m)
         s = lost_sample()
         to_world = frame(n)
         transmittance = coating_transmittance(materials, m, wp.dot(n, wo))
@@ -197,7 +210,7 @@ def make(at) -> Functions:
                 s.flags = BSDF_REFLECTION | BSDF_SPECULAR
                 return s
             wo_local = wp.transpose(to_world) * wo
-            h = ggx_sample_visible_normal(wo_local, alpha, u[0], u[1])
+            h = mf.sample_visible_normal(wo_local, alpha, distribution, u[0], u[1])
             s.wi = to_world * (2.0 * wp.dot(wo_local, h) * h - wo_local)
             s.flags = BSDF_REFLECTION | BSDF_GLOSSY
         else:
@@ -205,9 +218,11 @@ def make(at) -> Functions:
             s.flags = BSDF_REFLECTION | BSDF_DIFFUSE
         cos_theta = wp.dot(n, s.wi)
         if cos_theta > 0.0:
-            s.pdf = plastic_pdf(materials, m, alpha, n, wo, s.wi)
+            s.pdf = plastic_pdf(materials, m, alpha, distribution, n, wo, s.wi)
             if s.pdf > 0.0:
-                s.weight = plastic_eval(materials, m, albedo, reflectance, alpha, n, wo, s.wi) * (cos_theta / s.pdf)
+                s.weight = plastic_eval(materials, m, albedo, reflectance, alpha, distribution, n, wo, s.wi) * (
+                    cos_theta / s.pdf
+                )
         return s
 
     return Functions(owns, eval, pdf, sample, specular_lobes)
@@ -236,76 +251,34 @@ def fresnel_diffuse_reflectance(eta: float) -> float:
     return float(np.polyval([-1.36881, 4.98554, -7.80989, 6.75335, -3.4793, 0.919317], x))
 
 
-def _smith_g1(v: np.ndarray, m: np.ndarray, alpha: float) -> np.ndarray:
-    """GGX Smith masking of direction ``v`` (..., 3) seen through microfacet normal ``m``; 0 where
-    ``v`` sees the microfacet's back."""
-    xy = alpha * alpha * (v[..., 0] ** 2 + v[..., 1] ** 2)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        g = 2.0 / (1.0 + np.sqrt(1.0 + xy / v[..., 2] ** 2))
-    g = np.where(xy == 0.0, 1.0, g)
-    return np.where(np.sum(v * m, axis=-1) * v[..., 2] <= 0.0, 0.0, g)
-
-
-def _visible_normals(wi: np.ndarray, alpha: float, u: np.ndarray) -> np.ndarray:
-    """Mitsuba's GGX visible-normal sample for directions ``wi`` (N, 3) in the xz plane (x >= 0)
-    and square samples ``u`` (M, 2): microfacet normals (N, M, 3)."""
-    stretched = np.stack([alpha * wi[:, 0], alpha * wi[:, 1], wi[:, 2]], axis=-1)
-    stretched /= np.linalg.norm(stretched, axis=-1, keepdims=True)
-    cos_theta = stretched[:, 2:3]
-    sin2 = stretched[:, 0] ** 2 + stretched[:, 1] ** 2
-    inv = 1.0 / np.sqrt(np.where(sin2 > 0.0, sin2, 1.0))
-    cos_phi = np.where(sin2 <= 4 * np.finfo(np.float32).eps, 1.0, np.clip(stretched[:, 0] * inv, -1, 1))[:, None]
-    sin_phi = np.where(sin2 <= 4 * np.finfo(np.float32).eps, 0.0, np.clip(stretched[:, 1] * inv, -1, 1))[:, None]
-    # square to the unit disk, concentric map
-    x, y = 2.0 * u[:, 0] - 1.0, 2.0 * u[:, 1] - 1.0
-    swap = np.abs(x) < np.abs(y)
-    r, rp = np.where(swap, y, x), np.where(swap, x, y)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        phi = 0.25 * np.pi * rp / r
-    phi = np.where(swap, 0.5 * np.pi - phi, phi)
-    phi = np.where((x == 0.0) & (y == 0.0), 0.0, phi)
-    px, py = r * np.cos(phi), r * np.sin(phi)
-    # the visible hemisphere of the unit-roughness distribution, as slopes
-    s = 0.5 * (1.0 + cos_theta)
-    py = (1.0 - s) * np.sqrt(np.maximum(0.0, 1.0 - px * px)) + s * py
-    pz = np.sqrt(np.maximum(0.0, 1.0 - px * px - py * py))
-    sin_theta = np.sqrt(np.maximum(0.0, 1.0 - cos_theta * cos_theta))
-    norm = 1.0 / (sin_theta * py + cos_theta * pz)
-    slope_x, slope_y = (cos_theta * py - sin_theta * pz) * norm, px * norm
-    # rotate, unstretch
-    sx = (cos_phi * slope_x - sin_phi * slope_y) * alpha
-    sy = (sin_phi * slope_x + cos_phi * slope_y) * alpha
-    m = np.stack([-sx, -sy, np.ones_like(sx)], axis=-1)
-    return m / np.linalg.norm(m, axis=-1, keepdims=True)
-
-
-def _quadrature(wi: np.ndarray, alpha: float, eta: float, transmitted: bool) -> np.ndarray:
+def _quadrature(wi: np.ndarray, alpha: float, distribution: str, eta: float, transmitted: bool) -> np.ndarray:
     """Mitsuba's ``eval_reflectance`` (``transmitted`` False) or ``eval_transmittance``: the
-    fraction of light arriving from ``wi`` (N, 3) that a GGX interface of relative index ``eta``
-    reflects or transmits, single scattering."""
+    fraction of light arriving from ``wi`` (N, 3) that a microfacet interface (``distribution``)
+    of relative index ``eta`` reflects or transmits, single scattering."""
     nodes, weights = np.polynomial.legendre.leggauss(32 if eta > 1.0 else 128)
     ux, uy = np.meshgrid(nodes, nodes)
     wx, wy = np.meshgrid(weights, weights)
     u = np.stack([ux.ravel(), uy.ravel()], axis=-1) * 0.5 + 0.5
     w = (wx * wy).ravel() * 0.25
-    m = _visible_normals(wi, alpha, u)
+    m = visible_normals(wi, alpha, u, distribution)
     v = wi[:, None, :]
     cos_m = np.sum(v * m, axis=-1)
     f, cos_t, eta_ti = fresnel(cos_m, eta)
     if transmitted:
         wo = m * (cos_m * eta_ti + cos_t)[..., None] - v * eta_ti
-        value = _smith_g1(wo, m, alpha) * (1.0 - f)
+        value = smith_g1(wo, m, alpha, distribution) * (1.0 - f)
         value = np.where(wo[..., 2] * v[..., 2] >= 0.0, 0.0, value)
     else:
         wo = 2.0 * cos_m[..., None] * m - v
-        value = _smith_g1(wo, m, alpha) * f
+        value = smith_g1(wo, m, alpha, distribution) * f
         value = np.where((wo[..., 2] <= 0.0) | (v[..., 2] <= 0.0), 0.0, value)
     return value @ w
 
 
 @functools.cache
-def rough_coating(alpha: float, eta: float) -> tuple[np.ndarray, float]:
-    """A GGX coating of roughness ``alpha`` and relative index ``eta`` (> 1): its transmittance
+def rough_coating(alpha: float, eta: float, distribution: str = "ggx") -> tuple[np.ndarray, float]:
+    """A microfacet coating of roughness ``alpha`` (``distribution``) and relative index ``eta``
+    (> 1): its transmittance
     from outside at the cosines ``k / (COATING_RES - 1)`` (the first at 1e-6), and its
     internal reflectance, ``2`` times the mean over those cosines of ``cos`` times the
     reflectance from inside (Mitsuba's rule, not a finer integral). Cached: the table is shared,
@@ -313,9 +286,9 @@ def rough_coating(alpha: float, eta: float) -> tuple[np.ndarray, float]:
     alpha = max(alpha, MIN_ALPHA)
     mu = np.maximum(1e-6, np.linspace(0.0, 1.0, COATING_RES))
     wi = np.stack([np.sqrt(1.0 - mu * mu), np.zeros_like(mu), mu], axis=-1)
-    transmittance = _quadrature(wi, alpha, eta, transmitted=True)
+    transmittance = _quadrature(wi, alpha, distribution, eta, transmitted=True)
     transmittance.flags.writeable = False
-    internal = 2.0 * float(np.mean(_quadrature(wi, alpha, 1.0 / eta, transmitted=False) * mu))
+    internal = 2.0 * float(np.mean(_quadrature(wi, alpha, distribution, 1.0 / eta, transmitted=False) * mu))
     return transmittance, internal
 
 
@@ -338,7 +311,7 @@ def bake(materials: list, exterior_ior: float) -> dict[str, np.ndarray]:
         if material.type == "plastic":
             internal[i] = fresnel_diffuse_reflectance(1.0 / eta)
         elif material.type == "rough_plastic":
-            tables[i], internal[i] = rough_coating(material.roughness, eta)
+            tables[i], internal[i] = rough_coating(material.roughness, eta, material.distribution)
         weight[i] = specular_weight(material.albedo, material.reflectance)
     return {
         "nonlinear": np.array([material.nonlinear for material in materials], dtype=np.int32),
@@ -360,7 +333,7 @@ FAMILY = Family(
         MaterialType(
             "rough_plastic",
             ROUGH_PLASTIC,
-            ("albedo", "reflectance", "ior", "roughness", "nonlinear", "two_sided"),
+            ("albedo", "reflectance", "ior", "roughness", "distribution", "nonlinear", "two_sided"),
             BSDF_REFLECTION | BSDF_DIFFUSE | BSDF_GLOSSY,
         ),
     ),

@@ -9,7 +9,7 @@ import warp as wp
 import wrt.kernels  # noqa: F401
 from conftest import make_scene
 from test_materials import draw
-from test_microfacet import albedo_float64
+from test_microfacet import albedo_float64, d64, g1_64
 from wrt.kernels.materials import BSDF_GLOSSY, BSDF_REFLECTION, BSDF_SPECULAR, MaterialData, bsdf_flags, make_bsdf
 from wrt.kernels.materials.conductor import normal_reflectance
 from wrt.kernels.optics import fresnel_conductor1
@@ -79,7 +79,12 @@ MATERIALS = {
     "copper": {"type": "conductor", "metal": "Cu", "roughness": 0.3},
     "lossless": {"type": "conductor", "eta": [0.0] * 3, "k": [1.0] * 3, "roughness": 0.4},  # F = 1
     "glossy": {"type": "glossy", "roughness": 0.4},
+    "copper_beckmann": {"type": "conductor", "metal": "Cu", "roughness": 0.3, "distribution": "beckmann"},
+    "lossless_beckmann": {"type": "conductor", "eta": [0.0] * 3, "k": [1.0] * 3, "roughness": 0.4}
+    | {"distribution": "beckmann"},
+    "glossy_beckmann": {"type": "glossy", "roughness": 0.4, "distribution": "beckmann"},
 }
+SUFFIX = {"ggx": "", "beckmann": "_beckmann"}
 INDEX = {name: k for k, name in enumerate(MATERIALS)}
 
 
@@ -130,7 +135,8 @@ def eval_batch(
     out[i] = bsdf_eval(materials, m, wp.vec3(0.0, 0.0, 1.0), wo, wi[i])
 
 
-def test_rough_conductor_eval_is_ggx_with_fresnel_at_the_half_vector(materials):
+@pytest.mark.parametrize("distribution", SUFFIX)
+def test_rough_conductor_eval_is_microfacets_with_fresnel_at_the_half_vector(materials, distribution):
     """f = D(h) G1(wo) G1(wi) F(wo.h) / (4 cos_o cos_i) in float64, F of copper per channel."""
     alpha, wo = 0.3, direction(50.0)
     wi = np.array([direction(t) for t in (-70.0, -50.0, -20.0, 0.0, 30.0, 60.0)]) * [1, 0.8, 1]
@@ -140,43 +146,48 @@ def test_rough_conductor_eval_is_ggx_with_fresnel_at_the_half_vector(materials):
     wp.launch(
         eval_batch,
         dim=len(wi),
-        inputs=[materials, INDEX["copper"], wp.vec3(*wo), wp.array(np.float32(wi), dtype=wp.vec3), out],
+        inputs=[
+            materials,
+            INDEX["copper" + SUFFIX[distribution]],
+            wp.vec3(*wo),
+            wp.array(np.float32(wi), dtype=wp.vec3),
+        ]
+        + [out],
     )
     h = wo + wi
     h /= np.linalg.norm(h, axis=1, keepdims=True)
-    tan2 = (h[:, 0] ** 2 + h[:, 1] ** 2) / h[:, 2] ** 2
-    d = 1 / (np.pi * alpha**2 * h[:, 2] ** 4 * (1 + tan2 / alpha**2) ** 2)
-
-    def g1(w):
-        return 2 / (1 + np.sqrt(1 + alpha**2 * (w[..., 0] ** 2 + w[..., 1] ** 2) / w[..., 2] ** 2))
-
+    d = d64(h, alpha, distribution)
     cos_h = h @ wo
     fresnel = np.array([[fresnel_float64(c, e, kk) for e, kk in zip(*METALS["Cu"])] for c in cos_h])
-    expected = (d * g1(wo) * g1(wi) / (4 * wo[2] * wi[:, 2]))[:, None] * fresnel
+    g = g1_64(wo, alpha, distribution) * g1_64(wi, alpha, distribution)
+    expected = (d * g / (4 * wo[2] * wi[:, 2]))[:, None] * fresnel
     np.testing.assert_allclose(out.numpy(), expected, rtol=2e-4)
 
 
+@pytest.mark.parametrize("distribution", SUFFIX)
 @pytest.mark.parametrize("theta", [0.0, 40.0, 75.0])
-def test_rough_conductor_sample_weight_is_eval_cos_over_pdf(materials, theta):
-    _, weight, pdf, flags, f_cos_over_pdf, pdf_again = sample(materials, "copper", direction(theta))
+def test_rough_conductor_sample_weight_is_eval_cos_over_pdf(materials, distribution, theta):
+    name = "copper" + SUFFIX[distribution]
+    _, weight, pdf, flags, f_cos_over_pdf, pdf_again = sample(materials, name, direction(theta))
     kept = pdf > 0
     assert kept.mean() > 0.9 and np.all(flags[kept] == BSDF_REFLECTION | BSDF_GLOSSY)
     np.testing.assert_allclose(weight[kept], f_cos_over_pdf[kept], rtol=2e-3, atol=1e-6)
     np.testing.assert_allclose(pdf_again[kept], pdf[kept], rtol=2e-3)
 
 
+@pytest.mark.parametrize("distribution", SUFFIX)
 @pytest.mark.parametrize("theta", [0.0, 40.0, 75.0])
-def test_lossless_rough_conductor_loses_only_what_single_scattering_loses(materials, theta):
+def test_lossless_rough_conductor_loses_only_what_single_scattering_loses(materials, distribution, theta):
     """eta 0, k 1: F = 1 at every angle, so the directional albedo is the lossless GGX mirror's
     (float64, by hemisphere integration): 1 less the energy single scattering cannot return, and
     each sample weighs exactly what the glossy material's (reflectance 1) does."""
     wo = direction(theta)
-    weight = sample(materials, "lossless", wo)[1]
-    np.testing.assert_array_equal(weight, sample(materials, "glossy", wo)[1])
-    expected, err = albedo_float64(wo, 0.4)
+    weight = sample(materials, "lossless" + SUFFIX[distribution], wo)[1]
+    np.testing.assert_array_equal(weight, sample(materials, "glossy" + SUFFIX[distribution], wo)[1])
+    expected, err = albedo_float64(wo, 0.4, distribution)
     n = len(weight)
     assert weight[:, 0].mean() == pytest.approx(expected, abs=5 * np.hypot(err, weight[:, 0].std() / np.sqrt(n)) + 1e-3)
-    assert expected < 0.9  # alpha 0.4: single scattering loses over 10%
+    assert expected < {"ggx": 0.9, "beckmann": 0.995}[distribution]  # alpha 0.4: single scattering loses some
 
 
 def test_white_furnace(device):

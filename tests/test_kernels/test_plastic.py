@@ -8,7 +8,8 @@ import pytest
 import warp as wp
 import wrt.kernels  # noqa: F401
 from conftest import fresnel_dielectric64
-from test_rough_dielectric import ggx_d64, ggx_g1_64, random_directions
+from test_microfacet import d64, g1_64
+from test_rough_dielectric import random_directions
 from wrt.kernels.materials import (
     BSDF_DIFFUSE,
     BSDF_GLOSSY,
@@ -78,6 +79,17 @@ PLASTICS = {  # name: (wrt [[material]] table, Mitsuba BSDF dict)
             "diffuse_reflectance": [0.6, 0.6, 0.55],
             "specular_reflectance": [0.9, 0.7, 0.7],
             "nonlinear": True,
+        },
+    ),
+    "rough_beckmann": (
+        {"type": "rough_plastic", "albedo": [0.2, 0.5, 0.3], "ior": 1.6, "roughness": 0.3, "distribution": "beckmann"},
+        {
+            "type": "roughplastic",
+            "distribution": "beckmann",
+            "alpha": 0.3,
+            "int_ior": 1.6,
+            "ext_ior": 1.0,
+            "diffuse_reflectance": [0.2, 0.5, 0.3],
         },
     ),
 }
@@ -161,7 +173,7 @@ def reference(name, wo, wi):
     eta, rough = table["ior"], table["type"] == "rough_plastic"
     weight = specular_weight(albedo, spec)
     if rough:
-        curve, inside = rough_coating(table["roughness"], eta)
+        curve, inside = rough_coating(table["roughness"], eta, table.get("distribution", "ggx"))
         grid = np.linspace(0.0, 1.0, len(curve))
 
         def transmittance(c):
@@ -179,10 +191,10 @@ def reference(name, wo, wi):
     pdf = (1 - coating) * wi[:, 2] / np.pi
     delta = np.zeros_like(f)
     if rough:
-        alpha = table["roughness"]
+        alpha, distribution = table["roughness"], table.get("distribution", "ggx")
         h = wo + wi
         h /= np.linalg.norm(h, axis=1, keepdims=True)
-        d, g1o, g1i = ggx_d64(h, alpha), ggx_g1_64(wo, alpha), ggx_g1_64(wi, alpha)
+        d, g1o, g1i = d64(h, alpha, distribution), g1_64(wo, alpha, distribution), g1_64(wi, alpha, distribution)
         fresnel = fresnel_dielectric64(np.sum(wo * h, axis=1), 1.0 / eta)
         f += spec * (fresnel * d * g1o * g1i / (4 * wo[:, 2] * wi[:, 2]))[:, None]
         pdf += coating * d * g1o / (4 * wo[:, 2])
@@ -197,7 +209,7 @@ def test_flags(materials):
     out = wp.zeros(len(PLASTICS), dtype=wp.int32)
     wp.launch(flags_of, dim=len(PLASTICS), inputs=[materials, out])
     smooth, rough = BSDF_REFLECTION | BSDF_DIFFUSE | BSDF_SPECULAR, BSDF_REFLECTION | BSDF_DIFFUSE | BSDF_GLOSSY
-    assert out.numpy().tolist() == [smooth, smooth, rough, rough]
+    assert out.numpy().tolist() == [smooth, smooth, rough, rough, rough]
 
 
 @wp.kernel

@@ -1,6 +1,6 @@
-"""The rough dielectric (``ROUGH_DIELECTRIC`` of kernels/materials/rough_dielectric.py, ``ggx_dielectric_eval`` and
-``ggx_dielectric_pdf`` of kernels/microfacet.py): Walter et al.'s GGX reflection and transmission
-against a float64 reference, generalised reciprocity, its own sampling, its density's integral,
+"""The rough dielectric (``ROUGH_DIELECTRIC`` of kernels/materials/rough_dielectric.py, ``dielectric_eval`` and
+``dielectric_pdf`` of kernels/microfacet.py): Walter et al.'s reflection and transmission, GGX and
+Beckmann, against a float64 reference, generalised reciprocity, its own sampling, its density's integral,
 a white furnace (energy conserved but for what single scattering loses) and Mitsuba 3's
 ``roughdielectric``."""
 
@@ -9,6 +9,7 @@ import pytest
 import warp as wp
 import wrt.kernels  # noqa: F401
 from conftest import fresnel_dielectric64
+from test_microfacet import d64, g1_64
 from wrt.kernels.materials import (
     BSDF_GLOSSY,
     BSDF_REFLECTION,
@@ -35,11 +36,15 @@ ALPHAS = [0.05, 0.3, 1.0]
 ETAS = [1 / 1.5, 1.5]  # entering glass from air, leaving it
 
 
-def glass(alpha: float) -> MaterialData:
+DISTRIBUTIONS = ["ggx", "beckmann"]
+
+
+def glass(alpha: float, distribution: str = "ggx") -> MaterialData:
+    material = {"name": "glass", "type": "rough_dielectric", "ior": 1.5, "roughness": alpha}
     scene = wrt.parse_scene(
         {
             "camera": {"origin": [0, 0, 5], "look_at": [0, 0, 0]},
-            "material": [{"name": "glass", "type": "rough_dielectric", "ior": 1.5, "roughness": alpha}],
+            "material": [{**material, "distribution": distribution}],
         }
     )
     return upload_materials(scene, wp.get_device())
@@ -116,18 +121,7 @@ def random_directions(rng, count: int, lower: bool) -> np.ndarray:
     return v[np.abs(v[:, 2]) > 0.05]
 
 
-def ggx_d64(h, alpha):
-    cos2 = h[:, 2] ** 2
-    tan2 = (h[:, 0] ** 2 + h[:, 1] ** 2) / cos2
-    return 1.0 / (np.pi * alpha**2 * cos2**2 * (1.0 + tan2 / alpha**2) ** 2)
-
-
-def ggx_g1_64(w, alpha):
-    tan2 = (w[:, 0] ** 2 + w[:, 1] ** 2) / w[:, 2] ** 2
-    return 2.0 / (1.0 + np.sqrt(1.0 + alpha**2 * tan2))
-
-
-def reference(wo, wi, alpha, eta):
+def reference(wo, wi, alpha, eta, distribution="ggx"):
     """f and pdf of Walter et al. (2007), eq. 15-21 and 38-41, with visible-normal sampling, in float64."""
     reflected = wi[:, 2] > 0
     h = np.where(reflected[:, None], wo + wi, eta * wo + wi)
@@ -135,7 +129,7 @@ def reference(wo, wi, alpha, eta):
     h *= np.sign(h[:, 2:3])
     cos_o, cos_i = np.sum(wo * h, axis=1), np.sum(wi * h, axis=1)
     valid = (cos_o > 0) & (cos_i * wi[:, 2] > 0)
-    d, g1o, g1i = ggx_d64(h, alpha), ggx_g1_64(wo, alpha), ggx_g1_64(wi, alpha)
+    d, g1o, g1i = d64(h, alpha, distribution), g1_64(wo, alpha, distribution), g1_64(wi, alpha, distribution)
     fresnel = fresnel_dielectric64(cos_o, eta)
     f_r = fresnel * d * g1o * g1i / (4 * wo[:, 2] * wi[:, 2])
     f_t = (
@@ -166,27 +160,29 @@ def flags_of(materials: MaterialData, out: wp.array(dtype=wp.int32)):
     out[0] = bsdf_flags(materials, 0)
 
 
+@pytest.mark.parametrize("distribution", DISTRIBUTIONS)
 @pytest.mark.parametrize("alpha", ALPHAS)
 @pytest.mark.parametrize("eta", ETAS)
-def test_eval_and_pdf_match_walter_in_float64(alpha, eta, rng):
+def test_eval_and_pdf_match_walter_in_float64(distribution, alpha, eta, rng):
     """Reflection and transmission, both sides of the interface, against the float64 formulas."""
-    materials = glass(alpha)
+    materials = glass(alpha, distribution)
     wo = random_directions(rng, 4000, lower=False)
     wi = np.concatenate([random_directions(rng, 2000, lower=False), random_directions(rng, 2000, lower=True)])
     wo = wo[: len(wi)]
     wi = wi[: len(wo)]
     f, pdf = eval_pdf(materials, wo, wi, eta)
-    f64, pdf64 = reference(wo, wi, alpha, eta)
+    f64, pdf64 = reference(wo, wi, alpha, eta, distribution)
     np.testing.assert_allclose(f, f64, rtol=2e-3, atol=1e-5 * f64.max())
     np.testing.assert_allclose(pdf, pdf64, rtol=2e-3, atol=1e-5 * pdf64.max())
-    assert (f[wi[:, 2] < 0] > 0).mean() > 0.1  # transmission is there
+    assert (f[wi[:, 2] < 0] > 0).mean() > 0.01  # transmission is there (Beckmann's tails fall fastest)
 
 
+@pytest.mark.parametrize("distribution", DISTRIBUTIONS)
 @pytest.mark.parametrize("alpha", ALPHAS)
-def test_generalised_reciprocity(alpha, rng):
+def test_generalised_reciprocity(distribution, alpha, rng):
     """Radiance BSDF: f(wo, wi) / n_wo^2 = f(wi, wo) / n_wi^2 (transmission: ``f(wo, wi; eta) =
     eta^2 f(wi, wo; 1 / eta)``, the normal turned to the new ``wo``'s side); reflection symmetric."""
-    materials = glass(alpha)
+    materials = glass(alpha, distribution)
     eta = 1 / 1.5
     wo = random_directions(rng, 3000, lower=False)
     wi = np.concatenate([random_directions(rng, 1500, lower=False), random_directions(rng, 1500, lower=True)])
@@ -201,13 +197,14 @@ def test_generalised_reciprocity(alpha, rng):
     np.testing.assert_allclose(f, expected, rtol=3e-3, atol=1e-5 * f.max())
 
 
+@pytest.mark.parametrize("distribution", DISTRIBUTIONS)
 @pytest.mark.parametrize("alpha", ALPHAS)
 @pytest.mark.parametrize("eta", ETAS)
 @pytest.mark.parametrize("theta", [0.0, 45.0, 80.0])
-def test_sample_weight_is_eval_cos_over_pdf(alpha, eta, theta):
+def test_sample_weight_is_eval_cos_over_pdf(distribution, alpha, eta, theta):
     """Each sample's weight is ``f |cos| / pdf`` of its direction and its pdf is ``bsdf_pdf``'s;
     reflected samples stay above the surface, refracted ones below, each flagged so."""
-    wi, weight, pdf, flags, f_cos_over_pdf, pdf_again = sample(glass(alpha), theta, eta, n=20_000)
+    wi, weight, pdf, flags, f_cos_over_pdf, pdf_again = sample(glass(alpha, distribution), theta, eta, n=20_000)
     kept = pdf > 0
     assert kept.mean() > 0.4  # lost: reflected below the surface or refracted back above it
     np.testing.assert_allclose(weight[kept], f_cos_over_pdf[kept], rtol=3e-3, atol=1e-5)
@@ -217,13 +214,15 @@ def test_sample_weight_is_eval_cos_over_pdf(alpha, eta, theta):
     assert np.all(flags[kept] & BSDF_GLOSSY)
 
 
+@pytest.mark.parametrize("distribution", DISTRIBUTIONS)
 @pytest.mark.parametrize("alpha", ALPHAS)
 @pytest.mark.parametrize("eta", ETAS)
 @pytest.mark.parametrize("theta", [10.0, 60.0])
-def test_pdf_integrates_to_the_fraction_sampled(alpha, eta, theta, rng):
+def test_pdf_integrates_to_the_fraction_sampled(distribution, alpha, eta, theta, rng):
     """The integral of ``bsdf_pdf`` over the sphere (uniform directions, 400k) is at most 1 and
-    equals the fraction of samples ``bsdf_sample`` does not lose (those that leave the wrong side)."""
-    materials = glass(alpha)
+    equals the fraction of samples ``bsdf_sample`` does not lose (those that leave the wrong side;
+    Beckmann's fitted G1 makes the density up to 0.35% off the sampled one)."""
+    materials = glass(alpha, distribution)
     w = rng.normal(size=(400_000, 3))
     w /= np.linalg.norm(w, axis=1, keepdims=True)
     _, pdf = eval_pdf(materials, np.broadcast_to(direction(theta), w.shape), w, eta)
@@ -231,7 +230,7 @@ def test_pdf_integrates_to_the_fraction_sampled(alpha, eta, theta, rng):
     error = 4 * pdf.std() * 4 * np.pi / np.sqrt(len(pdf))
     kept = (sample(materials, theta, eta)[2] > 0).mean()
     assert integral <= 1.0 + error
-    assert abs(integral - kept) < error + 2e-3
+    assert abs(integral - kept) < error + (2e-3 if distribution == "ggx" else 4e-3)
 
 
 @pytest.mark.parametrize("alpha", ALPHAS)
@@ -267,17 +266,18 @@ def test_index_matched_is_a_straight_pass():
 
 
 @pytest.mark.skipif(not mitsuba_available()[0], reason=mitsuba_available()[1])
+@pytest.mark.parametrize("distribution", DISTRIBUTIONS)
 @pytest.mark.parametrize("alpha", [0.1, 0.5])
-def test_eval_and_pdf_match_mitsuba(alpha, rng):
-    """Mitsuba 3's ``roughdielectric`` (GGX, int_ior 1.5, ext_ior 1), from outside and inside: its
-    ``eval`` (with the cosine) and ``pdf`` against ours at the same local directions."""
+def test_eval_and_pdf_match_mitsuba(distribution, alpha, rng):
+    """Mitsuba 3's ``roughdielectric`` (GGX and Beckmann, int_ior 1.5, ext_ior 1), from outside and
+    inside: its ``eval`` (with the cosine) and ``pdf`` against ours at the same local directions."""
     import mitsuba as mi
 
     mi.set_variant(variant())
     bsdf = mi.load_dict(
-        {"type": "roughdielectric", "distribution": "ggx", "alpha": alpha, "int_ior": 1.5, "ext_ior": 1.0}
+        {"type": "roughdielectric", "distribution": distribution, "alpha": alpha, "int_ior": 1.5, "ext_ior": 1.0}
     )
-    materials = glass(alpha)
+    materials = glass(alpha, distribution)
     for outside in (True, False):
         wo = random_directions(rng, 300, lower=not outside)
         wi = np.concatenate([random_directions(rng, 150, lower=False), random_directions(rng, 150, lower=True)])

@@ -123,6 +123,7 @@ def test_keys_and_defaults():
     )
     rough = material(eta=[0.2, 0.9, 1.1], k=[3.9, 2.4, 2.1], roughness=0.25, reflectance=[0.5] * 3, two_sided=False)
     assert (rough.eta, rough.k, rough.roughness, rough.two_sided) == ((0.2, 0.9, 1.1), (3.9, 2.4, 2.1), 0.25, False)
+    assert gold.distribution == "ggx" and material(metal="Au", distribution="beckmann").distribution == "beckmann"
 
 
 @pytest.mark.parametrize(
@@ -136,6 +137,7 @@ def test_keys_and_defaults():
         ({"metal": "Au", "roughness": 0.0005}, "roughness", "must be 0 (a smooth conductor) or at least 0.001"),
         ({"metal": "Au", "roughness": 1.5}, "roughness", "must be in"),
         ({"metal": "Au", "ior": 1.5}, "ior", "unknown key"),
+        ({"metal": "Au", "roughness": 0.2, "distribution": "phong"}, "distribution", "must be one of ggx, beckmann"),
     ],
 )
 def test_bad_keys_are_one_clear_error(keys, key, problem):

@@ -444,7 +444,14 @@ def test_conductors(tmp_path):
     doc, warnings = convert(tmp_path, body)
     assert doc["material"] == [
         {"name": "mirror", "type": "mirror", "reflectance": [1, 1, 1], "two_sided": False},
-        {"name": "rough", "type": "glossy", "roughness": 0.2, "reflectance": [0.9, 0.8, 0.7], "two_sided": False},
+        {
+            "name": "rough",
+            "type": "glossy",
+            "roughness": 0.2,
+            "distribution": "ggx",
+            "reflectance": [0.9, 0.8, 0.7],
+            "two_sided": False,
+        },
     ]
     assert [s["material"] for s in doc["shape"]] == ["mirror", "rough", "rough"] and warnings == []
     doc, warnings = convert(
@@ -455,18 +462,19 @@ def test_conductors(tmp_path):
         "type": "conductor",
         "metal": "Au",
         "roughness": 0.1,
+        "distribution": "beckmann",
         "reflectance": [1, 1, 1],
         "two_sided": False,
     }
-    assert len(warnings) == 1 and "beckmann" in warnings[0]
+    assert warnings == []  # Mitsuba's default distribution, Beckmann, converted exactly
 
 
 def test_rough_dielectric_and_plastics_convert_exactly(tmp_path):
     """roughdielectric, plastic and roughplastic (GGX) become rough_dielectric, plastic and
     rough_plastic without a warning, with Mitsuba's defaults (bk7 or polypropylene in air, alpha
     0.1, diffuse 0.5); the plastics one-sided, their ext_ior the scene's exterior_ior;
-    ``sample_visible`` read, not warned about; beckmann (the default) approximated; equal iors
-    refused, as Mitsuba does."""
+    ``sample_visible`` read, not warned about; beckmann (the default) exact too; an unknown
+    distribution and equal iors refused, as Mitsuba does."""
     ggx = '<string name="distribution" value="ggx"/>'
     body = f"""
     <shape type="sphere"><bsdf type="roughdielectric" id="frosted">{ggx}
@@ -479,7 +487,7 @@ def test_rough_dielectric_and_plastics_convert_exactly(tmp_path):
     doc, warnings = convert(tmp_path, body, approximate=False)
     assert warnings == [] and doc["render"]["exterior_ior"] == 1.000277
     assert doc["material"] == [
-        {"name": "frosted", "type": "rough_dielectric", "ior": 1.5046, "roughness": 0.3},
+        {"name": "frosted", "type": "rough_dielectric", "ior": 1.5046, "roughness": 0.3, "distribution": "ggx"},
         {
             "name": "red",
             "type": "plastic",
@@ -497,13 +505,19 @@ def test_rough_dielectric_and_plastics_convert_exactly(tmp_path):
             "ior": 1.575,
             "nonlinear": False,
             "roughness": 0.1,
+            "distribution": "ggx",
             "two_sided": False,
         },
     ]
     wrt.parse_scene(doc, scene_dir=str(tmp_path))
     for kind in ("roughdielectric", "roughplastic"):
-        with pytest.raises(WrtError, match=r"scene.xml:2: .*distribution 'beckmann'"):
-            convert(tmp_path, f'<shape type="sphere"><bsdf type="{kind}"/></shape>', approximate=False)
+        doc, warnings = convert(tmp_path, f'<shape type="sphere"><bsdf type="{kind}"/></shape>', approximate=False)
+        assert doc["material"][0]["distribution"] == "beckmann" and warnings == []
+        with pytest.raises(WrtError, match=r"scene.xml:2: .*distribution 'phong' is not beckmann or ggx"):
+            convert(
+                tmp_path,
+                f'<shape type="sphere"><bsdf type="{kind}"><string name="distribution" value="Phong"/></bsdf></shape>',
+            )
         with pytest.raises(WrtError, match=r"scene.xml:2: .*must differ"):
             convert(
                 tmp_path,
@@ -538,6 +552,7 @@ def test_conductor_ior_converts_exactly(tmp_path):
                 "eta": [0.2, 0.9, 1.1],
                 "k": [3.9, 2.4, 2.1],
                 "roughness": 0.3,
+                "distribution": "ggx",
                 "reflectance": [1, 1, 1],
                 "two_sided": False,
             },

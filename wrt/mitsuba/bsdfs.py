@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 from ..conductors import METALS
 from ..errors import token
+from ..kernels.microfacet import DISTRIBUTIONS
 from .textures import texture, textured_color
 from .xml import Document, Element, Plugin
 
@@ -81,15 +82,21 @@ def ior(p: Plugin, name: str, default: str) -> float:
     return IOR_TABLE[text.strip().lower()]
 
 
-def alpha(p: Plugin) -> float | dict:
-    """The GGX alpha of a rough BSDF (isotropic: the geometric mean of an anisotropic pair), or the
-    texture of an isotropic ``alpha`` (``textured_number``)."""
-    distribution = p.string("distribution", "beckmann")
-    if distribution != "ggx":
-        p.doc.warn(
-            p.params.get("distribution", p.element),
-            f"distribution {token(distribution)} is converted as GGX with the same alpha",
+def rough(p: Plugin) -> dict:
+    """The microfacet keys of a rough BSDF: ``distribution`` (Mitsuba's, beckmann by default) and
+    ``roughness``, its alpha (``alpha``: a number or a texture, ``textured_number``; an anisotropic
+    pair: approximated by the geometric mean)."""
+    distribution = p.string("distribution", "beckmann").lower()
+    if distribution not in DISTRIBUTIONS:
+        raise p.doc.error(
+            p.params["distribution"], f"distribution {token(distribution)} is not beckmann or ggx (Mitsuba rejects it)"
         )
+    return {"roughness": _alpha(p), "distribution": distribution}
+
+
+def _alpha(p: Plugin) -> float | dict:
+    """A rough BSDF's alpha (isotropic: the geometric mean of an anisotropic pair), or the texture
+    of an isotropic ``alpha`` (``textured_number``)."""
     if p.has("alpha_u") or p.has("alpha_v"):
         alpha_u, alpha_v = p.number("alpha_u", 0.1), p.number("alpha_v", 0.1)
         if alpha_u != alpha_v:
@@ -101,10 +108,10 @@ def alpha(p: Plugin) -> float | dict:
     return textured_number(p, "alpha", 0.1)
 
 
-def conductor(p: Plugin, roughness: float) -> dict:
-    """The ``[[material]]`` table of a conductor (``roughness`` 0) or a rough conductor (GGX
-    alpha), exact: a named ``material`` or ``eta`` and ``k`` become a wrt conductor; material
-    "none" without them (Mitsuba's default: eta 0, k 1, F = 1) a mirror or a glossy material.
+def conductor(p: Plugin, microfacets: dict) -> dict:
+    """The ``[[material]]`` table of a conductor (``microfacets`` empty) or a rough conductor
+    (``microfacets``: its ``rough`` keys), exact: a named ``material`` or ``eta`` and ``k`` become a
+    wrt conductor; material "none" without them (Mitsuba's default: eta 0, k 1, F = 1) a mirror or a glossy material.
     ``specular_reflectance`` scales the Fresnel term (wrt's ``reflectance``)."""
     reflectance = textured_color(p, "specular_reflectance", 1.0)
     name = p.string("material", "none")
@@ -121,14 +128,12 @@ def conductor(p: Plugin, roughness: float) -> dict:
             "k": p.color("k", 1.0, unbounded=True),
         }
     else:
-        table = {"type": "glossy" if roughness else "mirror"}
-    if roughness:
-        table["roughness"] = roughness
-    return {**table, "reflectance": reflectance}
+        table = {"type": "glossy" if microfacets else "mirror"}
+    return {**table, **microfacets, "reflectance": reflectance}
 
 
 def plastic(p: Plugin) -> dict:
-    """The ``[[material]]`` table of a ``plastic`` or ``roughplastic`` (GGX), exact:
+    """The ``[[material]]`` table of a ``plastic`` or ``roughplastic``, exact:
     ``diffuse_reflectance`` is wrt's ``albedo``, ``specular_reflectance`` its ``reflectance``,
     ``int_ior`` its ``ior`` (over the scene's ``exterior_ior``, the ``ext_ior``), ``nonlinear`` the
     same."""
@@ -144,7 +149,7 @@ def plastic(p: Plugin) -> dict:
         if interior == ior(p, "ext_ior", "air"):
             raise p.doc.error(p.element, "int_ior and ext_ior must differ (Mitsuba rejects it)")
         p.boolean("sample_visible", True)  # how Mitsuba samples it: the noise, not the image
-        table.update(type="rough_plastic", roughness=alpha(p))
+        table.update(type="rough_plastic", **rough(p))
     return table
 
 
@@ -247,7 +252,7 @@ class Materials:
         if p.type == "diffuse":
             material = Material({"type": "diffuse", "albedo": textured_color(p, "reflectance", 0.5)}, False)
         elif p.type in ("conductor", "roughconductor"):
-            material = Material(conductor(p, alpha(p) if p.type == "roughconductor" else 0.0), False)
+            material = Material(conductor(p, rough(p) if p.type == "roughconductor" else {}), False)
         elif p.type in ("dielectric", "roughdielectric"):
             interior, exterior = ior(p, "int_ior", "bk7"), ior(p, "ext_ior", "air")
             for name in ("specular_reflectance", "specular_transmittance"):
@@ -259,7 +264,7 @@ class Materials:
                 if interior == exterior:
                     raise self.doc.error(element, "int_ior and ext_ior must differ (Mitsuba rejects it)")
                 p.boolean("sample_visible", True)  # how Mitsuba samples it: the noise, not the image
-                table = {"type": "rough_dielectric", "ior": interior, "roughness": alpha(p)}
+                table = {"type": "rough_dielectric", "ior": interior, **rough(p)}
             material = Material(table, True)
         elif p.type in ("plastic", "roughplastic"):
             material = Material(plastic(p), False)
