@@ -49,6 +49,7 @@ from .traverse import (
     make_surface_point,
     prim_shape,
     ray_hit,
+    shading_normal,
 )
 from .volumes import boundary_medium, has_media, volume_transmittance
 
@@ -59,6 +60,27 @@ def make_shadow_ray(record: bool, trace: Traversal, media: bool = False):
     """``shadow_ray`` over the traversal ``trace``, recording when ``record`` and through
     participating media and null surfaces when ``media`` (each compiled out otherwise)."""
     surface_point = make_surface_point(trace.features.disks or trace.features.cylinders)
+    smooth = trace.features.smooth
+
+    @wp.func
+    def pane_transmittance(
+        geometry: GeometryData,
+        materials: MaterialData,
+        m: wp.int32,
+        prim: wp.int32,
+        inst: wp.int32,
+        p: wp.vec3,
+        n: wp.vec3,
+        w: wp.vec3,
+        time: float,
+    ) -> wp.vec3:
+        """What thin dielectric ``m`` lets through along ``w`` where it is crossed at ``p`` (geometric
+        normal ``n``): ``thin_transmittance`` at the cosine to its shading normal, as the BSDF sees
+        it (Mitsuba 3's ``eval_null_transmission`` works in the shading frame)."""
+        ns = n
+        if wp.static(smooth):
+            ns = shading_normal(geometry, prim, inst, p, n, time)
+        return thin_transmittance(materials, m, wp.dot(w, ns))
 
     @wp.func
     def crossing(geometry: GeometryData, prim: wp.int32, inst: wp.int32, o: wp.vec3, w: wp.vec3, t: float, time: float):
@@ -101,7 +123,7 @@ def make_shadow_ray(record: bool, trace: Traversal, media: bool = False):
             key = pcg_hash(key)
             p, n, err = crossing(geometry, prim, inst, o, w, t, time)
             if materials.type[m] == THIN_DIELECTRIC:  # its straight lobe is a null one (Mitsuba 3's)
-                out = wp.cw_mul(out, thin_transmittance(materials, m, wp.dot(w, n)))
+                out = wp.cw_mul(out, pane_transmittance(geometry, materials, m, prim, inst, p, n, w, time))
             current = boundary_medium(materials.media, hit_shape(geometry, prim, inst), wp.dot(w, n) > 0.0, current)
             o = spawn_origin(p, n, err, w)
             t_max = t_max - t
@@ -138,7 +160,7 @@ def make_shadow_ray(record: bool, trace: Traversal, media: bool = False):
             p, n, err = crossing(geometry, prim, inst, o, w, t, time)
             m = materials.shape_material[prim_shape(geometry, prim)]
             if (bsdf_flags(materials, m) & BSDF_THIN) != 0:  # a pane: the medium goes on beyond it
-                passed = thin_transmittance(materials, m, wp.dot(w, n))
+                passed = pane_transmittance(geometry, materials, m, prim, inst, p, n, w, time)
                 out = wp.cw_mul(out, wp.cw_mul(beer_lambert(sigma_now, t), passed))
             elif wp.dot(w, n) > 0.0:  # leaving: the segment just travelled was inside this dielectric
                 out = wp.cw_mul(out, beer_lambert(materials.sigma[m], t))

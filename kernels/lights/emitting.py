@@ -43,8 +43,9 @@ def make_emitting_index(shapes: bool):
 
 
 @functools.cache
-def make_emitting_pdf(shapes: bool):
-    """``emitting_pdf``; with ``shapes``, of polygons and spheres too (else triangles only)."""
+def make_emitting_pdf(shapes: bool, smooth: bool):
+    """``emitting_pdf``; with ``shapes``, of polygons and spheres too (else triangles only); with
+    ``smooth``, a smooth-shaded triangle's cosine at the light is its interpolated normal's."""
 
     @wp.func
     def emitting_pdf(
@@ -53,7 +54,12 @@ def make_emitting_pdf(shapes: bool):
         """Solid-angle density with which ``sample_emitting`` picks direction ``wi`` from ``p``,
         given that the ray along ``wi`` meets emitting primitive ``e`` at ``dist``: its selection
         probability times, for a triangle or polygon, ``dist^2 / (area |cos|)`` at it (either side;
-        emission is judged apart), for a sphere ``1 / (2 pi (1 - cos_max))`` (0 from inside)."""
+        emission is judged apart), for a sphere ``1 / (2 pi (1 - cos_max))`` (0 from inside).
+
+        A smooth-shaded triangle stands for the curved surface its vertex normals describe: ``cos``
+        is the interpolated normal's at the point (Mitsuba 3's mesh emitters: ``sample_position``
+        and ``pdf_direction`` take the shading normal). Emitting primitives do not move, so the
+        normal is the one at time 0."""
         selection = lights.emit_cdf[e + 1] - lights.emit_cdf[e]
         i = lights.emit_prim[e]
         if wp.static(shapes):
@@ -70,6 +76,11 @@ def make_emitting_pdf(shapes: bool):
         m = wp.cross(geometry.tri_verts[3 * i + 1] - a, geometry.tri_verts[3 * i + 2] - a)
         twice_area = wp.length(m)
         cos_light = wp.abs(wp.dot(wi, m)) / twice_area
+        if wp.static(smooth):
+            ng = m / twice_area
+            ns = shading_normal(geometry, (i << KIND_BITS) | TRIANGLE, -1, p + dist * wi, ng, 0.0)
+            if ns[0] != ng[0] or ns[1] != ng[1] or ns[2] != ng[2]:  # a smooth triangle (a flat one: ng itself)
+                cos_light = wp.abs(wp.dot(wi, ns))
         if cos_light <= 0.0:
             return 0.0
         return selection * dist * dist / (0.5 * twice_area * cos_light)
@@ -97,7 +108,7 @@ def make_sample_emitting(smooth: bool, shapes: bool):
     """``sample_emitting``; with ``smooth``, the emitting side of a smooth-shaded triangle is its
     interpolated shading normal's, as for a path that hits it; with ``shapes``, polygons and
     spheres are in the pool too (else triangles only)."""
-    emitting_pdf = make_emitting_pdf(shapes)
+    emitting_pdf = make_emitting_pdf(shapes, smooth)
 
     @wp.func
     def sample_emitting(
@@ -174,7 +185,7 @@ def make_sample_emitting(smooth: bool, shapes: bool):
 @functools.cache
 def make(options: Options) -> Functions:
     emitting_index = make_emitting_index(options.emissive_shapes)
-    emitting_pdf = make_emitting_pdf(options.emissive_shapes)
+    emitting_pdf = make_emitting_pdf(options.emissive_shapes, options.smooth)
     sample_emitting = make_sample_emitting(options.smooth, options.emissive_shapes)
 
     @wp.func

@@ -28,7 +28,7 @@ ELL = {
 CENTER, RADIUS = (0.0, 2.0, 0.0), 0.5
 BALL = {"type": "sphere", "center": list(CENTER), "radius": RADIUS, "material": "lamp"}
 sample_emitting = make_sample_emitting(False, True)
-emitting_pdf = make_emitting_pdf(True)
+emitting_pdf = make_emitting_pdf(True, False)
 DOWN = {"origin": [0, 0.5, 0.0], "look_at": [0, 0, 0], "up": [0, 0, 1], "fov": 1.0}
 
 
@@ -171,3 +171,56 @@ def test_mis_matches_bsdf_sampling_alone_with_far_less_noise():
     assert ratio > 10.0
     se = np.sqrt(a.var(axis=0, ddof=1).sum() + b.var(axis=0, ddof=1).sum()) / (a.shape[0] ** 0.5 * a[0].size)
     assert abs(a.mean() - b.mean()) < 4 * se + 1e-4
+
+
+sample_smooth = make_sample_emitting(True, True)
+emitting_pdf_smooth = make_emitting_pdf(True, True)
+
+
+@wp.kernel
+def _sample_smooth(
+    geometry: GeometryData,
+    materials: MaterialData,
+    lights: LightData,
+    p: wp.vec3,
+    u: wp.array(dtype=wp.vec3),
+    wi: wp.array(dtype=wp.vec3),
+    dist: wp.array(dtype=float),
+    pdf: wp.array(dtype=float),
+    pdf_again: wp.array(dtype=float),
+):
+    k = wp.tid()
+    w, d, radiance, density = sample_smooth(geometry, materials, lights, p, 0.0, u[k][0], u[k][1], u[k][2])
+    wi[k] = w
+    dist[k] = d
+    pdf[k] = wp.where(radiance[0] > 0.0, density, 0.0)
+    pdf_again[k] = emitting_pdf_smooth(geometry, lights, 0, p, w, d)
+
+
+def test_a_smooth_emitting_mesh_is_sampled_with_its_shading_normals_cosine(tmp_path):
+    """Mitsuba 3's convention for a smooth-shaded emitting mesh (its ``sample_position`` and
+    ``pdf_direction`` take the interpolated normal): a 1 x 1 triangle at height H whose vertex
+    normals all lean 30 degrees from its face normal (down) is sampled with the density
+    ``dist^2 / (area |wi . n_shading|)``, not its face normal's, and ``emitting_pdf`` agrees."""
+    lean = np.radians(30.0)
+    n_s = np.array([np.sin(lean), -np.cos(lean), 0.0])
+    obj = tmp_path / "lamp.obj"
+    obj.write_text(
+        f"v 0 {H} 0\nv 0 {H} 1\nv 1 {H} 0\n" + f"vn {n_s[0]} {n_s[1]} {n_s[2]}\n" + "f 1//1 2//1 3//1\n"
+    )
+    lamp = {"type": "mesh", "file": str(obj), "shading": "smooth", "material": "lamp"}
+    scene = make_scene([lamp], materials=LAMP_MATERIALS)
+    device = wp.get_device("cpu")
+    prims = build(scene, device)
+    geometry, materials = upload_geometry(prims, device), upload_materials(scene, device)
+    lights = upload_lights(scene, device, prims)
+    p = np.array([0.2, 0.0, 0.3])
+    n = 2000
+    u = wp.array(np.random.default_rng(2).random((n, 3)).astype(np.float32), dtype=wp.vec3, device=device)
+    out = [wp.zeros(n, dtype=t, device=device) for t in (wp.vec3, float, float, float)]
+    wp.launch(_sample_smooth, n, [geometry, materials, lights, wp.vec3(*p), u, *out], device=device)
+    wi, dist, pdf, again = (a.numpy().astype(np.float64) for a in out)
+    assert np.all(pdf > 0)  # every point faces p by its shading normal
+    np.testing.assert_allclose(pdf, dist**2 / (0.5 * np.abs(wi @ n_s)), rtol=1e-4)
+    np.testing.assert_allclose(again, pdf, rtol=1e-4)
+    assert np.abs(pdf / (dist**2 / (0.5 * np.abs(wi[:, 1]))) - 1).max() > 0.05  # not the face normal's
