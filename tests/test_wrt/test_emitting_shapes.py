@@ -205,9 +205,7 @@ def test_a_smooth_emitting_mesh_is_sampled_with_its_shading_normals_cosine(tmp_p
     lean = np.radians(30.0)
     n_s = np.array([np.sin(lean), -np.cos(lean), 0.0])
     obj = tmp_path / "lamp.obj"
-    obj.write_text(
-        f"v 0 {H} 0\nv 0 {H} 1\nv 1 {H} 0\n" + f"vn {n_s[0]} {n_s[1]} {n_s[2]}\n" + "f 1//1 2//1 3//1\n"
-    )
+    obj.write_text(f"v 0 {H} 0\nv 0 {H} 1\nv 1 {H} 0\n" + f"vn {n_s[0]} {n_s[1]} {n_s[2]}\n" + "f 1//1 2//1 3//1\n")
     lamp = {"type": "mesh", "file": str(obj), "shading": "smooth", "material": "lamp"}
     scene = make_scene([lamp], materials=LAMP_MATERIALS)
     device = wp.get_device("cpu")
