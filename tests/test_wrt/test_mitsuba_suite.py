@@ -29,7 +29,7 @@ def test_scene_passes_mitsubas_z_test(suite, name):
     mean, variance, reference_spp = suite.reference(name)
     passed, fraction, p_min = mitsuba_z_test(ours, suite.spp, mean, variance, reference_spp)
     assert passed, f"{fraction:.4%} of pixel channels pass (99.75% needed), smallest p-value {p_min:.3g}"
-    assert np.isfinite(ours).all() and ours.mean() > 0.01
+    assert np.isfinite(ours).all() and ours.mean() > 1e-3  # not black (the spot-lit scene's mean is 0.0045)
 
 
 @pytest.mark.parametrize(

@@ -16,7 +16,7 @@ from wrt.device import upload_materials
 from wrt.errors import SceneError, WrtError
 from wrt.renderer import scene_features
 
-BSDF = make_bsdf()  # every material family's cases
+BSDF = make_bsdf(beckmann=False)  # every material family's cases (their GGX alone: no Beckmann here)
 bsdf_sample = BSDF.sample
 specular_lobes = BSDF.specular_lobes
 
