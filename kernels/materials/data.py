@@ -33,9 +33,7 @@ class MaterialData:
     transmittance: wp.array(dtype=wp.vec3)  # thin dielectric: the tint of its straight transmission
     priority: wp.array(dtype=wp.int32)
     roughness: wp.array(dtype=float)  # microfacet alpha (conductor: 0 for a smooth one)
-    distribution: wp.array(
-        dtype=wp.int32
-    )  # rough materials: the microfacet distribution (wrt.kernels.microfacet.DISTRIBUTIONS)
+    distribution: wp.array(dtype=wp.int32)  # rough materials: wrt.kernels.microfacet.DISTRIBUTIONS' code
     eta: wp.array(dtype=wp.vec3)  # conductor: real part of the index of refraction, per channel
     k: wp.array(dtype=wp.vec3)  # conductor: imaginary part (extinction coefficient)
     emission: wp.array(dtype=wp.vec3)
@@ -52,16 +50,15 @@ class Parameters(NamedTuple):
     ``rgb(materials, m, slot, uv, constant)``, colour parameter ``slot`` (``wrt.kernels.textures``)
     of material ``m``; ``alpha(materials, m, uv)``, its microfacet alpha; ``distribution(materials,
     m)``, its microfacet distribution's code; and ``microfacet``, the microfacet functions
-    (``wrt.kernels.microfacet``). ``textures``: the scene has textures (without them every
-    parameter is its constant and ``uv`` is unused); ``beckmann``: some rough material is Beckmann
-    (without it every one is GGX and the column is not read)."""
+    (``wrt.kernels.microfacet``: Beckmann compiled in only where some material has it, else every
+    one is GGX and the column is not read). ``textures``: the scene has textures (without them
+    every parameter is its constant and ``uv`` is unused)."""
 
     rgb: wp.Function
     alpha: wp.Function
     distribution: wp.Function
     microfacet: Microfacet
     textures: bool
-    beckmann: bool
 
 
 @functools.cache
@@ -92,4 +89,4 @@ def parameters(textures: bool, beckmann: bool = True) -> Parameters:
             return materials.distribution[m]
         return GGX
 
-    return Parameters(rgb_at, alpha_at, distribution_of, microfacet(beckmann), textures, beckmann)
+    return Parameters(rgb_at, alpha_at, distribution_of, microfacet(beckmann), textures)
