@@ -12,7 +12,8 @@ with a pinhole camera or nothing moving, no orthographic projection with a persp
 no shading-normal interpolation without smooth-shaded meshes, no texture coordinates or lookups
 without textures, no tangent frames or normal-map lookups without normal maps, no free-flight
 sampling, phase functions or medium bookkeeping without participating media (``wrt.kernels.volumes``),
-no Beckmann microfacets where every rough material is GGX (``wrt.kernels.microfacet``);
+no Beckmann microfacets where every rough material is GGX (``wrt.kernels.microfacet``), no tangent
+frame nor second alpha where every rough material is isotropic;
 and in the traversal (``wrt.kernels.traverse``) no test of a primitive kind the scene lacks, and no
 per-primitive ray motion when no surface moves. ``ALL`` (every flag set) is the all-features
 kernel that renders any scene (its flags say what a scene MAY have: it tests the camera's type,
@@ -53,6 +54,7 @@ class SceneFeatures:
     normal_map: bool = True  # normal-mapped materials: the hit's tangent, a perturbed shading normal (wrt.kernels.hit)
     media: bool = True  # participating media: free-flight sampling, phase functions, medium changes (path)
     beckmann: bool = True  # Beckmann microfacets on a rough material (else GGX only: wrt.kernels.microfacet)
+    anisotropic: bool = True  # an anisotropic rough material: the hit's tangent frame, two alphas (wrt.kernels.hit)
 
     def __post_init__(self):
         if self.dielectric and not self.specular:

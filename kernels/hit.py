@@ -24,6 +24,7 @@ import functools
 import warp as wp
 
 from .materials import MaterialData
+from .materials.data import anisotropic_material
 from .sample_warps import frame
 from .textures import NORMAL_MAP, texture_rgb
 from .traverse import (
@@ -52,23 +53,30 @@ class Hit:
     front: bool  # the ray hits the shading front side (dot(d, shading normal) < 0): the BSDF's side, emission
     uv: wp.vec2  # texture coordinates (surface_uv); (0, 0) where the scene has no textures
     n_unmapped: wp.vec3  # the shading normal before its normal map, flipped as n_facing (n_facing without one)
+    tangent: wp.vec3  # the shading frame's unit tangent s (shading_tangent); zero at isotropic materials
+
+
+@wp.func
+def shading_tangent(n: wp.vec3, dpdu: wp.vec3) -> wp.vec3:
+    """The unit tangent ``s`` of the shading frame of normal ``n``: the surface's ``dpdu``
+    (``surface_dpdu``) made orthogonal to ``n`` (Gram-Schmidt) and normalised, Mitsuba 3's
+    ``sh_frame.s``; where ``dpdu`` is zero or along ``n``, ``frame(n)``'s (Mitsuba's
+    ``coordinate_system``)."""
+    s = dpdu - wp.dot(n, dpdu) * n
+    if wp.length_sq(s) > 0.0:
+        return wp.normalize(s)
+    basis = frame(n)
+    return wp.vec3(basis[0, 0], basis[1, 0], basis[2, 0])
 
 
 @wp.func
 def perturbed_normal(n: wp.vec3, dpdu: wp.vec3, rgb: wp.vec3) -> wp.vec3:
     """The unit shading normal ``n`` (world space) tilted by a normal map's texel ``rgb`` (raw, in
     [0, 1]), as Mitsuba 3's ``normalmap``: the tangent-space normal ``m = normalize(2 rgb - 1)``
-    taken to the world by the shading frame ``(s, t, n)``, ``s`` the tangent ``dpdu``
-    (``surface_dpdu``) made orthogonal to ``n`` (Gram-Schmidt) and normalised, ``t = n x s``
-    (Mitsuba's ``sh_frame``; where ``dpdu`` is zero or along ``n``, ``frame(n)``'s, as Mitsuba's
-    ``coordinate_system``). ``n`` itself (bit for bit) for ``m = (0, 0, 1)``, and where
-    ``2 rgb - 1`` vanishes."""
-    s = dpdu - wp.dot(n, dpdu) * n
-    if wp.length_sq(s) > 0.0:
-        s = wp.normalize(s)
-    else:
-        basis = frame(n)
-        s = wp.vec3(basis[0, 0], basis[1, 0], basis[2, 0])
+    taken to the world by the shading frame ``(s, t, n)``, ``s = shading_tangent(n, dpdu)`` and
+    ``t = n x s`` (Mitsuba's ``sh_frame``). ``n`` itself (bit for bit) for ``m = (0, 0, 1)``, and
+    where ``2 rgb - 1`` vanishes."""
+    s = shading_tangent(n, dpdu)
     m = 2.0 * rgb - wp.vec3(1.0)
     if not (wp.length_sq(m) > 0.0):
         return n
@@ -96,12 +104,16 @@ def normal_map_shadowing(hit: Hit, wi: wp.vec3) -> float:
 
 
 @functools.cache
-def make_surface_hit(smooth: bool, instances: bool, quadrics: bool, textures: bool, normal_map: bool = False):
+def make_surface_hit(
+    smooth: bool, instances: bool, quadrics: bool, textures: bool, normal_map: bool = False, anisotropic: bool = False
+):
     """``surface_hit``; without ``smooth`` (no smooth-shaded mesh in the scene) the shading normal
     is the geometric one, and its interpolation is compiled out; without ``textures`` so is the
     texture coordinates' computation (``uv`` stays (0, 0)); without ``normal_map`` (no material with
     a normal map; a scene with one has ``textures``) so are the tangent and the normal map's lookup
-    (raycast shades with the unperturbed normal); without ``instances`` no hit goes
+    (raycast shades with the unperturbed normal); without ``anisotropic`` (no anisotropic
+    material) so is the shading frame's tangent (``Hit.tangent`` stays zero, as it does at an
+    isotropic material's hits); without ``instances`` no hit goes
     through an instance, and ``hit_point``'s transforms are compiled out; without ``quadrics`` (no
     disk or cylinder) neither is their surface point nor uv (compiled in, each costs a path tracer a fifth
     to a quarter of its time on the CPU, even when not taken)."""
@@ -153,6 +165,12 @@ def make_surface_hit(smooth: bool, instances: bool, quadrics: bool, textures: bo
         hit.n_unmapped = hit.n_facing
         if wp.static(normal_map):
             hit.n_unmapped = wp.where(hit.front, ns0, -ns0)
+        hit.tangent = wp.vec3(0.0)  # perpendicular to n_facing where set: the frame (s, n_facing x s, n_facing)
+        if wp.static(anisotropic):
+            m = hit.material
+            inner = materials.inner[m]  # a mask's material
+            if anisotropic_material(materials, m) or (inner >= 0 and anisotropic_material(materials, inner)):
+                hit.tangent = shading_tangent(ns, surface_dpdu(geometry, prim, inst, p, time))
         return hit
 
     return surface_hit
@@ -161,7 +179,9 @@ def make_surface_hit(smooth: bool, instances: bool, quadrics: bool, textures: bo
 def make_surface_hit_for(features) -> wp.Function:
     """``make_surface_hit`` for a scene's ``wrt.kernels.features.Features``."""
     quadrics = features.disks or features.cylinders
-    return make_surface_hit(features.smooth, features.instances, quadrics, features.textures, features.normal_map)
+    return make_surface_hit(
+        features.smooth, features.instances, quadrics, features.textures, features.normal_map, features.anisotropic
+    )
 
 
-surface_hit = make_surface_hit(True, True, True, True, True)
+surface_hit = make_surface_hit(True, True, True, True, True, True)

@@ -1,8 +1,11 @@
 """Microfacet reflection (a rough conductor) and refraction (a rough dielectric), GGX or Beckmann,
 in a local shading frame.
 
-Local frame: the normal is +z; ``wo`` and ``wi`` are unit vectors pointing away from the surface.
-``alpha`` is the roughness (the scene's ``roughness``), ``distribution`` the normal distribution's
+Local frame: the normal is +z, x the shading frame's tangent ``s`` and y its bitangent ``t``
+(``wrt.kernels.sample_warps.shading_frame``); ``wo`` and ``wi`` are unit vectors pointing away from
+the surface. ``alpha = (a_u, a_v)`` is the roughness along x and y (the scene's ``roughness`` and
+``roughness_v``; isotropic where they are equal, and then every function is its isotropic form bit
+for bit: the ratios ``a_u / a_v`` it scales by are exactly 1), ``distribution`` the normal distribution's
 code (``GGX`` or ``BECKMANN``, ``DISTRIBUTIONS`` by the scene's names). The BRDF here has no Fresnel
 factor: ``wrt.kernels.materials`` multiplies it by glossy's constant ``reflectance`` (1: a lossless
 rough mirror up to the energy lost to single scattering) or by a conductor's exact Fresnel
@@ -50,35 +53,51 @@ UNIT_CLAMP = 1e-6  # Jakob's inversion keeps its samples and its erf-domain iter
 
 
 @wp.func
-def ggx_d(h: wp.vec3, alpha: float) -> float:
+def tangential(w: wp.vec3, alpha: wp.vec2) -> float:
+    """``a_u a_v (w_x^2 / a_u^2 + w_y^2 / a_v^2)`` (the slope term of D), ``w_x^2 + w_y^2`` bit
+    for bit where ``a_u == a_v``."""
+    return w[0] * w[0] * (alpha[1] / alpha[0]) + w[1] * w[1] * (alpha[0] / alpha[1])
+
+
+@wp.func
+def ggx_d(h: wp.vec3, alpha: wp.vec2) -> float:
     """GGX normal distribution D(h) (1/sr), normalised so that the integral of D cos(theta_h) is 1.
 
-    The tan^2 form ``1 / (pi alpha^2 cos^4 (1 + tan^2 / alpha^2)^2)``, with ``tan^2`` from the
-    tangential components: the textbook ``cos^2 (alpha^2 - 1) + 1`` cancels in float32 near the
-    normal (3% off at alpha 1e-3)."""
+    The tan^2 form ``1 / (pi a_u a_v cos^4 (1 + (h_x^2 / a_u^2 + h_y^2 / a_v^2) / cos^2)^2)``, the
+    tangential term from the components (the textbook ``cos^2 (alpha^2 - 1) + 1`` cancels in
+    float32 near the normal: 3% off at alpha 1e-3) and written over ``a_u a_v`` with the ratios
+    ``a_v / a_u`` and ``a_u / a_v``, which are exactly 1 where ``a_u == a_v``."""
     cos2 = h[2] * h[2]
     if cos2 <= 0.0:
         return 0.0
-    a2 = alpha * alpha
-    e = 1.0 + (h[0] * h[0] + h[1] * h[1]) / (cos2 * a2)
+    a2 = alpha[0] * alpha[1]
+    e = 1.0 + tangential(h, alpha) / (cos2 * a2)
     return 1.0 / (wp.pi * a2 * cos2 * cos2 * e * e)
 
 
 @wp.func
-def ggx_g1(w: wp.vec3, alpha: float) -> float:
-    """Smith masking of direction ``w`` for GGX."""
-    cos2 = w[2] * w[2]
-    if cos2 <= 0.0:
-        return 0.0
-    tan2 = (w[0] * w[0] + w[1] * w[1]) / cos2  # from the tangential components: no cancellation
-    return 2.0 / (1.0 + wp.sqrt(1.0 + alpha * alpha * tan2))
+def stretched(w: wp.vec3, alpha: wp.vec2) -> float:
+    """``(a_u^2 w_x^2 + a_v^2 w_y^2) / (a_u a_v)``, the masking's slope term over ``a_u a_v``:
+    ``w_x^2 + w_y^2`` bit for bit where ``a_u == a_v``."""
+    return w[0] * w[0] * (alpha[0] / alpha[1]) + w[1] * w[1] * (alpha[1] / alpha[0])
 
 
 @wp.func
-def ggx_sample_visible_normal(wo: wp.vec3, alpha: float, u1: float, u2: float) -> wp.vec3:
+def ggx_g1(w: wp.vec3, alpha: wp.vec2) -> float:
+    """Smith masking of direction ``w`` for GGX, ``2 / (1 + sqrt(1 + alpha_w^2 tan^2))``, alpha_w
+    the roughness along ``w``'s azimuth."""
+    cos2 = w[2] * w[2]
+    if cos2 <= 0.0:
+        return 0.0
+    tan2 = stretched(w, alpha) / cos2  # from the tangential components: no cancellation
+    return 2.0 / (1.0 + wp.sqrt(1.0 + alpha[0] * alpha[1] * tan2))
+
+
+@wp.func
+def ggx_sample_visible_normal(wo: wp.vec3, alpha: wp.vec2, u1: float, u2: float) -> wp.vec3:
     """A microfacet normal drawn with density ``G1(wo) max(0, wo.h) D(h) / wo.z`` (Heitz 2018)."""
     # stretch to the hemisphere configuration
-    vh = wp.normalize(wp.vec3(alpha * wo[0], alpha * wo[1], wo[2]))
+    vh = wp.normalize(wp.vec3(alpha[0] * wo[0], alpha[1] * wo[1], wo[2]))
     lensq = vh[0] * vh[0] + vh[1] * vh[1]
     t1 = wp.vec3(1.0, 0.0, 0.0)
     if lensq > 0.0:
@@ -91,31 +110,33 @@ def ggx_sample_visible_normal(wo: wp.vec3, alpha: float, u1: float, u2: float) -
     s = 0.5 * (1.0 + vh[2])
     p2 = (1.0 - s) * wp.sqrt(wp.max(0.0, 1.0 - p1 * p1)) + s * p2
     nh = p1 * t1 + p2 * t2 + wp.sqrt(wp.max(0.0, 1.0 - p1 * p1 - p2 * p2)) * vh
-    return wp.normalize(wp.vec3(alpha * nh[0], alpha * nh[1], wp.max(1e-7, nh[2])))
+    return wp.normalize(wp.vec3(alpha[0] * nh[0], alpha[1] * nh[1], wp.max(1e-7, nh[2])))
 
 
 @wp.func
-def beckmann_d(h: wp.vec3, alpha: float) -> float:
-    """Beckmann normal distribution D(h) (1/sr), ``exp(-tan^2 / alpha^2) / (pi alpha^2 cos^4)``,
-    ``tan^2`` from the tangential components; 0 where ``D cos`` falls below 1e-20 (Mitsuba's cut)."""
+def beckmann_d(h: wp.vec3, alpha: wp.vec2) -> float:
+    """Beckmann normal distribution D(h) (1/sr), ``exp(-(h_x^2 / a_u^2 + h_y^2 / a_v^2) / cos^2) /
+    (pi a_u a_v cos^4)`` (the tangential term as ``ggx_d``'s); 0 where ``D cos`` falls below 1e-20
+    (Mitsuba's cut)."""
     cos2 = h[2] * h[2]
     if cos2 <= 0.0:
         return 0.0
-    a2 = alpha * alpha
-    d = wp.exp(-(h[0] * h[0] + h[1] * h[1]) / (cos2 * a2)) / (wp.pi * a2 * cos2 * cos2)
+    a2 = alpha[0] * alpha[1]
+    d = wp.exp(-tangential(h, alpha) / (cos2 * a2)) / (wp.pi * a2 * cos2 * cos2)
     if d * wp.abs(h[2]) <= 1e-20:
         return 0.0
     return d
 
 
 @wp.func
-def beckmann_g1(w: wp.vec3, alpha: float) -> float:
+def beckmann_g1(w: wp.vec3, alpha: wp.vec2) -> float:
     """Smith masking of direction ``w`` for Beckmann, Walter et al.'s rational fit in ``a = 1 /
-    (alpha tan theta)`` (1 from ``a = 1.6`` on and at normal incidence)."""
+    (alpha tan theta)`` (1 from ``a = 1.6`` on and at normal incidence), ``alpha`` the roughness
+    along ``w``'s azimuth."""
     cos2 = w[2] * w[2]
     if cos2 <= 0.0:
         return 0.0
-    xy = alpha * alpha * (w[0] * w[0] + w[1] * w[1])
+    xy = alpha[0] * alpha[1] * stretched(w, alpha)
     if xy <= 0.0:
         return 1.0
     a = wp.sqrt(cos2 / xy)
@@ -126,12 +147,12 @@ def beckmann_g1(w: wp.vec3, alpha: float) -> float:
 
 
 @wp.func
-def beckmann_sample_visible_normal(wo: wp.vec3, alpha: float, u1: float, u2: float) -> wp.vec3:
+def beckmann_sample_visible_normal(wo: wp.vec3, alpha: wp.vec2, u1: float, u2: float) -> wp.vec3:
     """A microfacet normal drawn with density ``G1(wo) max(0, wo.h) D(h) / wo.z`` (the exact G1),
     by Jakob's inversion of the slope distribution of the stretched configuration (alpha 1):
     three Newton steps in the erf domain for the slope along ``wo``, an inverse erf across it,
-    then rotated to ``wo``'s azimuth and scaled by ``alpha``."""
-    v = wp.normalize(wp.vec3(alpha * wo[0], alpha * wo[1], wo[2]))
+    then rotated to ``wo``'s azimuth and scaled by ``alpha`` (``a_u`` along x, ``a_v`` along y)."""
+    v = wp.normalize(wp.vec3(alpha[0] * wo[0], alpha[1] * wo[1], wo[2]))
     sin2 = v[0] * v[0] + v[1] * v[1]
     cos_phi = float(1.0)
     sin_phi = float(0.0)
@@ -156,8 +177,8 @@ def beckmann_sample_visible_normal(wo: wp.vec3, alpha: float, u1: float, u2: flo
         x = wp.clamp(x - value / (1.0 - slope * tan_theta), -1.0 + UNIT_CLAMP, 1.0 - UNIT_CLAMP)
     slope_x = wp.erfinv(x)
     slope_y = wp.erfinv(2.0 * s2 - 1.0)
-    sx = (cos_phi * slope_x - sin_phi * slope_y) * alpha
-    sy = (sin_phi * slope_x + cos_phi * slope_y) * alpha
+    sx = (cos_phi * slope_x - sin_phi * slope_y) * alpha[0]
+    sy = (sin_phi * slope_x + cos_phi * slope_y) * alpha[1]
     return wp.normalize(wp.vec3(-sx, -sy, 1.0))
 
 
@@ -208,28 +229,28 @@ def microfacet(beckmann: bool) -> Microfacet:
     """The microfacet functions, with Beckmann compiled in only where ``beckmann``."""
 
     @wp.func
-    def d(h: wp.vec3, alpha: float, distribution: wp.int32) -> float:
+    def d(h: wp.vec3, alpha: wp.vec2, distribution: wp.int32) -> float:
         if wp.static(beckmann):
             if distribution == BECKMANN:
                 return beckmann_d(h, alpha)
         return ggx_d(h, alpha)
 
     @wp.func
-    def g1(w: wp.vec3, alpha: float, distribution: wp.int32) -> float:
+    def g1(w: wp.vec3, alpha: wp.vec2, distribution: wp.int32) -> float:
         if wp.static(beckmann):
             if distribution == BECKMANN:
                 return beckmann_g1(w, alpha)
         return ggx_g1(w, alpha)
 
     @wp.func
-    def sample_visible_normal(wo: wp.vec3, alpha: float, distribution: wp.int32, u1: float, u2: float) -> wp.vec3:
+    def sample_visible_normal(wo: wp.vec3, alpha: wp.vec2, distribution: wp.int32, u1: float, u2: float) -> wp.vec3:
         if wp.static(beckmann):
             if distribution == BECKMANN:
                 return beckmann_sample_visible_normal(wo, alpha, u1, u2)
         return ggx_sample_visible_normal(wo, alpha, u1, u2)
 
     @wp.func
-    def eval(wo: wp.vec3, wi: wp.vec3, alpha: float, distribution: wp.int32) -> float:
+    def eval(wo: wp.vec3, wi: wp.vec3, alpha: wp.vec2, distribution: wp.int32) -> float:
         if wo[2] <= 0.0 or wi[2] <= 0.0:
             return 0.0
         h = wp.normalize(wo + wi)
@@ -241,14 +262,14 @@ def microfacet(beckmann: bool) -> Microfacet:
         )
 
     @wp.func
-    def pdf(wo: wp.vec3, wi: wp.vec3, alpha: float, distribution: wp.int32) -> float:
+    def pdf(wo: wp.vec3, wi: wp.vec3, alpha: wp.vec2, distribution: wp.int32) -> float:
         if wo[2] <= 0.0 or wi[2] <= 0.0:
             return 0.0
         h = wp.normalize(wo + wi)
         return g1(wo, alpha, distribution) * d(h, alpha, distribution) / (4.0 * wo[2])
 
     @wp.func
-    def dielectric_eval(wo: wp.vec3, wi: wp.vec3, alpha: float, distribution: wp.int32, eta: float) -> float:
+    def dielectric_eval(wo: wp.vec3, wi: wp.vec3, alpha: wp.vec2, distribution: wp.int32, eta: float) -> float:
         if eta == 1.0 or wi[2] == 0.0:
             return 0.0
         h = dielectric_half(wo, wi, eta)
@@ -264,7 +285,7 @@ def microfacet(beckmann: bool) -> Microfacet:
         return (1.0 - fresnel) * dg * cos_o * wp.abs(cos_i) / (wo[2] * wp.abs(wi[2]) * denom * denom)
 
     @wp.func
-    def dielectric_pdf(wo: wp.vec3, wi: wp.vec3, alpha: float, distribution: wp.int32, eta: float) -> float:
+    def dielectric_pdf(wo: wp.vec3, wi: wp.vec3, alpha: wp.vec2, distribution: wp.int32, eta: float) -> float:
         if eta == 1.0 or wi[2] == 0.0:
             return 0.0
         h = dielectric_half(wo, wi, eta)

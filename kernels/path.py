@@ -184,7 +184,7 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
     path kernel calls it once, from surfaces and from media alike)."""
     shadow_ray = make_shadow_ray(record, trace, features.media)
     lighting = lighting_for(features)
-    bsdf = make_bsdf(families_for(features), features.textures, trace.inline, features.beckmann)
+    bsdf = make_bsdf(families_for(features), features.textures, trace.inline, features.beckmann, features.anisotropic)
 
     @wp.func
     def scattered(
@@ -202,10 +202,12 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
             cos_theta = seen_through(cos_theta, flags)
         if cos_theta <= 0.0:
             return wp.vec3(0.0), cos_theta, 0.0
-        f = wp.static(bsdf.eval)(materials, hit.material, hit.n_facing, hit.wo, wi, eta, hit.uv, hit.front)
+        f = wp.static(bsdf.eval)(materials, hit.material, hit.n_facing, hit.wo, wi, eta, hit.uv, hit.front, hit.tangent)
         if wp.static(features.normal_map):
             f = f * normal_map_shadowing(hit, wi)
-        pdf = wp.static(bsdf.pdf)(materials, hit.material, hit.n_facing, hit.wo, wi, eta, hit.uv, hit.front)
+        pdf = wp.static(bsdf.pdf)(
+            materials, hit.material, hit.n_facing, hit.wo, wi, eta, hit.uv, hit.front, hit.tangent
+        )
         return f, cos_theta, pdf
 
     @hinted_func(trace.inline)
@@ -299,7 +301,7 @@ def make_path_radiance(record: bool, features: Features = ALL, inline: bool | No
     trace_segment = make_trace_segment(record, trace)
     next_event = make_next_event(record, trace, features)
     lighting = lighting_for(features)
-    bsdf = make_bsdf(families_for(features), features.textures, inline, features.beckmann)
+    bsdf = make_bsdf(families_for(features), features.textures, inline, features.beckmann, features.anisotropic)
     surface_hit = make_surface_hit_for(features)
 
     @wp.func
@@ -513,7 +515,7 @@ def make_path_radiance(record: bool, features: Features = ALL, inline: bool | No
                 if non_specular(flags):
                     u = sample_2d(sampler, ray.pixel, ray.sample, bounce_dim(vertex, 0))
                 bs = wp.static(bsdf.sample)(
-                    materials, hit.material, hit.n_facing, hit.wo, interface.eta, uc, u, hit.uv, hit.front
+                    materials, hit.material, hit.n_facing, hit.wo, interface.eta, uc, u, hit.uv, hit.front, hit.tangent
                 )
                 if bs.pdf == 0.0:
                     break

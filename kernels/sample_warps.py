@@ -26,6 +26,16 @@ def frame(n: wp.vec3) -> wp.mat33:
 
 
 @wp.func
+def shading_frame(n: wp.vec3, tangent: wp.vec3) -> wp.mat33:
+    """Columns (s, t, n) with ``s = tangent`` (a unit vector perpendicular to ``n``: the hit's
+    ``Hit.tangent``) and ``t = n x s``, Mitsuba 3's ``sh_frame``; ``frame(n)`` where ``tangent`` is
+    zero (a scene without anisotropic materials computes none)."""
+    if wp.length_sq(tangent) > 0.0:
+        return wp.matrix_from_cols(tangent, wp.cross(n, tangent), n)
+    return frame(n)
+
+
+@wp.func
 def cosine_hemisphere(u1: float, u2: float) -> wp.vec3:
     """Local direction (z up) with density cos(theta) / pi, by Malley's method on a concentric disk."""
     d = concentric_disk(u1, u2)

@@ -796,7 +796,8 @@ def make_surface_dpdu(quadrics: bool):
         """The derivative dp/du (world space, scene units per unit u) of the surface point along the
         first texture coordinate of ``surface_uv``, at the hit point ``p`` of ``(prim, inst)`` from
         ``closest_hit``: Mitsuba 3's ``si.dp_du`` on the same shapes (the tangent of a normal map's
-        frame). Triangles: solved per triangle from its corners and their ``tri_uvs``; spheres
+        frame). Triangles: solved per triangle from its corners and their ``tri_uvs`` (barycentric
+        for a mesh without texture coordinates: dp/du its first edge, as Mitsuba 3.9's); spheres
         ``2 pi (-y, x, 0)`` of the point relative to the centre; disks the unit radial direction;
         cylinders ``2 pi (-y, x, 0)`` of the unit tube's point; polygons and planes the in-plane
         vector their affine uv map takes to (1, 0). Zero where it is undefined (a triangle whose uvs

@@ -109,14 +109,15 @@ def heaviest_branch(weight: BranchFloat, count: wp.int32) -> wp.int32:
     return best
 
 
-def make_direct_light(record: bool, trace: Traversal, textures: bool, normal_map: bool, beckmann: bool):
-    """``direct_light``, recording its shadow rays when ``record``, with texture lookups when
-    ``textures``, normal maps' shadowing when ``normal_map`` and Beckmann microfacets when
-    ``beckmann`` (each compiled out otherwise); its BSDF interface has ``trace``'s inline hint."""
+def make_direct_light(record: bool, trace: Traversal, features: Features):
+    """``direct_light``, recording its shadow rays when ``record``, with the scene's texture
+    lookups, normal maps' shadowing, Beckmann microfacets and anisotropic frames (``features``;
+    each compiled out where it has none); its BSDF interface has ``trace``'s inline hint and every
+    family the Whitted integrator renders (masks need the path integrator)."""
     shadow_ray = make_shadow_ray(record, trace)
     bsdf = make_bsdf(
-        families_for(ALL, whitted=True), textures, trace.inline, beckmann
-    )  # masks need the path integrator
+        families_for(ALL, whitted=True), features.textures, trace.inline, features.beckmann, features.anisotropic
+    )
 
     @wp.func
     def direct_light(
@@ -161,8 +162,8 @@ def make_direct_light(record: bool, trace: Traversal, textures: bool, normal_map
                     parent,
                     throughput,
                 )
-                f = wp.static(bsdf.eval)(materials, hit.material, n, hit.wo, wi, 1.0, hit.uv)
-                if wp.static(normal_map):
+                f = wp.static(bsdf.eval)(materials, hit.material, n, hit.wo, wi, 1.0, hit.uv, True, hit.tangent)
+                if wp.static(features.normal_map):
                     f = f * normal_map_shadowing(hit, wi)
                 total += wp.cw_mul(wp.cw_mul(f, irradiance), visible) * cos_theta
         return total
@@ -177,8 +178,10 @@ def make_whitted_radiance(record: bool, features: Features = ALL, inline: bool |
     traversal and BSDF interface with the inline hint ``inline`` (``variants.CUDA_INLINE``)."""
     trace = traversal(features, inline)
     trace_segment = make_trace_segment(record, trace)
-    direct_light = make_direct_light(record, trace, features.textures, features.normal_map, features.beckmann)
-    bsdf = make_bsdf(families_for(features, whitted=True), features.textures, inline, features.beckmann)
+    direct_light = make_direct_light(record, trace, features)
+    bsdf = make_bsdf(
+        families_for(features, whitted=True), features.textures, inline, features.beckmann, features.anisotropic
+    )
     surface_hit = make_surface_hit_for(features)
 
     @wp.func

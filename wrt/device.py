@@ -157,6 +157,7 @@ def upload_materials(scene: Scene, device) -> MaterialData:
     m.transmittance = _vec3([mat.transmittance for mat in mats], device)
     m.priority = _int([mat.priority for mat in mats], device)
     m.roughness = _float([mat.roughness for mat in mats], device)
+    m.roughness_v = _float([mat.roughness if mat.roughness_v is None else mat.roughness_v for mat in mats], device)
     m.distribution = _int([DISTRIBUTIONS[mat.distribution] for mat in mats], device)
     m.eta = _vec3([mat.eta for mat in mats], device)
     m.k = _vec3([mat.k for mat in mats], device)

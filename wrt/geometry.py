@@ -233,7 +233,7 @@ def flatten(scene: Scene) -> Primitives:
     if any(block is not None for block in normal_blocks):
         blocks = [None, *normal_blocks]  # the [[shape]] triangles' first: flat
         tri_normals = _joined([np.zeros_like(t) if n is None else n for n, t in zip(blocks, tri_blocks)])
-    textured = any(material.textures for material in scene.materials)
+    textured = any(material.textures or material.anisotropic for material in scene.materials)  # uv, dp/du
     barycentric = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], dtype=np.float32)  # uv = (b1, b2)
     uv_blocks.insert(0, None)  # the [[shape]] triangles'
     return Primitives(

@@ -341,9 +341,9 @@ def _texture(t: _Table, key: str, scene_dir: str) -> tuple:
     t.used.add(key)
     tt = _Table(t.file, f"{t.name}.{key}", t.data[key])
     texture = read_texture(tt, scene_dir)
-    number = key in ("roughness", "opacity")  # read as one number (texture_float)
+    number = key in ("roughness", "roughness_v", "opacity")  # read as one number (texture_float)
     values = texture.numbers() if number else texture.values()
-    lo, hi = (1e-3, 1.0) if key == "roughness" else (0.0, 1.0)
+    lo, hi = (1e-3, 1.0) if key in ("roughness", "roughness_v") else (0.0, 1.0)
     if values.min() < lo or values.max() > hi:
         what = "the file's texels" if isinstance(texture, Bitmap) else "its colours"
         raise tt.error(
@@ -390,6 +390,7 @@ def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
         "transmittance": lambda: t.vec3("transmittance", Material.transmittance, lo=0.0, hi=1.0),
         "priority": lambda: t.number("priority", Material.priority, integer=True, lo=-1000, hi=1000),
         "roughness": lambda: t.number("roughness", Material.roughness, lo=1e-3, hi=1.0),
+        "roughness_v": lambda: t.number("roughness_v", None, lo=1e-3, hi=1.0),
         "distribution": lambda: t.string("distribution", Material.distribution, DISTRIBUTIONS),
         "two_sided": lambda: t.boolean("two_sided", Material.two_sided),
         "nonlinear": lambda: t.boolean("nonlinear", Material.nonlinear),
@@ -407,6 +408,10 @@ def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
             values[key] = readers[key]()
     if kind == "conductor":
         values.update(_conductor(t, scene_dir, textures))
+        if values["roughness"] == 0.0 and "roughness_v" in t.data:
+            raise t.error(
+                "roughness_v", "needs a rough conductor: roughness 0 is a smooth one (a mirror)", t.data["roughness_v"]
+            )
     if "normal_map" in t.data:
         textures.append(("normal_map", _normal_map(t, scene_dir)))
     if "two_sided" in t.data and "two_sided" not in values:
@@ -611,19 +616,29 @@ def _cylinder_to_world(t: _Table) -> np.ndarray:
 
 
 def _mesh(t: _Table, scene_dir: str, material: int, textured: bool) -> Mesh:
-    """A ``mesh`` table: its ``file`` placed by its ``transform``; with ``shading = "smooth"`` the
-    file's vertex normals (by the inverse transpose), or Mitsuba 3's computed from the placed
-    vertices when it has none; ``flip_normals`` reverses the winding and turns the normals around;
-    with a ``textured`` material, the file's texture coordinates."""
+    """A ``mesh`` table: its ``file`` (of a ``.serialized`` file, mesh ``shape_index``) placed by
+    its ``transform``; with ``shading = "smooth"`` the file's vertex normals (by the inverse
+    transpose), or Mitsuba 3's computed from the placed vertices when it has none;
+    ``flip_normals`` reverses the winding and turns the normals around; with a ``textured``
+    material (or an anisotropic one: its tangent is dp/du), the file's texture coordinates."""
     name = t.string("file")
     matrix = _transform(t)
     smooth = t.string("shading", "flat", choices=MESH_SHADING) == "smooth"
     flip = t.boolean("flip_normals", False)
     path = os.path.join(scene_dir, name)
+    index = 0
+    if "shape_index" in t.data:
+        if not name.lower().endswith(".serialized"):
+            raise t.error(
+                "shape_index", "applies to a .serialized file only (it may hold several meshes)", t.data["shape_index"]
+            )
+        index = t.number("shape_index", integer=True, lo=0, hi=2**31 - 1)
     try:
         read_all = smooth or textured  # an OBJ file is then read as Mitsuba 3 numbers its vertices
         vertices, faces, normals, uvs = (
-            load_mesh(path, return_normals=True, return_uvs=True) if read_all else (*load_mesh(path), None, None)
+            load_mesh(path, return_normals=True, return_uvs=True, shape_index=index)
+            if read_all
+            else (*load_mesh(path, shape_index=index), None, None)
         )
     except MeshFileError as e:
         raise t.error("file", str(e), name) from None
@@ -656,8 +671,8 @@ def _shape(
 ):
     """``(shape, boundary)`` of table ``name`` (``shape[3]``, or ``group[0].shape[1]`` without
     ``group_index``: a group's shapes are bounded, still, not instances and bound no media);
-    ``textured``: the indices of materials with textures (their meshes' texture coordinates are
-    read). ``boundary``: for a shape of the scene (``media_index``: the media by name), the
+    ``textured``: the indices of materials with textures or anisotropic roughness (their meshes'
+    texture coordinates are read). ``boundary``: for a shape of the scene (``media_index``: the media by name), the
     ``(interior, exterior)`` media it bounds (-1 for the side it does not name); None where it
     names neither, and for a group's shape."""
     t = _Table(file, name, data)
@@ -850,7 +865,10 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
                 )
     material_index[DEFAULT_MATERIAL.name] = len(materials)
     materials.append(DEFAULT_MATERIAL)
-    textured = frozenset(i for i, m in enumerate(materials) if m.textures)
+    anisotropic = {m.name for m in materials if m.anisotropic}  # their tangent is dp/du: uvs too
+    textured = frozenset(
+        i for i, m in enumerate(materials) if m.textures or m.name in anisotropic or m.material in anisotropic
+    )
     groups = [
         _group(file, i, g, material_index, scene_dir, textured)
         for i, g in enumerate(_array_of_tables(file, doc, "group"))

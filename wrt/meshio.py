@@ -33,8 +33,9 @@ import numpy as np
 
 from wrt.errors import MeshFileError, foreign, listed, shorten, token
 from wrt.files import MAX_TEXT_BYTES, check_regular_file, read_bytes
+from wrt.serialized import read_serialized
 
-MESH_FORMATS = (".ply", ".obj", ".stl", ".vtk", ".vtp", ".vtu", ".vtm")
+MESH_FORMATS = (".ply", ".obj", ".stl", ".serialized", ".vtk", ".vtp", ".vtu", ".vtm")
 """File extensions `load_mesh` reads (case-insensitive)."""
 MAX_MESH_BYTES = 16 << 30
 """Largest mesh file read (16 GiB): a binary PLY of some 800 million triangles, more than a
@@ -45,18 +46,21 @@ MAX_VTM_DEPTH = 8
 _STL_HEADER, _STL_TRIANGLE = 84, 50  # a binary STL: 80-byte header and uint32 count, then 50 bytes a triangle
 
 
-def load_mesh(path, *, return_normals=False, return_uvs=False):
+def load_mesh(path, *, return_normals=False, return_uvs=False, shape_index=0):
     """Read a triangle mesh from a file.
 
     Parameters
     ----------
     path : str or os.PathLike
         A mesh file whose extension is one of `MESH_FORMATS`: PLY (ASCII or binary), OBJ,
-        STL (ASCII or binary), or a VTK dataset (``.vtk``, ``.vtp``, ``.vtu``, ``.vtm``).
+        STL (ASCII or binary), Mitsuba's ``.serialized`` (`wrt.serialized`), or a VTK dataset
+        (``.vtk``, ``.vtp``, ``.vtu``, ``.vtm``).
     return_normals : bool, default False
         Also return the file's vertex normals.
     return_uvs : bool, default False
         Also return the file's vertex texture coordinates (after the normals, if asked for).
+    shape_index : int, default 0
+        Which mesh of a ``.serialized`` file (which may hold several) to read.
 
     Returns
     -------
@@ -74,8 +78,8 @@ def load_mesh(path, *, return_normals=False, return_uvs=False):
         where v = 0 is the top row of an image: a PLY file's ``u, v`` (or ``s, t``, ``texture_u,
         texture_v``, ``texture_s, texture_t``) vertex properties as written, an OBJ file's ``vt``
         as ``(u, 1 - v)`` (OBJ's v = 0 is the bottom row; Mitsuba flips it so; (0, 0) where a face
-        corner names none), a VTK dataset's active texture coordinates; None where the file has
-        none (an STL file).
+        corner names none), a ``.serialized`` file's as written, a VTK dataset's active texture
+        coordinates; None where the file has none (an STL file).
 
     Raises
     ------
@@ -104,7 +108,9 @@ def load_mesh(path, *, return_normals=False, return_uvs=False):
     path = Path(path)
     _check_mesh_path(path)
     suffix = path.suffix.lower()
-    if suffix == ".ply":
+    if suffix == ".serialized":
+        mesh = read_serialized(path, shape_index, MAX_MESH_BYTES)
+    elif suffix == ".ply":
         points, counts, indices, normals, uvs = _read_ply(path)
         _check_face_indices(counts, indices, len(points), path)  # before VTK, which can crash on them
         if len(counts) and np.all(counts == 3):

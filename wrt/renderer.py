@@ -109,6 +109,7 @@ def scene_features(scene: Scene) -> Features:
         normal_map=any(name == "normal_map" for m in used for name, _ in m.textures),
         media=bool(scene.media),
         beckmann=any(m.distribution == "beckmann" for m in used),
+        anisotropic=any(m.anisotropic for m in used),
     )
 
 

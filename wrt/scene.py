@@ -118,6 +118,10 @@ class Material:
     dielectric) with probability ``opacity`` (in [0, 1]) and else lets the ray straight through, on both sides;
     ``distribution``: the normal distribution of a rough material's microfacets (glossy, conductor,
     rough dielectric, rough plastic), ``ggx`` (the default) or ``beckmann``, of alpha ``roughness``;
+    ``roughness_v``: where given, the microfacets (glossy, conductor, rough dielectric) are
+    anisotropic, of alpha ``roughness`` along the shading frame's tangent (the surface's dp/du made
+    perpendicular to its shading normal, Mitsuba 3's ``alpha_u``) and ``roughness_v`` along the
+    bitangent (``alpha_v``);
     ``emission``: radiance in W/(m^2 sr) leaving the front side;
     ``two_sided``: both sides reflect (diffuse, phong, mirror, glossy, conductor; a dielectric always does), else
     the back side (facing away from the surface's normal) reflects nothing, as Mitsuba 3's one-sided BSDFs;
@@ -134,6 +138,7 @@ class Material:
     transmittance: tuple[float, float, float] = (1.0, 1.0, 1.0)
     priority: int = 0
     roughness: float = 0.2
+    roughness_v: float | None = None  # anisotropic: alpha along the bitangent (None: roughness, isotropic)
     distribution: str = "ggx"
     eta: tuple[float, float, float] = (0.0, 0.0, 0.0)
     k: tuple[float, float, float] = (1.0, 1.0, 1.0)
@@ -143,6 +148,11 @@ class Material:
     opacity: float = 0.5
     material: str = ""  # mask: the name of the material it masks
     textures: tuple = ()  # (parameter, wrt.textures texture) pairs; the parameter's own value is its mean
+
+    @property
+    def anisotropic(self) -> bool:
+        """Its microfacets have two alphas (``roughness_v`` given)."""
+        return self.roughness_v is not None
 
 
 MEDIUM_TYPES = tuple(MEDIUM_REGISTRY)

@@ -195,6 +195,8 @@ def texture_table(materials) -> TextureTable:
                 index[id(texture)] = len(textures)
                 textures.append(texture)
             slot[m, SLOTS.index(name)] = index[id(texture)]
+        if material.roughness_v is None:  # isotropic: alpha_v is alpha_u, its texture too (one lookup)
+            slot[m, SLOTS.index("roughness_v")] = slot[m, SLOTS.index("roughness")]
     bitmaps = [t.texels for t in textures if isinstance(t, Bitmap)]
     sizes = [b.shape[0] * b.shape[1] for b in bitmaps]
     offsets = iter(np.cumsum([0, *sizes[:-1]]))

@@ -30,12 +30,13 @@ pdf / flags``): integrators ask these functions and never test a material's type
   back, 0 on the back of a one-sided material: what integrators ask at a hit, and then call the
   functions below only where it is not 0. ``non_specular(flags)``: the BSDF has lobes that
   ``eval`` sees, so light sampling (next-event estimation) pays there.
-- ``make_bsdf(families, textures, inline, beckmann)``: the dispatch over the families a scene uses, a ``BSDF`` of
-  - ``eval(materials, m, n, wo, wi, eta, uv, front)``: f (1/sr) of the non-specular lobes, 0 for
+- ``make_bsdf(families, textures, inline, beckmann, anisotropic)``: the dispatch over the families a
+  scene uses, a ``BSDF`` of
+  - ``eval(materials, m, n, wo, wi, eta, uv, front, tangent)``: f (1/sr) of the non-specular lobes, 0 for
     delta lobes; ``wi`` on ``n``'s side, or across the surface where the BSDF has glossy
     transmission (a rough dielectric: the only one that needs ``eta``, 1 by default);
   - ``pdf(...)``: the solid-angle density with which ``sample`` draws ``wi`` from the non-specular lobes;
-  - ``sample(materials, m, n, wo, eta, uc, u, uv, front)``: one direction, as a ``BSDFSample``
+  - ``sample(materials, m, n, wo, eta, uc, u, uv, front, tangent)``: one direction, as a ``BSDFSample``
     with ``weight = f |cos| / pdf`` (for a delta lobe: its reflectance or transmittance over the
     discrete probability of choosing it) and the flags of the lobe chosen; ``pdf == 0`` when the
     sample is lost;
@@ -51,7 +52,11 @@ across the surface (``wrt.kernels.media``; 1 for opaque materials). ``uc`` choos
 (2D) samples a direction within it; both uniform in [0, 1). ``uv`` is the hit's texture coordinate
 (textured parameters), ``front`` (``Hit.front``, default true) the side it arrived on: only a mask
 reads it, as its inner material scatters nothing on the back of a one-sided one while its null lobe
-lets the ray through on both sides.
+lets the ray through on both sides. ``tangent`` (``Hit.tangent``) is the shading frame's unit
+tangent ``s``, perpendicular to ``n`` (Mitsuba 3's ``sh_frame.s``: ``dp/du`` made orthogonal to the
+shading normal), along which an anisotropic material's ``roughness`` lies (``roughness_v`` along
+``n x s``); zero (the default, and in every scene without an anisotropic material) the BSDFs take
+the frame ``wrt.kernels.sample_warps.frame(n)``, in which isotropic lobes are the same.
 
 References
 ----------
@@ -218,17 +223,22 @@ class BSDF(NamedTuple):
 
 @functools.cache
 def make_bsdf(
-    families: tuple[str, ...] = ALL_FAMILIES, textures: bool = True, inline: bool | None = None, beckmann: bool = True
+    families: tuple[str, ...] = ALL_FAMILIES,
+    textures: bool = True,
+    inline: bool | None = None,
+    beckmann: bool = True,
+    anisotropic: bool = True,
 ) -> BSDF:
     """The BSDF interface over ``families`` (names of ``FAMILIES``; ``families_for``), with texture
     lookups of the parameters (``wrt.kernels.textures``, at the hit's ``uv``) only where
-    ``textures`` and Beckmann microfacets only where ``beckmann`` (``wrt.kernels.microfacet``), its
+    ``textures``, Beckmann microfacets only where ``beckmann`` (``wrt.kernels.microfacet``) and a
+    second alpha only where ``anisotropic`` (``wrt.kernels.materials.data.parameters``), its
     four functions with Warp's inline hint ``inline`` (None: the compiler's choice, the CPU's;
     False: out of line, the CUDA kernels', ``wrt.kernels.variants.CUDA_INLINE``).
     A family left out is not in the generated code: a material of it scatters nothing. The
     dispatch tests the families in ``FAMILIES`` order (``_dispatch``); a wrapping family (a mask)
     wraps the others'."""
-    at = parameters(textures, beckmann)
+    at = parameters(textures, beckmann, anisotropic)
     chosen = [family for family in FAMILIES if family.name in families and family.make is not None]
     functions = [family.make(at) for family in chosen if not family.wraps]
     bsdf = _dispatch(functions, inline)
@@ -264,10 +274,11 @@ def _dispatch(functions: list, inline: bool | None = None) -> BSDF:
         eta: float = 1.0,
         uv: wp.vec2 = wp.vec2(0.0, 0.0),
         front: bool = True,
+        tangent: wp.vec3 = wp.vec3(0.0, 0.0, 0.0),
     ) -> wp.vec3:
         """f(wo, wi) (1/sr) of the non-specular lobes for ``wi`` on the side of ``n`` (or across the
         surface, for glossy transmission); 0 for delta lobes."""
-        return eval_case(materials, m, materials.type[m], n, wo, wi, eta, uv)
+        return eval_case(materials, m, materials.type[m], n, wo, wi, eta, uv, tangent)
 
     @hinted
     def bsdf_pdf(
@@ -279,9 +290,10 @@ def _dispatch(functions: list, inline: bool | None = None) -> BSDF:
         eta: float = 1.0,
         uv: wp.vec2 = wp.vec2(0.0, 0.0),
         front: bool = True,
+        tangent: wp.vec3 = wp.vec3(0.0, 0.0, 0.0),
     ) -> float:
         """Solid-angle density (1/sr) with which ``bsdf_sample`` draws ``wi``; 0 for delta lobes."""
-        return pdf_case(materials, m, materials.type[m], n, wo, wi, eta, uv)
+        return pdf_case(materials, m, materials.type[m], n, wo, wi, eta, uv, tangent)
 
     @hinted
     def specular_lobes(
@@ -301,9 +313,10 @@ def _dispatch(functions: list, inline: bool | None = None) -> BSDF:
         u: wp.vec2,
         uv: wp.vec2 = wp.vec2(0.0, 0.0),
         front: bool = True,
+        tangent: wp.vec3 = wp.vec3(0.0, 0.0, 0.0),
     ) -> BSDFSample:
         """A direction drawn from material ``m``'s BSDF (lost for a family without lobes)."""
-        return sample_case(materials, m, materials.type[m], n, wo, eta, uc, u, uv)
+        return sample_case(materials, m, materials.type[m], n, wo, eta, uc, u, uv, tangent)
 
     return BSDF(bsdf_eval, bsdf_pdf, bsdf_sample, specular_lobes)
 
@@ -318,6 +331,7 @@ def no_eval(
     wi: wp.vec3,
     eta: float,
     uv: wp.vec2,
+    tangent: wp.vec3,
 ) -> wp.vec3:
     return wp.vec3(0.0)
 
@@ -332,6 +346,7 @@ def no_pdf(
     wi: wp.vec3,
     eta: float,
     uv: wp.vec2,
+    tangent: wp.vec3,
 ) -> float:
     return 0.0
 
@@ -355,10 +370,11 @@ def _eval_cases(cases: list, otherwise: wp.Function) -> wp.Function:
         wi: wp.vec3,
         eta: float,
         uv: wp.vec2,
+        tangent: wp.vec3,
     ):
         if owns(material_type):
-            return family_function(materials, m, n, wo, wi, eta, uv)
-        return rest(materials, m, material_type, n, wo, wi, eta, uv)
+            return family_function(materials, m, n, wo, wi, eta, uv, tangent)
+        return rest(materials, m, material_type, n, wo, wi, eta, uv, tangent)
 
     return eval_case
 
@@ -378,6 +394,7 @@ def _sample_cases(cases: list) -> wp.Function:
             uc: float,
             u: wp.vec2,
             uv: wp.vec2,
+            tangent: wp.vec3,
         ) -> BSDFSample:
             return lost_sample()
 
@@ -396,10 +413,11 @@ def _sample_cases(cases: list) -> wp.Function:
         uc: float,
         u: wp.vec2,
         uv: wp.vec2,
+        tangent: wp.vec3,
     ) -> BSDFSample:
         if owns(material_type):
-            return family_sample(materials, m, n, wo, eta, uc, u, uv)
-        return rest(materials, m, material_type, n, wo, eta, uc, u, uv)
+            return family_sample(materials, m, n, wo, eta, uc, u, uv, tangent)
+        return rest(materials, m, material_type, n, wo, eta, uc, u, uv, tangent)
 
     return sample_case
 

@@ -11,7 +11,7 @@ import numpy as np
 import warp as wp
 
 from ..optics import fresnel_conductor
-from ..sample_warps import frame
+from ..sample_warps import shading_frame
 from ..textures import REFLECTANCE
 from .data import MaterialData, Parameters
 from .interface import (
@@ -70,13 +70,20 @@ def make(at: Parameters) -> Functions:
 
     @wp.func
     def eval(
-        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float, uv: wp.vec2
+        materials: MaterialData,
+        m: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        wi: wp.vec3,
+        eta: float,
+        uv: wp.vec2,
+        tangent: wp.vec3,
     ) -> wp.vec3:
         """Microfacet reflection of the facet reflectance at the half vector; 0 for a mirror or a smooth conductor."""
         if materials.type[m] == MIRROR or materials.roughness[m] == 0.0:
             return wp.vec3(0.0)
         alpha = at.alpha(materials, m, uv)
-        to_local = wp.transpose(frame(n))
+        to_local = wp.transpose(shading_frame(n, tangent))
         cos_h = wp.abs(wp.dot(wo, wp.normalize(wo + wi)))
         reflectance = at.rgb(materials, m, REFLECTANCE, uv, materials.reflectance[m])
         distribution = at.distribution(materials, m)
@@ -86,12 +93,19 @@ def make(at: Parameters) -> Functions:
 
     @wp.func
     def pdf(
-        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float, uv: wp.vec2
+        materials: MaterialData,
+        m: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        wi: wp.vec3,
+        eta: float,
+        uv: wp.vec2,
+        tangent: wp.vec3,
     ) -> float:
         """Visible microfacet normals; 0 for a mirror or a smooth conductor."""
         if materials.type[m] == MIRROR or materials.roughness[m] == 0.0:
             return 0.0
-        to_local = wp.transpose(frame(n))
+        to_local = wp.transpose(shading_frame(n, tangent))
         return mf.pdf(to_local * wo, to_local * wi, at.alpha(materials, m, uv), at.distribution(materials, m))
 
     @wp.func
@@ -116,6 +130,7 @@ def make(at: Parameters) -> Functions:
         uc: float,
         u: wp.vec2,
         uv: wp.vec2,
+        tangent: wp.vec3,
     ) -> BSDFSample:
         """A mirror's or a smooth conductor's reflection; glossy and rough conductors by visible normals."""
         s = lost_sample()
@@ -127,7 +142,7 @@ def make(at: Parameters) -> Functions:
             s.weight = lobes.reflectance
             s.pdf = 1.0
             return s
-        to_world = frame(n)
+        to_world = shading_frame(n, tangent)
         to_local = wp.transpose(to_world)
         wo_local = to_local * wo
         alpha = at.alpha(materials, m, uv)
@@ -151,10 +166,16 @@ FAMILY = Family(
     types=(
         MaterialType("mirror", MIRROR, ("reflectance", "two_sided"), BSDF_REFLECTION | BSDF_SPECULAR),
         MaterialType(
-            "glossy", GLOSSY, ("roughness", "distribution", "reflectance", "two_sided"), BSDF_REFLECTION | BSDF_GLOSSY
+            "glossy",
+            GLOSSY,
+            ("roughness", "roughness_v", "distribution", "reflectance", "two_sided"),
+            BSDF_REFLECTION | BSDF_GLOSSY,
         ),
         MaterialType(
-            "conductor", CONDUCTOR, ("distribution", "reflectance", "two_sided"), BSDF_REFLECTION | BSDF_GLOSSY
+            "conductor",
+            CONDUCTOR,
+            ("roughness_v", "distribution", "reflectance", "two_sided"),
+            BSDF_REFLECTION | BSDF_GLOSSY,
         ),
     ),
     make=make,

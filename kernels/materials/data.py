@@ -12,7 +12,7 @@ from typing import NamedTuple
 import warp as wp
 
 from ..microfacet import GGX, Microfacet, microfacet
-from ..textures import ROUGHNESS, TextureData, material_rgb, texture_float
+from ..textures import ROUGHNESS, ROUGHNESS_V, TextureData, material_rgb, texture_float
 from ..volumes import MediumData
 from .interface import MIN_ALPHA
 from .plastic import PlasticData
@@ -32,7 +32,10 @@ class MaterialData:
     sigma: wp.array(dtype=wp.vec3)  # absorption coefficient per unit length, -ln(transmittance)
     transmittance: wp.array(dtype=wp.vec3)  # thin dielectric: the tint of its straight transmission
     priority: wp.array(dtype=wp.int32)
-    roughness: wp.array(dtype=float)  # microfacet alpha (conductor: 0 for a smooth one)
+    roughness: wp.array(
+        dtype=float
+    )  # microfacet alpha, along the tangent s where anisotropic (conductor: 0 for a smooth one)
+    roughness_v: wp.array(dtype=float)  # microfacet alpha along the bitangent t (roughness where isotropic)
     distribution: wp.array(dtype=wp.int32)  # rough materials: wrt.kernels.microfacet.DISTRIBUTIONS' code
     eta: wp.array(dtype=wp.vec3)  # conductor: real part of the index of refraction, per channel
     k: wp.array(dtype=wp.vec3)  # conductor: imaginary part (extinction coefficient)
@@ -45,25 +48,37 @@ class MaterialData:
     media: MediumData  # the participating media and the surfaces that bound them (wrt.kernels.volumes)
 
 
+@wp.func
+def anisotropic_material(materials: MaterialData, m: wp.int32) -> bool:
+    """Material ``m`` has two alphas (the host gives an isotropic one ``roughness_v`` equal to its
+    ``roughness``, and its texture, if any, in both slots)."""
+    if materials.roughness_v[m] != materials.roughness[m]:
+        return True
+    return materials.textures.slot[m, ROUGHNESS_V] != materials.textures.slot[m, ROUGHNESS]
+
+
 class Parameters(NamedTuple):
     """The parameter lookups of a scene's materials at a hit, as ``@wp.func``s:
-    ``rgb(materials, m, slot, uv, constant)``, colour parameter ``slot`` (``wrt.kernels.textures``)
-    of material ``m``; ``alpha(materials, m, uv)``, its microfacet alpha; ``distribution(materials,
-    m)``, its microfacet distribution's code; and ``microfacet``, the microfacet functions
-    (``wrt.kernels.microfacet``: Beckmann compiled in only where some material has it, else every
-    one is GGX and the column is not read). ``textures``: the scene has textures (without them
-    every parameter is its constant and ``uv`` is unused)."""
+        ``rgb(materials, m, slot, uv, constant)``, colour parameter ``slot`` (``wrt.kernels.textures``)
+        of material ``m``; ``alpha(materials, m, uv)``, its microfacet alpha; ``distribution(materials,
+        m)``, its microfacet distribution's code; and ``microfacet``, the microfacet functions
+        (``wrt.kernels.microfacet``: Beckmann compiled in only where some material has it, else every
+        one is GGX and the column is not read). ``textures``: the scene has textures (without them
+        every parameter is its constant and ``uv`` is unused); ``anisotropic``: some material is
+    (its BSDF then takes the hit's tangent frame, ``wrt.kernels.sample_warps.shading_frame``)."""
 
     rgb: wp.Function
     alpha: wp.Function
     distribution: wp.Function
     microfacet: Microfacet
     textures: bool
+    anisotropic: bool
 
 
 @functools.cache
-def parameters(textures: bool, beckmann: bool = True) -> Parameters:
-    """The lookups, with texture reads compiled in only where ``textures``, Beckmann only where ``beckmann``."""
+def parameters(textures: bool, beckmann: bool = True, anisotropic: bool = True) -> Parameters:
+    """The lookups, with texture reads compiled in only where ``textures``, Beckmann only where
+    ``beckmann``, a second alpha only where ``anisotropic``."""
 
     @wp.func
     def rgb_at(materials: MaterialData, m: wp.int32, slot: wp.int32, uv: wp.vec2, constant: wp.vec3) -> wp.vec3:
@@ -73,14 +88,24 @@ def parameters(textures: bool, beckmann: bool = True) -> Parameters:
         return constant
 
     @wp.func
-    def alpha_at(materials: MaterialData, m: wp.int32, uv: wp.vec2) -> float:
-        """Microfacet alpha of material ``m`` at ``uv``: its roughness texture's (at least
-        ``MIN_ALPHA``), or its ``roughness``."""
-        alpha = materials.roughness[m]
+    def roughness_at(materials: MaterialData, m: wp.int32, slot: wp.int32, uv: wp.vec2, constant: float) -> float:
+        """Roughness parameter ``slot`` (``ROUGHNESS``, ``ROUGHNESS_V``) of material ``m`` at ``uv``:
+        its texture's (at least ``MIN_ALPHA``), or ``constant``."""
         if wp.static(textures):
-            if materials.textures.slot[m, ROUGHNESS] >= 0:
-                alpha = wp.max(MIN_ALPHA, texture_float(materials.textures, materials.textures.slot[m, ROUGHNESS], uv))
-        return alpha
+            t = materials.textures.slot[m, slot]
+            if t >= 0:
+                return wp.max(MIN_ALPHA, texture_float(materials.textures, t, uv))
+        return constant
+
+    @wp.func
+    def alpha_at(materials: MaterialData, m: wp.int32, uv: wp.vec2) -> wp.vec2:
+        """Microfacet alpha ``(a_u, a_v)`` of material ``m`` at ``uv``: ``roughness`` and
+        ``roughness_v``, each its texture's where textured (one lookup where both are the same)."""
+        a_u = roughness_at(materials, m, ROUGHNESS, uv, materials.roughness[m])
+        if wp.static(anisotropic):
+            if anisotropic_material(materials, m):
+                return wp.vec2(a_u, roughness_at(materials, m, ROUGHNESS_V, uv, materials.roughness_v[m]))
+        return wp.vec2(a_u, a_u)
 
     @wp.func
     def distribution_of(materials: MaterialData, m: wp.int32) -> wp.int32:
@@ -89,4 +114,4 @@ def parameters(textures: bool, beckmann: bool = True) -> Parameters:
             return materials.distribution[m]
         return GGX
 
-    return Parameters(rgb_at, alpha_at, distribution_of, microfacet(beckmann), textures)
+    return Parameters(rgb_at, alpha_at, distribution_of, microfacet(beckmann), textures, anisotropic)

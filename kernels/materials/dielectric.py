@@ -63,6 +63,7 @@ def make(at: Parameters) -> Functions:
         uc: float,
         u: wp.vec2,
         uv: wp.vec2,
+        tangent: wp.vec3,
     ) -> BSDFSample:
         """The reflection with probability F (weight F / F = 1), else the refraction (weight ``eta^2``)."""
         s = lost_sample()

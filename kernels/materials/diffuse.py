@@ -25,6 +25,7 @@ def cosine_sample(eval: wp.Function) -> wp.Function:
         uc: float,
         u: wp.vec2,
         uv: wp.vec2,
+        tangent: wp.vec3,
     ) -> BSDFSample:
         s = lost_sample()
         s.wi = frame(n) * cosine_hemisphere(u[0], u[1])
@@ -32,7 +33,7 @@ def cosine_sample(eval: wp.Function) -> wp.Function:
         cos_theta = wp.dot(n, s.wi)
         if cos_theta > 0.0:
             s.pdf = cos_theta / wp.pi
-            s.weight = eval(materials, m, n, wo, s.wi, 1.0, uv) * (cos_theta / s.pdf)
+            s.weight = eval(materials, m, n, wo, s.wi, 1.0, uv, tangent) * (cos_theta / s.pdf)
         return s
 
     return sample
@@ -40,7 +41,14 @@ def cosine_sample(eval: wp.Function) -> wp.Function:
 
 @wp.func
 def cosine_pdf(
-    materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float, uv: wp.vec2
+    materials: MaterialData,
+    m: wp.int32,
+    n: wp.vec3,
+    wo: wp.vec3,
+    wi: wp.vec3,
+    eta: float,
+    uv: wp.vec2,
+    tangent: wp.vec3,
 ) -> float:
     """The density of ``cosine_sample``: cos / pi above the surface."""
     return wp.max(0.0, wp.dot(n, wi)) / wp.pi
@@ -53,7 +61,14 @@ def make(at: Parameters) -> Functions:
 
     @wp.func
     def eval(
-        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float, uv: wp.vec2
+        materials: MaterialData,
+        m: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        wi: wp.vec3,
+        eta: float,
+        uv: wp.vec2,
+        tangent: wp.vec3,
     ) -> wp.vec3:
         return at.rgb(materials, m, ALBEDO, uv, materials.albedo[m]) / wp.pi
 

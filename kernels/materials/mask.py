@@ -55,14 +55,15 @@ def make(at: Parameters, bsdf) -> Functions:
         eta: float = 1.0,
         uv: wp.vec2 = wp.vec2(0.0, 0.0),
         front: bool = True,
+        tangent: wp.vec3 = wp.vec3(0.0, 0.0, 0.0),
     ) -> wp.vec3:
         """``bsdf_eval``, and a mask's: ``opacity`` times its inner material's f (the null lobe is a delta)."""
         if materials.type[m] != MASK:
-            return bsdf.eval(materials, m, n, wo, wi, eta, uv)
+            return bsdf.eval(materials, m, n, wo, wi, eta, uv, True, tangent)
         inner = materials.inner[m]
         if not inner_scatters(materials, inner, n, wi, front):
             return wp.vec3(0.0)
-        return opacity_at(materials, m, uv) * bsdf.eval(materials, inner, n, wo, wi, eta, uv)
+        return opacity_at(materials, m, uv) * bsdf.eval(materials, inner, n, wo, wi, eta, uv, True, tangent)
 
     @wp.func
     def masked_pdf(
@@ -74,14 +75,15 @@ def make(at: Parameters, bsdf) -> Functions:
         eta: float = 1.0,
         uv: wp.vec2 = wp.vec2(0.0, 0.0),
         front: bool = True,
+        tangent: wp.vec3 = wp.vec3(0.0, 0.0, 0.0),
     ) -> float:
         """``bsdf_pdf``, and a mask's: ``opacity`` times its inner material's density."""
         if materials.type[m] != MASK:
-            return bsdf.pdf(materials, m, n, wo, wi, eta, uv)
+            return bsdf.pdf(materials, m, n, wo, wi, eta, uv, True, tangent)
         inner = materials.inner[m]
         if not inner_scatters(materials, inner, n, wi, front):
             return 0.0
-        return opacity_at(materials, m, uv) * bsdf.pdf(materials, inner, n, wo, wi, eta, uv)
+        return opacity_at(materials, m, uv) * bsdf.pdf(materials, inner, n, wo, wi, eta, uv, True, tangent)
 
     @wp.func
     def masked_sample(
@@ -94,17 +96,18 @@ def make(at: Parameters, bsdf) -> Functions:
         u: wp.vec2,
         uv: wp.vec2 = wp.vec2(0.0, 0.0),
         front: bool = True,
+        tangent: wp.vec3 = wp.vec3(0.0, 0.0, 0.0),
     ) -> BSDFSample:
         """``bsdf_sample``, and a mask's (Mitsuba 3's): where ``uc < opacity`` its inner material's
         sample drawn with ``uc / opacity``, its pdf times ``opacity`` and its weight unchanged (lost
         on the back of a one-sided inner material), else the null lobe: ``wi = -wo``, weight 1,
         probability ``1 - opacity``."""
         if materials.type[m] != MASK:
-            return bsdf.sample(materials, m, n, wo, eta, uc, u, uv)
+            return bsdf.sample(materials, m, n, wo, eta, uc, u, uv, True, tangent)
         opacity = opacity_at(materials, m, uv)
         inner = materials.inner[m]
         if uc < opacity and (front or materials.two_sided[inner] != 0):
-            nested = bsdf.sample(materials, inner, n, wo, eta, uc / opacity, u, uv)
+            nested = bsdf.sample(materials, inner, n, wo, eta, uc / opacity, u, uv, True, tangent)
             nested.pdf = nested.pdf * opacity
             return nested
         s = BSDFSample()

@@ -22,7 +22,15 @@ def make(at: Parameters) -> Functions:
 
     @wp.func
     def null_sample(
-        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uc: float, u: wp.vec2, uv: wp.vec2
+        materials: MaterialData,
+        m: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        eta: float,
+        uc: float,
+        u: wp.vec2,
+        uv: wp.vec2,
+        tangent: wp.vec3,
     ) -> BSDFSample:
         s = BSDFSample()
         s.wi = -wo

@@ -26,7 +26,14 @@ def make(at: Parameters) -> Functions:
 
     @wp.func
     def eval(
-        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float, uv: wp.vec2
+        materials: MaterialData,
+        m: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        wi: wp.vec3,
+        eta: float,
+        uv: wp.vec2,
+        tangent: wp.vec3,
     ) -> wp.vec3:
         cos_alpha = wp.max(0.0, wp.dot(reflect(-wi, n), wo))
         e = materials.exponent[m]

@@ -107,7 +107,7 @@ def make(at) -> Functions:
         m: wp.int32,
         albedo: wp.vec3,
         reflectance: wp.vec3,
-        alpha: float,
+        alpha: wp.vec2,
         distribution: wp.int32,
         n: wp.vec3,
         wo: wp.vec3,
@@ -135,7 +135,7 @@ def make(at) -> Functions:
     def plastic_pdf(
         materials: MaterialData,
         m: wp.int32,
-        alpha: float,
+        alpha: wp.vec2,
         distribution: wp.int32,
         n: wp.vec3,
         wo: wp.vec3,
@@ -155,7 +155,14 @@ def make(at) -> Functions:
 
     @wp.func
     def eval(
-        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float, uv: wp.vec2
+        materials: MaterialData,
+        m: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        wi: wp.vec3,
+        eta: float,
+        uv: wp.vec2,
+        tangent: wp.vec3,
     ) -> wp.vec3:
         albedo = at.rgb(materials, m, ALBEDO, uv, materials.albedo[m])
         reflectance = at.rgb(materials, m, REFLECTANCE, uv, materials.reflectance[m])
@@ -164,7 +171,14 @@ def make(at) -> Functions:
 
     @wp.func
     def pdf(
-        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float, uv: wp.vec2
+        materials: MaterialData,
+        m: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        wi: wp.vec3,
+        eta: float,
+        uv: wp.vec2,
+        tangent: wp.vec3,
     ) -> float:
         return plastic_pdf(materials, m, at.alpha(materials, m, uv), at.distribution(materials, m), n, wo, wi)
 
@@ -189,6 +203,7 @@ def make(at) -> Functions:
         uc: float,
         u: wp.vec2,
         uv: wp.vec2,
+        tangent: wp.vec3,
     ) -> BSDFSample:
         """The coating's reflection with probability ``coating_probability`` (a smooth coating's mirror
         direction, weight ``reflectance F`` over that probability; a rough one's visible normals),

@@ -10,7 +10,7 @@ its time on glossy_reflection (CPU).
 import warp as wp
 
 from ..optics import fresnel_dielectric, refract
-from ..sample_warps import frame
+from ..sample_warps import shading_frame
 from .data import MaterialData, Parameters
 from .interface import (
     BSDF_GLOSSY,
@@ -32,7 +32,14 @@ def make(at: Parameters) -> Functions:
 
     @wp.func
     def rough_dielectric_sample(
-        alpha: float, distribution: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uc: float, u: wp.vec2
+        alpha: wp.vec2,
+        distribution: wp.int32,
+        n: wp.vec3,
+        tangent: wp.vec3,
+        wo: wp.vec3,
+        eta: float,
+        uc: float,
+        u: wp.vec2,
     ) -> BSDFSample:
         """A visible microfacet normal ``h`` of a rough dielectric, then reflection about it with
         probability F (at ``wo.h``; weight ``G1(wi)``) or refraction through it (weight ``eta^2
@@ -45,7 +52,7 @@ def make(at: Parameters) -> Functions:
             s.pdf = 1.0
             s.flags = BSDF_TRANSMISSION | BSDF_SPECULAR
             return s
-        to_world = frame(n)
+        to_world = shading_frame(n, tangent)
         wo_local = wp.transpose(to_world) * wo
         h = mf.sample_visible_normal(wo_local, alpha, distribution, u[0], u[1])
         cos_h = wp.dot(wo_local, h)
@@ -70,18 +77,32 @@ def make(at: Parameters) -> Functions:
 
     @wp.func
     def eval(
-        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float, uv: wp.vec2
+        materials: MaterialData,
+        m: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        wi: wp.vec3,
+        eta: float,
+        uv: wp.vec2,
+        tangent: wp.vec3,
     ) -> wp.vec3:
-        to_local = wp.transpose(frame(n))
+        to_local = wp.transpose(shading_frame(n, tangent))
         alpha = at.alpha(materials, m, uv)
         distribution = at.distribution(materials, m)
         return wp.vec3(mf.dielectric_eval(to_local * wo, to_local * wi, alpha, distribution, eta))
 
     @wp.func
     def pdf(
-        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float, uv: wp.vec2
+        materials: MaterialData,
+        m: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        wi: wp.vec3,
+        eta: float,
+        uv: wp.vec2,
+        tangent: wp.vec3,
     ) -> float:
-        to_local = wp.transpose(frame(n))
+        to_local = wp.transpose(shading_frame(n, tangent))
         alpha = at.alpha(materials, m, uv)
         distribution = at.distribution(materials, m)
         return mf.dielectric_pdf(to_local * wo, to_local * wi, alpha, distribution, eta)
@@ -96,8 +117,10 @@ def make(at: Parameters) -> Functions:
         uc: float,
         u: wp.vec2,
         uv: wp.vec2,
+        tangent: wp.vec3,
     ) -> BSDFSample:
-        return rough_dielectric_sample(at.alpha(materials, m, uv), at.distribution(materials, m), n, wo, eta, uc, u)
+        alpha = at.alpha(materials, m, uv)
+        return rough_dielectric_sample(alpha, at.distribution(materials, m), n, tangent, wo, eta, uc, u)
 
     return Functions(owns, eval, pdf, sample)
 
@@ -108,7 +131,7 @@ FAMILY = Family(
         MaterialType(
             "rough_dielectric",
             ROUGH_DIELECTRIC,
-            ("ior", "roughness", "distribution", "transmittance", "priority"),
+            ("ior", "roughness", "roughness_v", "distribution", "transmittance", "priority"),
             BSDF_REFLECTION | BSDF_TRANSMISSION | BSDF_GLOSSY,
         ),
     ),

@@ -96,6 +96,7 @@ def make(at: Parameters) -> Functions:
         uc: float,
         u: wp.vec2,
         uv: wp.vec2,
+        tangent: wp.vec3,
     ) -> BSDFSample:
         reflectance = at.rgb(materials, m, REFLECTANCE, uv, materials.reflectance[m])
         transmittance = at.rgb(materials, m, TRANSMITTANCE, uv, materials.transmittance[m])

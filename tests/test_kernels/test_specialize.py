@@ -57,6 +57,7 @@ def test_features_follow_the_scene():
         normal_map=False,
         media=False,
         beckmann=False,
+        anisotropic=False,
     )
     mesh = make_scene([{"type": "mesh", "file": "examples/meshes/tetra.obj"}], scene_dir=".")
     assert (scene_features(mesh).triangles, scene_features(mesh).spheres, scene_features(mesh).polygons) == (
@@ -96,6 +97,7 @@ def test_features_follow_the_scene():
         normal_map=False,
         media=False,
         beckmann=False,
+        anisotropic=False,
     )
     for material, flags in [
         (ROUGH_GLASS, (True, True, True, False)),  # a rough dielectric bounds a medium: dielectric too
@@ -103,11 +105,16 @@ def test_features_follow_the_scene():
         ({**PLASTIC, "type": "rough_plastic"}, (False, False, False, True)),
     ]:
         f = scene_features(make_scene([{**FLOOR, "material": material["name"]}], materials=[material]))
-        assert (f.specular, f.dielectric, f.rough_dielectric, f.plastic) == flags and not f.beckmann
+        assert (f.specular, f.dielectric, f.rough_dielectric, f.plastic) == flags
+        assert not (f.beckmann or f.anisotropic)
         beckmann = {**material, "distribution": "beckmann"} if "roughness" in material else None
         if beckmann is not None:  # Beckmann microfacets are compiled in only where a material has them
             f = scene_features(make_scene([{**FLOOR, "material": material["name"]}], materials=[beckmann]))
-            assert f.beckmann
+            assert f.beckmann and not f.anisotropic
+        if material is ROUGH_GLASS:  # and a tangent frame only where one is anisotropic
+            anisotropic = {**material, "roughness_v": 0.05}
+            f = scene_features(make_scene([{**FLOOR, "material": material["name"]}], materials=[anisotropic]))
+            assert f.anisotropic and not f.beckmann
     sky = {"type": "environment", "file": str(EXAMPLES / "envmaps" / "sky.exr")}
     assert scene_features(make_scene([FLOOR], materials=DIFFUSE, lights=[sky])).environment_map
     flat = make_scene([FLOOR], materials=DIFFUSE, camera={**CAMERA, "type": "orthographic", "width": 2.0})

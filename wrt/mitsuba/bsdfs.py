@@ -6,7 +6,6 @@ wrt mask over its nested BSDF's material (named after the mask's, with ``_materi
 
 from __future__ import annotations
 
-import math
 from collections import Counter
 from dataclasses import dataclass
 
@@ -82,30 +81,28 @@ def ior(p: Plugin, name: str, default: str) -> float:
     return IOR_TABLE[text.strip().lower()]
 
 
-def rough(p: Plugin) -> dict:
+def rough(p: Plugin, anisotropic: bool = True) -> dict:
     """The microfacet keys of a rough BSDF: ``distribution`` (Mitsuba's, beckmann by default) and
-    ``roughness``, its alpha (``alpha``: a number or a texture, ``textured_number``; an anisotropic
-    pair: approximated by the geometric mean)."""
+    ``roughness``, its alpha (``alpha``: a number or a texture, ``textured_number``), or where
+    ``anisotropic`` (roughconductor, roughdielectric) and the BSDF gives ``alpha_u`` and
+    ``alpha_v``, ``roughness`` and ``roughness_v``, each a number or a texture (Mitsuba's
+    tangent is wrt's: dp/du made perpendicular to the shading normal)."""
     distribution = p.string("distribution", "beckmann").lower()
     if distribution not in DISTRIBUTIONS:
         raise p.doc.error(
             p.params["distribution"], f"distribution {token(distribution)} is not beckmann or ggx (Mitsuba rejects it)"
         )
-    return {"roughness": _alpha(p), "distribution": distribution}
-
-
-def _alpha(p: Plugin) -> float | dict:
-    """A rough BSDF's alpha (isotropic: the geometric mean of an anisotropic pair), or the texture
-    of an isotropic ``alpha`` (``textured_number``)."""
-    if p.has("alpha_u") or p.has("alpha_v"):
-        alpha_u, alpha_v = p.number("alpha_u", 0.1), p.number("alpha_v", 0.1)
-        if alpha_u != alpha_v:
-            p.doc.warn(
-                p.element,
-                f"anisotropic roughness is not supported: alpha = {math.sqrt(alpha_u * alpha_v):.4g} (geometric mean)",
-            )
-        return math.sqrt(alpha_u * alpha_v)
-    return textured_number(p, "alpha", 0.1)
+    if anisotropic and (p.has("alpha_u") or p.has("alpha_v")):
+        if not (p.has("alpha_u") and p.has("alpha_v")):
+            raise p.doc.error(p.element, "give both alpha_u and alpha_v (Mitsuba rejects one alone)")
+        if p.has("alpha"):
+            raise p.doc.error(p.element, "give either alpha or alpha_u and alpha_v, not both (Mitsuba rejects it)")
+        return {
+            "roughness": textured_number(p, "alpha_u", 0.1),
+            "roughness_v": textured_number(p, "alpha_v", 0.1),
+            "distribution": distribution,
+        }
+    return {"roughness": textured_number(p, "alpha", 0.1), "distribution": distribution}
 
 
 def conductor(p: Plugin, microfacets: dict) -> dict:
@@ -149,7 +146,7 @@ def plastic(p: Plugin) -> dict:
         if interior == ior(p, "ext_ior", "air"):
             raise p.doc.error(p.element, "int_ior and ext_ior must differ (Mitsuba rejects it)")
         p.boolean("sample_visible", True)  # how Mitsuba samples it: the noise, not the image
-        table.update(type="rough_plastic", **rough(p))
+        table.update(type="rough_plastic", **rough(p, anisotropic=False))  # Mitsuba's roughplastic has one alpha
     return table
 
 

@@ -1,5 +1,5 @@
 """Converting Mitsuba's shapes into wrt shapes: ``sphere``, ``rectangle`` and ``cube`` (as
-polygons), ``disk`` and ``cylinder``, ``obj`` and ``ply`` meshes, with their BSDF and, for an area
+polygons), ``disk`` and ``cylinder``, ``obj``, ``ply`` and ``serialized`` meshes, with their BSDF and, for an area
 emitter on a rectangle or sphere, the area or sphere light it becomes."""
 
 from __future__ import annotations
@@ -44,7 +44,9 @@ def shape(
         doc.warn(extra, "a shape takes one BSDF and one emitter: ignored")
     front = -1.0 if p.boolean("flip_normals", False) else 1.0
     mirrored = mirrors(matrix[:3, :3]) != (front < 0)  # winding must be reversed to keep Mitsuba's front
-    textured = any(isinstance(v, dict) for v in materials.of(bsdfs[0] if bsdfs else None).params.values())
+    params = materials.of(bsdfs[0] if bsdfs else None).params
+    textured = any(isinstance(v, dict) for v in params.values())
+    oriented = textured or "roughness_v" in params  # its uv parametrisation shows: textures, an anisotropic tangent
 
     if p.type == "sphere":
         radius, center = p.number("radius", 1.0, above=0.0), p.vector("center", (0.0, 0.0, 0.0))
@@ -59,9 +61,11 @@ def shape(
             doc.warn(element, "non-uniform scale: the radius is the to_world x axis scale (as in Mitsuba)")
         if front < 0:
             doc.warn(p.params["flip_normals"], "flip_normals on a sphere is not supported: normals point outward")
-        if textured and not np.allclose(placed[:3, :3], radius * np.eye(3), rtol=0.0, atol=1e-9 * radius):
+        if oriented and not np.allclose(placed[:3, :3], radius * np.eye(3), rtol=0.0, atol=1e-9 * radius):
             doc.warn(
-                element, "a textured sphere's to_world rotates it: wrt's texture coordinates follow the scene axes"
+                element,
+                "a textured or anisotropic sphere's to_world rotates it: wrt's texture coordinates and tangents"
+                " follow the scene axes",
             )
         tables = [{"type": "sphere", "center": as_list(placed[:3, 3]), "radius": radius}]
     elif p.type in ("rectangle", "cube"):
@@ -71,15 +75,17 @@ def shape(
         if not np.all(np.isfinite(loops)):
             raise doc.error(element, f"to_world places the {p.type} {BEYOND_FLOAT64}")
         tables = [{"type": "polygon", "vertices": [as_list(v) for v in loop]} for loop in loops]
-        if textured and p.type == "cube":
-            doc.warn(element, "a textured cube: wrt's texture coordinates of its faces are not Mitsuba's")
-        elif textured:  # Mitsuba's rectangle: uv = (x + 1, y + 1) / 2 of its object-space point
+        if oriented and p.type == "cube":
+            doc.warn(
+                element, "a textured or anisotropic cube: wrt's texture coordinates of its faces are not Mitsuba's"
+            )
+        elif oriented:  # Mitsuba's rectangle: uv = (x + 1, y + 1) / 2 of its object-space point
             tables[0]["uv"] = [
                 [(x + 1.0) / 2.0, (y + 1.0) / 2.0] for x, y, _ in (RECTANGLE[::-1] if mirrored else RECTANGLE)
             ]
     elif p.type in ("disk", "cylinder"):
         tables = [quadric(doc, p, matrix, front, emitters)]
-    elif p.type in ("obj", "ply"):
+    elif p.type in ("obj", "ply", "serialized"):
         tables = [mesh(doc, p, matrix)]
     else:
         doc.warn(element, "shape type not supported: ignored")
@@ -118,7 +124,8 @@ def shape(
 
 
 def mesh(doc: Document, p: Plugin, matrix: np.ndarray) -> dict:
-    """The ``mesh`` shape table of an ``obj`` or ``ply`` shape: its file, relative to the XML
+    """The ``mesh`` shape table of an ``obj``, ``ply`` or ``serialized`` shape (with its
+    ``shape_index``: which mesh of the file, 0 by default): its file, relative to the XML
     file, its ``to_world`` as a transform matrix, ``shading = "smooth"`` (Mitsuba interpolates the
     file's vertex normals, or those it computes from the placed vertices when the file has none)
     unless ``face_normals`` is true, and ``flip_normals`` (the winding reversed and the normals
@@ -126,6 +133,8 @@ def mesh(doc: Document, p: Plugin, matrix: np.ndarray) -> dict:
     Mitsuba's face normals follow the mirrored winding, its computed normals too, and the file's
     normals go by the inverse transpose, as wrt's do."""
     table = {"type": "mesh", "file": p.file("a mesh", "mesh file")}
+    if p.type == "serialized":
+        table["shape_index"] = p.number("shape_index", 0, integer=True)  # the loader checks its range
     if not p.boolean("face_normals", False):
         table["shading"] = "smooth"
     if p.boolean("flip_normals", False):
