@@ -2,6 +2,7 @@
 against Mitsuba 3 (``si.uv`` of the same rays, a texture plugin's ``eval`` at the same uv), the
 scene format's texture tables and their errors, and the Mitsuba importer's texture conversion."""
 
+import re
 import textwrap
 
 import numpy as np
@@ -16,7 +17,7 @@ from wrt_harness.mitsuba_peer import mitsuba_available
 
 import wrt
 from wrt.device import upload_geometry, upload_materials, upload_textures
-from wrt.errors import SceneError
+from wrt.errors import SceneError, WrtError
 from wrt.geometry import build
 from wrt.loader import load_scene, parse_scene
 
@@ -120,6 +121,9 @@ SHAPES = {
     "sphere": ('<shape type="sphere"><point name="center" x="0.3" y="-0.2" z="0.1"/>'
                '<float name="radius" value="0.8"/>BSDF</shape>', (0.3, -0.2, 0.1), 0.8),
     "rectangle": (f'<shape type="rectangle">{TRANSFORM}<translate x="0.2"/></transform>BSDF</shape>', (0.2, 0, 0), 1.0),
+    "cube": (f'<shape type="cube">{TRANSFORM}<translate x="0.2"/></transform>BSDF</shape>', (0.2, 0, 0), 1.2),
+    "cube mirrored": ('<shape type="cube"><transform name="to_world"><scale x="-1" y="0.8" z="1.2"/>'
+                      "</transform>BSDF</shape>", (0, 0, 0), 1.0),
     "rectangle mirrored": ('<shape type="rectangle"><transform name="to_world"><scale x="-2" y="1" z="1"/>'
                            "</transform>BSDF</shape>", (0, 0, 0), 1.0),
     "disk": (f'<shape type="disk">{TRANSFORM}</transform>BSDF</shape>', (0, 0, 0), 1.0),
@@ -218,6 +222,10 @@ TEXTURES = {
     "bitmap grey": '<texture type="bitmap"><string name="filename" value="grey.png"/></texture>',
     "bitmap 16-bit": '<texture type="bitmap"><string name="filename" value="deep.png"/></texture>',
     "bitmap exr": '<texture type="bitmap"><string name="filename" value="image.exr"/></texture>',
+    "bitmap format variant": ('<texture type="bitmap"><string name="filename" value="image.exr"/>'
+                              '<string name="format" value="variant"/></texture>'),
+    "bitmap 8-bit format uint8": ('<texture type="bitmap"><string name="filename" value="image.png"/>'
+                                  '<string name="format" value="uint8"/></texture>'),
 }  # fmt: skip
 
 
@@ -249,6 +257,28 @@ def test_texture_lookup_is_mitsubas(tmp_path, name):
     if name.startswith("checkerboard"):  # Mitsuba's eval_1 swaps color0 and color1 (against eval): not followed
         expected_1 = expected.mean(axis=1)
     np.testing.assert_allclose(value, expected_1, rtol=rtol, atol=2e-5)
+
+
+@pytest.mark.parametrize(
+    "file, storage, problem",
+    [
+        ("image.exr", "uint8", "format uint8 of a file that is not 8 bits a channel: Mitsuba quantises"),
+        ("image.png", "float16", "'format' = 'float16' must be one of variant, uint8"),
+    ],
+)
+def test_a_bitmap_format_wrt_cannot_follow_is_refused(tmp_path, file, storage, problem):
+    """``format``: ``variant`` is how wrt stores texels, ``uint8`` of an 8-bit file changes nothing
+    (both against Mitsuba above); ``uint8`` of a float file (Mitsuba quantises it) is an
+    approximation, refused by default; another name is an error, as in Mitsuba."""
+    write_png(tmp_path / "image.png", IMAGE)
+    write_exr(tmp_path / "image.exr", IMAGE / 257.0)
+    texture = (
+        f'<texture type="bitmap" name="reflectance"><string name="filename" value="{file}"/>'
+        f'<string name="format" value="{storage}"/></texture>'
+    )
+    path = scene_xml(tmp_path, f'<shape type="sphere"><bsdf type="diffuse">{texture}</bsdf></shape>', False)
+    with pytest.raises(WrtError, match=re.escape(problem)):
+        load_scene(path)
 
 
 @wp.kernel

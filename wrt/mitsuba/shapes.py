@@ -14,20 +14,29 @@ from .xml import Document, Element, Plugin
 
 BEYOND_FLOAT64 = "beyond the float64 range (not finite)"
 RECTANGLE = np.array([(-1.0, -1.0, 0.0), (1.0, -1.0, 0.0), (1.0, 1.0, 0.0), (-1.0, 1.0, 0.0)])
+"""Mitsuba's rectangle: [-1, 1]^2 at z = 0, front +z; uv = (x + 1, y + 1) / 2 of its point."""
+CUBE = np.array(
+    [
+        [(1, -1, -1), (1, -1, 1), (-1, -1, 1), (-1, -1, -1)],
+        [(1, 1, -1), (-1, 1, -1), (-1, 1, 1), (1, 1, 1)],
+        [(1, -1, -1), (1, 1, -1), (1, 1, 1), (1, -1, 1)],
+        [(1, -1, 1), (1, 1, 1), (-1, 1, 1), (-1, -1, 1)],
+        [(-1, -1, 1), (-1, 1, 1), (-1, 1, -1), (-1, -1, -1)],
+        [(1, 1, -1), (1, -1, -1), (-1, -1, -1), (-1, 1, -1)],
+    ],
+    dtype=np.float64,
+)
+"""Mitsuba's cube mesh, [-1, 1]^3: its faces -y, +y, +x, +z, -x, -z, each a loop of its corners
+wound counter-clockwise seen from outside, in the order whose texture coordinates are
+``CUBE_UV`` (Mitsuba's triangles are corners (0, 1, 2) and (3, 0, 2) of each loop)."""
+CUBE_UV = [(0.0, 1.0), (1.0, 1.0), (1.0, 0.0), (0.0, 0.0)]
 
 
-def cube_faces() -> list[np.ndarray]:
-    """The six faces of [-1, 1]^3 as 4-vertex loops wound counter-clockwise seen from outside."""
-    square = [(-1, -1), (1, -1), (1, 1), (-1, 1)]
-    faces = []
-    for axis in range(3):
-        b, c = (axis + 1) % 3, (axis + 2) % 3  # e_b x e_c = e_axis
-        for sign in (1.0, -1.0):
-            face = np.zeros((4, 3))
-            face[:, axis] = sign
-            face[:, b], face[:, c] = zip(*square)
-            faces.append(face if sign > 0 else face[::-1])
-    return faces
+def faces(kind: str) -> list[tuple[np.ndarray, list]]:
+    """``(corners, uvs)`` of each face of Mitsuba's ``rectangle`` or ``cube``."""
+    if kind == "rectangle":
+        return [(RECTANGLE, [((x + 1.0) / 2.0, (y + 1.0) / 2.0) for x, y, _ in RECTANGLE])]
+    return [(loop, CUBE_UV) for loop in CUBE]
 
 
 def shape(
@@ -69,20 +78,18 @@ def shape(
             )
         tables = [{"type": "sphere", "center": as_list(placed[:3, 3]), "radius": radius}]
     elif p.type in ("rectangle", "cube"):
-        loops = [RECTANGLE] if p.type == "rectangle" else cube_faces()
-        with np.errstate(all="ignore"):
-            loops = [[transform_point(matrix, v) for v in (loop[::-1] if mirrored else loop)] for loop in loops]
-        if not np.all(np.isfinite(loops)):
-            raise doc.error(element, f"to_world places the {p.type} {BEYOND_FLOAT64}")
-        tables = [{"type": "polygon", "vertices": [as_list(v) for v in loop]} for loop in loops]
-        if oriented and p.type == "cube":
-            doc.warn(
-                element, "a textured or anisotropic cube: wrt's texture coordinates of its faces are not Mitsuba's"
-            )
-        elif oriented:  # Mitsuba's rectangle: uv = (x + 1, y + 1) / 2 of its object-space point
-            tables[0]["uv"] = [
-                [(x + 1.0) / 2.0, (y + 1.0) / 2.0] for x, y, _ in (RECTANGLE[::-1] if mirrored else RECTANGLE)
-            ]
+        tables = []
+        for loop, uvs in faces(p.type):
+            if mirrored:  # reversed, to keep Mitsuba's front
+                loop, uvs = loop[::-1], uvs[::-1]
+            with np.errstate(all="ignore"):
+                corners = [transform_point(matrix, v) for v in loop]
+            if not np.all(np.isfinite(corners)):
+                raise doc.error(element, f"to_world places the {p.type} {BEYOND_FLOAT64}")
+            table = {"type": "polygon", "vertices": [as_list(v) for v in corners]}
+            if oriented:  # its uv parametrisation, Mitsuba's: textures, dp/du
+                table["uv"] = [list(uv) for uv in uvs]
+            tables.append(table)
     elif p.type in ("disk", "cylinder"):
         tables = [quadric(doc, p, matrix, front, emitters)]
     elif p.type in ("obj", "ply", "serialized"):

@@ -4,6 +4,8 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from ..errors import token
@@ -12,6 +14,8 @@ from .xml import Document, Element, Plugin
 
 FILTERS = ("bilinear", "nearest")
 WRAPS = ("repeat", "mirror", "clamp")
+FORMATS = ("variant", "uint8")
+"""A bitmap's ``format`` values in Mitsuba 3.9: its texels stored as floats, or as 8-bit integers."""
 
 
 def textured_color(p: Plugin, name: str, default: float) -> list[float] | dict:
@@ -41,6 +45,7 @@ def texture(doc: Document, element: Element) -> dict:
             table[key] = value
         if p.boolean("raw", False):
             table["raw"] = True
+        _storage(doc, p, os.path.join(os.path.dirname(doc.path) or ".", table["file"]))
     else:
         raise doc.error(element, f"texture type {token(p.type)} is not supported (wrt has checkerboard and bitmap)")
     matrix, _ = p.transform("to_uv")
@@ -50,3 +55,33 @@ def texture(doc: Document, element: Element) -> dict:
         table["to_uv"] = as_list(uv[:2].ravel())
     p.finish()
     return table
+
+
+def _storage(doc: Document, p: Plugin, path: str) -> None:
+    """A bitmap's ``format``: ``variant`` (the default) stores the texels as read, as wrt does;
+    ``uint8`` quantises them to 8 bits, which leaves an 8-bit file's texels as they are (checked
+    against Mitsuba's ``eval``) and is approximated for any other file (read as it is)."""
+    storage = p.string("format", FORMATS[0])
+    if storage not in FORMATS:
+        raise doc.error(p.params["format"], f"'format' = {token(storage)} must be one of {', '.join(FORMATS)}")
+    if storage == "uint8" and _bits(path) != 8:
+        doc.warn(
+            p.params["format"],
+            "format uint8 of a file that is not 8 bits a channel: Mitsuba quantises its texels, wrt reads them as"
+            " they are",
+        )
+
+
+def _bits(path: str) -> int | None:
+    """Bits a channel of image file ``path`` (None where OpenImageIO cannot tell; the loader
+    reports an unreadable file)."""
+    import OpenImageIO as oiio
+
+    image = oiio.ImageInput.open(path)
+    if image is None:
+        oiio.geterror()
+        return None
+    try:
+        return image.spec().format.size() * 8
+    finally:
+        image.close()
