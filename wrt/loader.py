@@ -59,7 +59,7 @@ from .scene import (
     Triangle,
     Volume,
 )
-from .textures import SLOTS, Bitmap, read_texture
+from .textures import SLOTS, Bitmap, Constant, read_texture
 from .volumes import KINDS as VOLUME_KINDS
 from .volumes import VolumeFileError, box_matrix, read_vol
 
@@ -347,7 +347,7 @@ def _texture(t: _Table, key: str, scene_dir: str) -> tuple:
     if values.min() < lo or values.max() > hi:
         what = "the file's texels" if isinstance(texture, Bitmap) else "its colours"
         raise tt.error(
-            "file" if isinstance(texture, Bitmap) else "texture",
+            "file" if isinstance(texture, Bitmap) else "value" if isinstance(texture, Constant) else "texture",
             f"{what} range over [{values.min():.4g}, {values.max():.4g}]: {key} must stay in [{lo:g}, {hi:g}]",
             tt.data.get("file", tt.data.get("texture")),
         )
@@ -355,25 +355,25 @@ def _texture(t: _Table, key: str, scene_dir: str) -> tuple:
     return texture, float(mean) if number else tuple(float(c) for c in mean)
 
 
-def _normal_map(t: _Table, scene_dir: str) -> Bitmap:
+def _normal_map(t: _Table, scene_dir: str) -> Bitmap | Constant:
     """A material's ``normal_map``: a bitmap texture table whose file is read raw whatever its format
     (no sRGB decoding: texel (r, g, b) is the tangent-space normal 2 (r, g, b) - 1, normalised;
-    ``wrt.kernels.hit.perturbed_normal``), its texels in [0, 1]."""
+    ``wrt.kernels.hit.perturbed_normal``), or a constant one (``texture = "constant"``, its
+    ``value`` the one texel), its texels in [0, 1]."""
     t.used.add("normal_map")
     data = t.data["normal_map"]
-    if not isinstance(data, Mapping) or data.get("texture") != "bitmap":
-        raise t.error("normal_map", 'must be a texture table with texture = "bitmap"', data)
-    tt = _Table(t.file, f"{t.name}.normal_map", {**data, "raw": True})
+    if not isinstance(data, Mapping) or data.get("texture") not in ("bitmap", "constant"):
+        raise t.error("normal_map", 'must be a texture table with texture = "bitmap" or "constant"', data)
+    bitmap = data["texture"] == "bitmap"
+    tt = _Table(t.file, f"{t.name}.normal_map", {**data, "raw": True} if bitmap else data)
     if data.get("raw", True) is not True:
         raise tt.error("raw", "must be true: a normal map is always read raw", data["raw"])
     texture = read_texture(tt, scene_dir)
     texels = texture.values()
     if texels.min() < 0.0 or texels.max() > 1.0:
-        raise tt.error(
-            "file",
-            f"the file's texels range over [{texels.min():.4g}, {texels.max():.4g}]: must stay in [0, 1]",
-            data["file"],
-        )
+        key = "file" if bitmap else "value"
+        what = "the file's texels range" if bitmap else "its value ranges"
+        raise tt.error(key, f"{what} over [{texels.min():.4g}, {texels.max():.4g}]: must stay in [0, 1]", data.get(key))
     return texture
 
 

@@ -3,8 +3,10 @@ textures into the flat arrays of ``wrt.kernels.textures.TextureData``.
 
 A texture gives a material parameter (``SLOTS``: ``albedo``, ``specular``, ``reflectance``,
 ``roughness``) a value that varies with the surface's (u, v) coordinates
-(``wrt.kernels.traverse.surface_uv``). Two kinds, as Mitsuba 3's plugins of the same names:
-``Checkerboard`` (two colours in squares of side 1/2 in uv) and ``Bitmap`` (an image file read
+(``wrt.kernels.traverse.surface_uv``). Three kinds, as Mitsuba 3's plugins: ``Constant`` (one
+value everywhere, Mitsuba's ``rawconstant``: what a constant normal map is; on the device a
+checkerboard of two equal colours), ``Checkerboard`` (two colours in squares of side 1/2 in uv)
+and ``Bitmap`` (an image file read
 with OpenImageIO: 8- and 16-bit integer files are sRGB-encoded and decoded to linear unless
 ``raw``, floating-point files (OpenEXR, Radiance HDR) are linear; a grey image is grey in all
 three channels, an alpha channel is ignored). Both map uv through ``to_uv`` first, a 2D affine
@@ -25,13 +27,29 @@ from .imageio import oiio, read_pixels, srgb_decode
 
 FILTERS = {"bilinear": BILINEAR, "nearest": NEAREST}
 WRAPS = {"repeat": REPEAT, "mirror": MIRROR, "clamp": CLAMP}
-KINDS = ("checkerboard", "bitmap")
+KINDS = ("constant", "checkerboard", "bitmap")
 MAX_TEXELS = 1 << 26  # texels of one bitmap (64 Mi: 768 MiB of float32 RGB on the device)
 LUMINANCE = np.array([0.212671, 0.715160, 0.072169])  # Mitsuba 3's (Rec. 709) weights: a bitmap's texture_float
 
 
 class TextureFileError(ValueError):
     """A bitmap file wrt cannot use; the message says why."""
+
+
+@dataclass(frozen=True, eq=False)
+class Constant:
+    """Mitsuba 3's ``rawconstant``: ``value`` (linear RGB, not decoded) at every uv."""
+
+    value: tuple[float, float, float]
+    to_uv: np.ndarray = field(default_factory=lambda: np.eye(3))
+
+    def values(self) -> np.ndarray:
+        """Its one value (1, 3)."""
+        return np.array([self.value], dtype=np.float64)
+
+    def numbers(self) -> np.ndarray:
+        """Its ``texture_float`` (1,): the channels' mean, as a checkerboard's (its device form)."""
+        return self.values().mean(axis=1)
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,7 +92,7 @@ class Bitmap:
         return self.values() @ LUMINANCE
 
 
-Texture = Checkerboard | Bitmap
+Texture = Constant | Checkerboard | Bitmap
 
 
 def mean_value(texture: Texture) -> tuple[float, float, float]:
@@ -114,7 +132,11 @@ def read_texture(t, scene_dir: str) -> Texture:
     the keys of that kind (docs/scene-format.md). Its checks raise ``t.error``."""
     kind = t.string("texture", choices=KINDS)
     to_uv = _to_uv(t)
-    if kind == "checkerboard":
+    if kind == "constant":
+        value = t.get("value", None)
+        grey = isinstance(value, (int, float)) and not isinstance(value, bool)
+        texture = Constant(value=(t.number("value"),) * 3 if grey else t.vec3("value"), to_uv=to_uv)
+    elif kind == "checkerboard":
         texture = Checkerboard(
             color0=t.vec3("color0", Checkerboard.color0), color1=t.vec3("color1", Checkerboard.color1), to_uv=to_uv
         )
@@ -206,7 +228,8 @@ def texture_table(materials) -> TextureTable:
             h, w = t.texels.shape[:2]
             rows.append((BITMAP, (0.0,) * 3, (0.0,) * 3, next(offsets), w, h, FILTERS[t.filter], WRAPS[t.wrap]))
         else:
-            rows.append((CHECKERBOARD, t.color0, t.color1, 0, 0, 0, NEAREST, REPEAT))
+            colours = (t.value, t.value) if isinstance(t, Constant) else (t.color0, t.color1)
+            rows.append((CHECKERBOARD, *colours, 0, 0, 0, NEAREST, REPEAT))
     columns = list(zip(*rows)) if rows else [()] * 8
     return TextureTable(
         slot=slot,

@@ -423,3 +423,34 @@ def test_normal_map_at_grazing_views_is_mitsubas():
             expected = max(cos_o, 0.0) * float(bump_shadowing(cos_i, np.dot(unmapped, n_out[k])))
             assert abs(value - expected) < 1e-3, (k, wo, value, expected)
     assert mirrored > 50
+
+
+def test_a_constant_normal_map_of_no_tilt_renders_bit_for_bit_as_none():
+    """``normal_map = { texture = "constant", value = [0.5, 0.5, 1] }`` (Mitsuba's ``rawconstant``, or
+    an ``<rgb>`` normalmap): ``perturbed_normal`` returns the normal itself and the shadowing
+    function 1, so the image is the unmapped one bit for bit (the all-features kernel renders both);
+    a tilted constant changes it."""
+    images = []
+    for normal_map in (None, [0.5, 0.5, 1.0], [0.7, 0.5, 0.8]):
+        material = {"name": "m", "type": "conductor", "metal": "Au", "roughness": 0.2, "roughness_v": 0.05}
+        if normal_map is not None:
+            material["normal_map"] = {"texture": "constant", "value": normal_map}
+        scene = parse_scene(
+            {
+                "render": {"width": 16, "height": 12, "spp": 4, "integrator": "path"},
+                "camera": {"origin": [0, 0, 4], "look_at": [0, 0, 0]},
+                "material": [material],
+                "shape": [{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "m"}],
+                "light": [{"type": "point", "position": [2, 2, 4], "intensity": [20, 20, 20]}],
+            }
+        )
+        images.append(wrt.render(scene, specialize=False).rgb)
+    assert np.array_equal(images[0], images[1]) and not np.array_equal(images[0], images[2])
+    with pytest.raises(SceneError, match=r"normal_map\.value = \[1\.5, 0\.5, 1\]: its value ranges over"):
+        parse_scene(
+            {
+                "camera": {"origin": [0, 0, 4], "look_at": [0, 0, 0]},
+                "material": [{"name": "m", "normal_map": {"texture": "constant", "value": [1.5, 0.5, 1]}}],
+                "shape": [{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": "m"}],
+            }
+        )

@@ -162,6 +162,8 @@ def textured_number(p: Plugin, name: str, default: float) -> float | dict:
     table = texture(p.doc, nested)
     if table["texture"] == "checkerboard":
         table.update(color0=table["color1"], color1=table["color0"])
+    if table["texture"] == "constant" and isinstance(table["value"], list):
+        raise p.doc.error(nested, f"'{name}': a rawconstant of a colour has no eval_1 (Mitsuba rejects it)")
     return table
 
 
@@ -303,22 +305,27 @@ class Materials:
         return Material({"type": "mask", "opacity": opacity}, True, inner)
 
     def _normal_map(self, p: Plugin) -> Material:
-        """``normalmap``: the nested BSDF's material with the ``normalmap`` bitmap as its
-        ``normal_map``, exact: the shading frame perturbed (wrt's ``perturbed_normal``, mirrored
-        about the unperturbed normal where the ray sees the mapped surface from below) and the
+        """``normalmap``: the nested BSDF's material with the ``normalmap`` bitmap (or constant:
+        a ``rawconstant`` texture, an ``<rgb>`` or ``<spectrum>``) as its ``normal_map``, exact:
+        the shading frame perturbed (wrt's ``perturbed_normal``, mirrored about the unperturbed
+        normal where the ray sees the mapped surface from below) and the
         BSDF scaled by Mitsuba's shadowing function (``normal_map_shadowing``). A map Mitsuba
         would sRGB-decode, or the shadowing function turned off, is an approximation."""
         nested = p.children("bsdf")
         if len(nested) != 1:
             raise self.doc.error(p.element, "a normalmap BSDF needs exactly one nested <bsdf> (Mitsuba rejects it)")
         element = next((child for key, child in p.nested if key == "normalmap" and child.tag == "texture"), None)
-        if element is None:
+        if element is not None:
+            p.used_nested.add(id(element))
+            table = texture(self.doc, element)
+        elif p.has("normalmap"):  # a constant (<rgb>, <spectrum>): its value in the RGB variants, as given
+            element = p.params["normalmap"]
+            table = {"texture": "constant", "value": p.color("normalmap", 0.5)}
+        else:
             raise self.doc.error(p.element, 'a normalmap BSDF needs a <texture name="normalmap">')
-        p.used_nested.add(id(element))
-        table = texture(self.doc, element)
-        if table["texture"] != "bitmap":
-            raise self.doc.error(element, "a normal map must be a bitmap texture in wrt")
-        if not table.pop("raw", False):
+        if table["texture"] == "checkerboard":
+            raise self.doc.error(element, "a normal map must be a bitmap or a constant texture in wrt")
+        if table["texture"] == "bitmap" and not table.pop("raw", False):
             self.doc.warn(element, "a normal map without raw = true (sRGB-decoded) is not supported: read raw")
         if not p.boolean("use_shadowing_function", True):
             self.doc.warn(

@@ -1,6 +1,6 @@
-"""Converting Mitsuba's textures into wrt texture tables: ``checkerboard`` (constant colours) and
-``bitmap``, nested in a BSDF parameter or referenced by ``<ref>``, with their ``to_uv``
-(docs/mitsuba.md)."""
+"""Converting Mitsuba's textures into wrt texture tables: ``rawconstant`` (wrt's ``constant``),
+``checkerboard`` (constant colours) and ``bitmap``, nested in a BSDF parameter or referenced by
+``<ref>``, with their ``to_uv`` (docs/mitsuba.md)."""
 
 from __future__ import annotations
 
@@ -32,7 +32,14 @@ def textured_color(p: Plugin, name: str, default: float) -> list[float] | dict:
 def texture(doc: Document, element: Element) -> dict:
     """The inline texture table (docs/scene-format.md) of a ``<texture>`` element."""
     p = Plugin(doc, element)
-    if p.type == "checkerboard":
+    if p.type == "rawconstant":  # a <float> (what eval_1 reads) or a 3D <vector>, not decoded (Mitsuba's)
+        given = p.params.get("value")
+        if given is not None and given.tag == "vector":
+            value = [float(x) for x in p.vector("value", (1.0, 1.0, 1.0))]
+        else:
+            value = p.number("value", 1.0)
+        table = {"texture": "constant", "value": value}
+    elif p.type == "checkerboard":
         table = {"texture": "checkerboard", "color0": p.color("color0", 0.4), "color1": p.color("color1", 0.2)}
     elif p.type == "bitmap":
         table = {"texture": "bitmap", "file": p.file("a bitmap texture", "image file")}
@@ -47,7 +54,9 @@ def texture(doc: Document, element: Element) -> dict:
             table["raw"] = True
         _storage(doc, p, os.path.join(os.path.dirname(doc.path) or ".", table["file"]))
     else:
-        raise doc.error(element, f"texture type {token(p.type)} is not supported (wrt has checkerboard and bitmap)")
+        raise doc.error(
+            element, f"texture type {token(p.type)} is not supported (wrt has rawconstant, checkerboard and bitmap)"
+        )
     matrix, _ = p.transform("to_uv")
     if not np.array_equal(matrix, np.eye(4)):
         # Mitsuba's to_uv acts on (u, v, 1): the 4x4 transform without its z row and column

@@ -733,6 +733,8 @@ class Plugin:
         """The linear sRGB of a ``<spectrum>``: its ``value`` a constant or wavelength:value pairs,
         or its ``filename`` a ``.spd`` file (found as `Document.find_file` finds files)."""
         doc = self.doc
+        if element.attrs.get("type") == "srgb":
+            return self._srgb(element, name, emission or unbounded)
         unexpected = sorted(set(element.attrs) - {"name", "value", "filename"})
         if unexpected:
             raise doc.error(element, f"unexpected attribute '{unexpected[0]}' (a <spectrum> has a value or a filename)")
@@ -776,6 +778,23 @@ class Plugin:
             )
         except ValueError as e:
             raise doc.error(element, f"{shown}: {e}") from None
+
+    def _srgb(self, element: Element, name: str, unbounded: bool) -> np.ndarray:
+        """A ``<spectrum type="srgb">`` (Mitsuba's ``srgb`` plugin) with its ``<rgb name="color">``:
+        that colour, as the RGB variants take it; a reflectance's in [0, 1], as Mitsuba requires."""
+        doc = self.doc
+        colours = [c for c in element.children if c.tag == "rgb" and c.attrs.get("name") == "color"]
+        others = [c for c in element.children if c not in colours]
+        if len(colours) != 1 or others or set(element.attrs) - {"name", "type"}:
+            raise doc.error(
+                element, f'\'{name}\': a <spectrum type="srgb"> holds one <rgb name="color"> and nothing else'
+            )
+        text = doc.attr(colours[0], "value")
+        values = doc.numbers(colours[0], "color", text, (1, 3))
+        values = np.asarray(values * 3 if len(values) == 1 else values, dtype=np.float64)
+        if not unbounded and (values.min() < 0.0 or values.max() > 1.0):
+            raise doc.error(colours[0], f"'{name}' colour {token(text)} must lie in [0, 1] (Mitsuba rejects it)")
+        return values
 
     def vector(self, name: str, default) -> np.ndarray:
         element = self.value(name, ("point", "vector"))
