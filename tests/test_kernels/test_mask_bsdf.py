@@ -12,7 +12,7 @@ from wrt.kernels.sampling import independent_1d as sample_1d
 import wrt
 from wrt.device import upload_materials
 
-BSDF = make_bsdf(beckmann=False)  # every material family's cases (their GGX alone: no Beckmann here)
+BSDF = make_bsdf(beckmann=False, anisotropic=False)  # every family's cases, isotropic GGX alone
 bsdf_eval = BSDF.eval
 bsdf_pdf = BSDF.pdf
 bsdf_sample = BSDF.sample

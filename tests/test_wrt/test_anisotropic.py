@@ -134,3 +134,17 @@ def test_an_anisotropic_rotated_sphere_is_approximated_not_converted(tmp_path):
         convert(tmp_path, body, approximate=False)
     _, warnings = convert(tmp_path, body, approximate=True)
     assert any("tangents follow the scene axes" in w for w in warnings)
+
+
+def test_mitsubas_identity_normal_map_over_an_anisotropic_conductor_converts_exactly(tmp_path):
+    """The shape of Mitsuba's test_normalmap_identity_roughconductor_path: a normalmap given as a
+    ``<spectrum type="srgb">`` colour around an anisotropic rough conductor."""
+    body = """<shape type="sphere"><bsdf type="normalmap">
+        <spectrum name="normalmap" type="srgb"><rgb name="color" value="0.5, 0.5, 1.0"/></spectrum>
+        <bsdf type="roughconductor"><string name="material" value="Al"/><string name="distribution" value="ggx"/>
+        <float name="alpha_u" value="0.25"/><float name="alpha_v" value="0.05"/></bsdf></bsdf></shape>"""
+    doc, warnings = convert(tmp_path, body, approximate=False)
+    material = doc["material"][0]
+    assert warnings == [] and (material["roughness"], material["roughness_v"]) == (0.25, 0.05)
+    assert material["normal_map"] == {"texture": "constant", "value": [0.5, 0.5, 1.0]}
+    assert wrt.parse_scene(doc, scene_dir=str(tmp_path)).materials[0].anisotropic

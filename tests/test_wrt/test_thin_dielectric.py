@@ -16,7 +16,7 @@ from wrt.device import upload_materials
 from wrt.errors import SceneError, WrtError
 from wrt.renderer import scene_features
 
-BSDF = make_bsdf(beckmann=False)  # every material family's cases (their GGX alone: no Beckmann here)
+BSDF = make_bsdf(beckmann=False, anisotropic=False)  # every family's cases, isotropic GGX alone
 bsdf_sample = BSDF.sample
 specular_lobes = BSDF.specular_lobes
 
