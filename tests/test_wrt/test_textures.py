@@ -382,7 +382,7 @@ def test_bitmap_lookup_closed_form(tmp_path):
 @pytest.mark.parametrize(
     ("table", "key", "problem"),
     [
-        ({"texture": "marble"}, "albedo.texture", "must be one of checkerboard, bitmap"),
+        ({"texture": "marble"}, "albedo.texture", "must be one of constant, checkerboard, bitmap"),
         ({"texture": "bitmap"}, "albedo.file", "is required"),
         ({"texture": "bitmap", "file": "nowhere.png"}, "albedo.file", "no such file"),
         ({"texture": "bitmap", "file": "image.png", "filter": "cubic"}, "albedo.filter", "must be one of"),
