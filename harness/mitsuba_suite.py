@@ -193,6 +193,7 @@ CROSSCHECKS = {
         Crosscheck("normal_map", 64, 48, 1024),
         Crosscheck("mask", 64, 48, 1024),
         Crosscheck("anisotropic", 64, 48, 1024),
+        Crosscheck("blend", 64, 48, 1024),
         Crosscheck("fog_area_light", 48, 36, 1024, folder="media"),
         Crosscheck("milk_in_glass", 48, 36, 1024, folder="media"),
         Crosscheck("camera_in_fog", 48, 36, 1024, folder="media"),

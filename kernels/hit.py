@@ -23,8 +23,7 @@ import functools
 
 import warp as wp
 
-from .materials import MaterialData
-from .materials.data import anisotropic_material
+from .materials import BSDF_ANISOTROPIC, MaterialData
 from .sample_warps import frame
 from .textures import NORMAL_MAP, texture_rgb
 from .traverse import (
@@ -167,9 +166,7 @@ def make_surface_hit(
             hit.n_unmapped = wp.where(hit.front, ns0, -ns0)
         hit.tangent = wp.vec3(0.0)  # perpendicular to n_facing where set: the frame (s, n_facing x s, n_facing)
         if wp.static(anisotropic):
-            m = hit.material
-            inner = materials.inner[m]  # a mask's material
-            if anisotropic_material(materials, m) or (inner >= 0 and anisotropic_material(materials, inner)):
+            if (materials.flags[hit.material] & BSDF_ANISOTROPIC) != 0:  # it, or a material it masks or blends
                 hit.tangent = shading_tangent(ns, surface_dpdu(geometry, prim, inst, p, time))
         return hit
 

@@ -42,13 +42,24 @@ OPACITY = wp.constant(4)
 NORMAL_MAP = wp.constant(5)
 TRANSMITTANCE = wp.constant(6)
 ROUGHNESS_V = wp.constant(7)
-SLOTS = ("albedo", "specular", "reflectance", "roughness", "opacity", "normal_map", "transmittance", "roughness_v")
+WEIGHT = wp.constant(8)
+SLOTS = (
+    "albedo",
+    "specular",
+    "reflectance",
+    "roughness",
+    "opacity",
+    "normal_map",
+    "transmittance",
+    "roughness_v",
+    "weight",
+)
 """The material parameters a texture can give, in slot order (``slot[m, s]``); ``normal_map`` is
 a raw bitmap of tangent-space normals (``wrt.kernels.hit.perturbed_normal``), not a BSDF parameter;
 ``transmittance`` a thin dielectric's only (a dielectric's is an absorption per unit length, a
 property of its volume; whitted's filtered shadow rays, which compute no uv, take its mean);
 ``roughness_v`` an anisotropic material's alpha along the bitangent (``roughness`` the one along the
-tangent)."""
+tangent); ``weight`` a blend's (its second material's share)."""
 
 
 @wp.struct

@@ -5,7 +5,7 @@ upload, ``wrt.device``, rounds to float32 and converts to Warp arrays, nothing m
 - ``bake_materials``: the material list the kernels index (the scene's, then one emitter per
   surface light), each material's type code, lobes, base colour, relative ior and absorption, a
   mask's inner material, their textures' table, and each family's own table (``Family.bake``: the plastics' coating
-  tables).
+  tables, the blends' materials and weights).
 - ``bake_media``: the participating media (``wrt.kernels.volumes.MediumData``) and the media
   each surface bounds.
 - ``bake_lights``: one row per light (``wrt.kernels.lights.LightData``), the environment map's
@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from wrt.kernels.lights import light_row
-from wrt.kernels.materials import FAMILIES, FAMILY_OF, TYPES, lobe_flags, mask_flags
+from wrt.kernels.materials import BSDF_ANISOTROPIC, FAMILIES, FAMILY_OF, TYPES, blend_flags, lobe_flags, mask_flags
 from wrt.kernels.volumes import GRID, HOMOGENEOUS, UNSET
 
 from .emitting import EmittingPrimitives, emitting_primitives
@@ -49,6 +49,7 @@ class BakedMaterials:
     shape_material: np.ndarray
     type: np.ndarray
     flags: np.ndarray
+    two_sided: np.ndarray
     inner: np.ndarray
     base_color: np.ndarray
     ior: np.ndarray
@@ -79,20 +80,53 @@ def _opaque(mask: Material) -> bool:
     return mask.opacity == 1.0 and not any(name == "opacity" for name, _ in mask.textures)
 
 
-def _base_color(material: Material) -> tuple:
-    """The colour the raycast integrator shows for a material (``Family.base_color``)."""
+def _base_color(material: Material, index: dict[str, Material]) -> np.ndarray:
+    """The colour the raycast integrator shows for a material (``Family.base_color``): a mask's
+    material's, a blend's materials' weighted by its constant weight."""
+    if material.type == "mask":
+        return _base_color(index[material.material], index)
+    if material.type == "blend":
+        a, b = (_base_color(index[name], index) for name in material.materials)
+        return (1.0 - material.weight) * a + material.weight * b
     base = FAMILY_OF[material.type].base_color
-    return base(material) if callable(base) else getattr(material, base)
+    return np.asarray(base(material) if callable(base) else getattr(material, base), dtype=np.float64)
+
+
+def _flags(material: Material, index: dict[str, Material]) -> int:
+    """The lobes of a material (``lobe_flags``; a mask's ``mask_flags`` of its material's, a blend's
+    ``blend_flags`` of its two materials'), with ``BSDF_ANISOTROPIC`` where its lobes, or those of a
+    material it masks or blends, need the hit's tangent."""
+    if material.type == "mask":
+        return mask_flags(_flags(index[material.material], index), _opaque(material))
+    if material.type == "blend":
+        return blend_flags(*(_flags(index[name], index) for name in material.materials))
+    return lobe_flags(material) | (BSDF_ANISOTROPIC if _anisotropic(material) else 0)
+
+
+def _anisotropic(material: Material) -> bool:
+    """Its two alphas differ as the kernels see them (``anisotropic_material``: one of them
+    textured, or their float32 values unequal): its lobes need the hit's tangent. An isotropic
+    material given ``roughness_v`` equal to ``roughness`` takes none, and renders as without it."""
+    if material.roughness_v is None:
+        return False
+    textured = any(key in ("roughness", "roughness_v") for key, _ in material.textures)
+    return textured or np.float32(material.roughness_v) != np.float32(material.roughness)
+
+
+def _two_sided(material: Material, index: dict[str, Material]) -> bool:
+    """Scatters on its back side too: a blend where either of its materials does."""
+    if material.type == "blend":
+        return any(_two_sided(index[name], index) for name in material.materials)
+    return material.two_sided
 
 
 def bake_materials(scene: Scene) -> BakedMaterials:
     """The materials' computed columns (see the module's docstring)."""
     surfaces, materials = surface_materials(scene)
     index = {material.name: i for i, material in enumerate(scene.materials)}
+    by_name = {material.name: material for material in scene.materials}
     inner = [index[m.material] if m.type == "mask" else -1 for m in materials]  # a mask's is no mask
-    flags = [
-        lobe_flags(m) if j < 0 else mask_flags(lobe_flags(materials[j]), _opaque(m)) for m, j in zip(materials, inner)
-    ]
+    flags = [_flags(m, by_name) for m in materials]
     exterior = scene.render.exterior_ior  # a thin dielectric or a plastic sits in it: its ior is relative to it
     with np.errstate(divide="ignore"):
         sigma = [np.minimum(-np.log(m.transmittance), 1e30) for m in materials]
@@ -102,7 +136,8 @@ def bake_materials(scene: Scene) -> BakedMaterials:
         type=np.array([TYPES[m.type].code for m in materials], dtype=np.int32),
         flags=np.array(flags, dtype=np.int32),
         inner=np.array(inner, dtype=np.int32),
-        base_color=np.array([_base_color(materials[j] if j >= 0 else m) for m, j in zip(materials, inner)]),
+        two_sided=np.array([_two_sided(m, by_name) for m in materials], dtype=np.int32),
+        base_color=np.array([_base_color(m, by_name) for m in materials]),
         ior=np.array([m.ior / exterior if FAMILY_OF[m.type].relative_ior else m.ior for m in materials]),
         sigma=np.array(sigma).reshape(-1, 3),
         textures=texture_table(materials),

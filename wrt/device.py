@@ -162,7 +162,7 @@ def upload_materials(scene: Scene, device) -> MaterialData:
     m.eta = _vec3([mat.eta for mat in mats], device)
     m.k = _vec3([mat.k for mat in mats], device)
     m.emission = _vec3([mat.emission for mat in mats], device)
-    m.two_sided = _int([mat.two_sided for mat in mats], device)
+    m.two_sided = _int(baked.two_sided, device)
     for family in FAMILIES:
         if family.data is not None:
             setattr(m, family.name, _table(family.data, baked.tables[family.name], device))

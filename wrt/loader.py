@@ -341,7 +341,7 @@ def _texture(t: _Table, key: str, scene_dir: str) -> tuple:
     t.used.add(key)
     tt = _Table(t.file, f"{t.name}.{key}", t.data[key])
     texture = read_texture(tt, scene_dir)
-    number = key in ("roughness", "roughness_v", "opacity")  # read as one number (texture_float)
+    number = key in ("roughness", "roughness_v", "opacity", "weight")  # read as one number (texture_float)
     values = texture.numbers() if number else texture.values()
     lo, hi = (1e-3, 1.0) if key in ("roughness", "roughness_v") else (0.0, 1.0)
     if values.min() < lo or values.max() > hi:
@@ -396,6 +396,8 @@ def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
         "nonlinear": lambda: t.boolean("nonlinear", Material.nonlinear),
         "opacity": lambda: t.number("opacity", Material.opacity, lo=0.0, hi=1.0),
         "material": lambda: t.string("material"),
+        "materials": lambda: _names(t, "materials", 2),
+        "weight": lambda: t.number("weight", Material.weight, lo=0.0, hi=1.0),
     }
     textures = []
     for key in TYPES[kind].keys:
@@ -427,6 +429,14 @@ def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
             list(material.specular),
         )
     return material
+
+
+def _names(t: _Table, key: str, count: int) -> tuple[str, ...]:
+    """A list of ``count`` strings (names of other tables)."""
+    value = t.get(key, _REQUIRED)
+    if not (isinstance(value, list) and len(value) == count and all(isinstance(v, str) for v in value)):
+        raise t.error(key, f"must be a list of {count} names", value)
+    return tuple(value)
 
 
 def _colour(t: _Table, key: str, default: tuple, hi: float = math.inf) -> tuple[float, float, float]:
@@ -863,12 +873,36 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
                     "dielectric or a rough dielectric (they bound a medium)",
                     m.material,
                 )
+        if m.type == "blend":
+            for name in m.materials:
+                nested = materials[material_index[name]] if name in material_index else None
+                if nested is None or nested.type in ("blend", "mask", "dielectric", "rough_dielectric", "null"):
+                    why = "names no material" if nested is None else f"names a {nested.type}"
+                    raise SceneError(
+                        file,
+                        f"material[{i}]",
+                        "materials",
+                        f"{why}: a blend's materials must name [[material]]s of the file that are not blends, "
+                        "masks, dielectrics, rough dielectrics (they bound a medium) or null",
+                        name,
+                    )
+                if any(key == "normal_map" for key, _ in nested.textures):
+                    raise SceneError(
+                        file,
+                        f"material[{i}]",
+                        "materials",
+                        "names a material with a normal map: a blend's shading frame is its own (give the blend "
+                        "the normal map)",
+                        name,
+                    )
     material_index[DEFAULT_MATERIAL.name] = len(materials)
     materials.append(DEFAULT_MATERIAL)
-    anisotropic = {m.name for m in materials if m.anisotropic}  # their tangent is dp/du: uvs too
-    textured = frozenset(
-        i for i, m in enumerate(materials) if m.textures or m.name in anisotropic or m.material in anisotropic
-    )
+    by_name = {m.name: m for m in materials}
+
+    def needs_uv(m: Material) -> bool:  # a textured or anisotropic material (its tangent is dp/du), or one of one
+        return bool(m.textures) or m.anisotropic or any(needs_uv(by_name[name]) for name in m.nested)
+
+    textured = frozenset(i for i, m in enumerate(materials) if needs_uv(m))
     groups = [
         _group(file, i, g, material_index, scene_dir, textured)
         for i, g in enumerate(_array_of_tables(file, doc, "group"))
@@ -938,7 +972,7 @@ def _check_whitted(source: str, lights, materials, media) -> None:
                 light.type,
             )
     for i, material in enumerate(materials):
-        if material.type in ("rough_dielectric", "mask", "null"):
+        if material.type in ("rough_dielectric", "mask", "blend", "null"):
             raise SceneError(
                 source,
                 f"material[{i}]",

@@ -83,7 +83,9 @@ def scene_features(scene: Scene) -> Features:
     """The ``wrt.kernels.features.Features`` ``scene`` needs: its kernels are specialised on them."""
     members = [shape for group in scene.groups for shape in group.shapes]
     used = {scene.materials[shape.material] for shape in (*scene.shapes, *members)}
-    used |= {m for m in scene.materials for mask in used if mask.type == "mask" and m.name == mask.material}
+    by_name = {m.name: m for m in scene.materials}
+    for _ in range(2):  # the materials of masks and blends, and of the blends a mask masks
+        used |= {by_name[name] for m in used for name in m.nested}
     moving = any(any(shape.velocity) for shape in scene.shapes)
     shapes = {type(shape) for shape in (*scene.shapes, *members)} | {type(light) for light in scene.lights}
     return Features(

@@ -116,6 +116,8 @@ class Material:
     Lambertian base of ``albedo``, its internal scattering tinting the base where ``nonlinear``;
     a mask (Mitsuba 3's ``mask``) is the material named ``material`` (not a mask, nor a dielectric or rough
     dielectric) with probability ``opacity`` (in [0, 1]) and else lets the ray straight through, on both sides;
+    a blend (Mitsuba 3's ``blendbsdf``) is ``(1 - weight)`` times the first of its two ``materials`` (neither a
+    blend, a mask, a dielectric, a rough dielectric nor null) plus ``weight`` (in [0, 1]) times the second;
     ``distribution``: the normal distribution of a rough material's microfacets (glossy, conductor,
     rough dielectric, rough plastic), ``ggx`` (the default) or ``beckmann``, of alpha ``roughness``;
     ``roughness_v``: where given, the microfacets (glossy, conductor, rough dielectric) are
@@ -147,12 +149,21 @@ class Material:
     nonlinear: bool = False
     opacity: float = 0.5
     material: str = ""  # mask: the name of the material it masks
+    materials: tuple[str, ...] = ()  # blend: the names of its two materials
+    weight: float = 0.5  # blend: the share of its second material
     textures: tuple = ()  # (parameter, wrt.textures texture) pairs; the parameter's own value is its mean
 
     @property
     def anisotropic(self) -> bool:
         """Its microfacets have two alphas (``roughness_v`` given)."""
         return self.roughness_v is not None
+
+    @property
+    def nested(self) -> tuple[str, ...]:
+        """The names of the materials it is made of: a mask's material, a blend's two."""
+        if self.type == "mask":
+            return (self.material,)
+        return self.materials if self.type == "blend" else ()
 
 
 MEDIUM_TYPES = tuple(MEDIUM_REGISTRY)

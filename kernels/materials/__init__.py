@@ -12,7 +12,7 @@ new module here, listed in ``FAMILIES``, with its tests and docs.
 
 Families: ``diffuse`` (Lambert), ``phong``, ``conductor`` (``mirror``, ``glossy``, ``conductor``),
 ``dielectric``, ``thin_dielectric``, ``rough_dielectric``, ``plastic`` (``plastic``,
-``rough_plastic``), ``mask``, ``null`` (no surface: a medium's boundary), and ``emitter``
+``rough_plastic``), ``blend``, ``mask``, ``null`` (no surface: a medium's boundary), and ``emitter``
 (``EMITTER``, the surface of an area or sphere light: it reflects nothing). Any type may emit
 ``emission`` (W/(m^2 sr)) from its front side. ``base_color`` is what the raycast integrator
 shows. A material that is not ``two_sided`` (one-sided, as Mitsuba 3's diffuse and conductors)
@@ -70,12 +70,14 @@ from typing import NamedTuple
 import warp as wp
 
 from .. import hinted_func
-from . import conductor, dielectric, diffuse, mask, null, phong, plastic, rough_dielectric, thin_dielectric
+from . import blend, conductor, dielectric, diffuse, mask, null, phong, plastic, rough_dielectric, thin_dielectric
+from .blend import BLEND, blend_flags
 from .conductor import CONDUCTOR, GLOSSY, MIRROR
 from .data import MaterialData, parameters
 from .dielectric import DIELECTRIC
 from .diffuse import DIFFUSE
 from .interface import (
+    BSDF_ANISOTROPIC,
     BSDF_DIFFUSE,
     BSDF_GLOSSY,
     BSDF_REFLECTION,
@@ -109,11 +111,13 @@ FAMILIES: tuple[Family, ...] = (
     thin_dielectric.FAMILY,
     rough_dielectric.FAMILY,
     plastic.FAMILY,
+    blend.FAMILY,
     mask.FAMILY,
     null.FAMILY,
     Family(name="emitter", types=(MaterialType("emitter", EMITTER, (), 0),), base_color="emission"),
 )
-"""Every material family, in the order the dispatch tests them."""
+"""Every material family, in the order the dispatch tests them (the wrapping ones wrap in this
+order: a blend the others, a mask them and the blends)."""
 
 TYPES: dict[str, MaterialType] = {t.name: t for family in FAMILIES for t in family.types}
 """Every material type by name (``emitter``: a light's surface, not a ``[[material]]`` type)."""
@@ -129,6 +133,8 @@ ALL_FAMILIES: tuple[str, ...] = tuple(family.name for family in FAMILIES)
 __all__ = [
     "ALL_FAMILIES",
     "BSDF",
+    "BLEND",
+    "BSDF_ANISOTROPIC",
     "BSDF_DIFFUSE",
     "BSDF_GLOSSY",
     "BSDF_REFLECTION",
@@ -159,6 +165,7 @@ __all__ = [
     "BSDFSample",
     "MaterialData",
     "SpecularLobes",
+    "blend_flags",
     "bsdf_flags",
     "bsdf_flags_from",
     "families_for",

@@ -14,7 +14,8 @@ import warp as wp
 from ..microfacet import GGX, Microfacet, microfacet
 from ..textures import ROUGHNESS, ROUGHNESS_V, TextureData, material_rgb, texture_float
 from ..volumes import MediumData
-from .interface import MIN_ALPHA
+from .blend import BlendData
+from .interface import BSDF_TRANSMISSION, MIN_ALPHA
 from .plastic import PlasticData
 
 
@@ -45,6 +46,7 @@ class MaterialData:
     inner: wp.array(dtype=wp.int32)  # mask: the index of the material it masks (-1 for other types)
     opacity: wp.array(dtype=float)  # mask: the probability of its inner material (textured: slot OPACITY)
     plastic: PlasticData  # the plastics' own table (wrt.kernels.materials.plastic)
+    blend: BlendData  # the blends' own table (wrt.kernels.materials.blend)
     media: MediumData  # the participating media and the surfaces that bound them (wrt.kernels.volumes)
 
 
@@ -55,6 +57,16 @@ def anisotropic_material(materials: MaterialData, m: wp.int32) -> bool:
     if materials.roughness_v[m] != materials.roughness[m]:
         return True
     return materials.textures.slot[m, ROUGHNESS_V] != materials.textures.slot[m, ROUGHNESS]
+
+
+@wp.func
+def nested_scatters(materials: MaterialData, nested: wp.int32, n: wp.vec3, wi: wp.vec3, front: bool) -> bool:
+    """The material ``nested`` of a mask or a blend may scatter toward ``wi`` at a hit on the
+    ``front`` side or the back: not on the back of a one-sided one, nor across the surface unless it
+    transmits (a light below a mask is not seen through its inner diffuse material)."""
+    if not front and materials.two_sided[nested] == 0:
+        return False
+    return wp.dot(n, wi) > 0.0 or (materials.flags[nested] & BSDF_TRANSMISSION) != 0
 
 
 class Parameters(NamedTuple):

@@ -34,6 +34,7 @@ BSDF_GLOSSY = wp.constant(8)
 BSDF_SPECULAR = wp.constant(16)
 BSDF_TOTAL_INTERNAL = wp.constant(32)  # a sampled lobe only: specular reflection because refraction is impossible
 BSDF_THIN = wp.constant(64)  # transmission goes straight on through a surface that bounds no medium (thin dielectric)
+BSDF_ANISOTROPIC = wp.constant(128)  # MaterialData.flags only: its lobes need the hit's tangent (Mitsuba's Anisotropic)
 NULL_LOBE = wp.constant(BSDF_TRANSMISSION | BSDF_SPECULAR | BSDF_THIN)  # a mask's: straight on, weight 1
 
 MIN_ALPHA = 1e-4  # the least GGX alpha a roughness texture gives (0 would be a mirror: another lobe)

@@ -10,8 +10,8 @@ choice is random), ``wrt.loader`` says so.
 import warp as wp
 
 from ..textures import OPACITY, material_float
-from .data import MaterialData, Parameters
-from .interface import BSDF_TRANSMISSION, NULL_LOBE, BSDFSample, Family, Functions, MaterialType
+from .data import MaterialData, Parameters, nested_scatters
+from .interface import NULL_LOBE, BSDFSample, Family, Functions, MaterialType
 
 MASK = wp.constant(11)
 
@@ -38,14 +38,6 @@ def make(at: Parameters, bsdf) -> Functions:
         return materials.opacity[m]
 
     @wp.func
-    def inner_scatters(materials: MaterialData, inner: wp.int32, n: wp.vec3, wi: wp.vec3, front: bool) -> bool:
-        """A mask's inner material may scatter toward ``wi``: not on the back of a one-sided one,
-        nor across the surface unless it transmits (a light below the mask is not seen through it)."""
-        if not front and materials.two_sided[inner] == 0:
-            return False
-        return wp.dot(n, wi) > 0.0 or (materials.flags[inner] & BSDF_TRANSMISSION) != 0
-
-    @wp.func
     def masked_eval(
         materials: MaterialData,
         m: wp.int32,
@@ -59,11 +51,11 @@ def make(at: Parameters, bsdf) -> Functions:
     ) -> wp.vec3:
         """``bsdf_eval``, and a mask's: ``opacity`` times its inner material's f (the null lobe is a delta)."""
         if materials.type[m] != MASK:
-            return bsdf.eval(materials, m, n, wo, wi, eta, uv, True, tangent)
+            return bsdf.eval(materials, m, n, wo, wi, eta, uv, front, tangent)
         inner = materials.inner[m]
-        if not inner_scatters(materials, inner, n, wi, front):
+        if not nested_scatters(materials, inner, n, wi, front):
             return wp.vec3(0.0)
-        return opacity_at(materials, m, uv) * bsdf.eval(materials, inner, n, wo, wi, eta, uv, True, tangent)
+        return opacity_at(materials, m, uv) * bsdf.eval(materials, inner, n, wo, wi, eta, uv, front, tangent)
 
     @wp.func
     def masked_pdf(
@@ -79,11 +71,11 @@ def make(at: Parameters, bsdf) -> Functions:
     ) -> float:
         """``bsdf_pdf``, and a mask's: ``opacity`` times its inner material's density."""
         if materials.type[m] != MASK:
-            return bsdf.pdf(materials, m, n, wo, wi, eta, uv, True, tangent)
+            return bsdf.pdf(materials, m, n, wo, wi, eta, uv, front, tangent)
         inner = materials.inner[m]
-        if not inner_scatters(materials, inner, n, wi, front):
+        if not nested_scatters(materials, inner, n, wi, front):
             return 0.0
-        return opacity_at(materials, m, uv) * bsdf.pdf(materials, inner, n, wo, wi, eta, uv, True, tangent)
+        return opacity_at(materials, m, uv) * bsdf.pdf(materials, inner, n, wo, wi, eta, uv, front, tangent)
 
     @wp.func
     def masked_sample(
@@ -103,11 +95,11 @@ def make(at: Parameters, bsdf) -> Functions:
         on the back of a one-sided inner material), else the null lobe: ``wi = -wo``, weight 1,
         probability ``1 - opacity``."""
         if materials.type[m] != MASK:
-            return bsdf.sample(materials, m, n, wo, eta, uc, u, uv, True, tangent)
+            return bsdf.sample(materials, m, n, wo, eta, uc, u, uv, front, tangent)
         opacity = opacity_at(materials, m, uv)
         inner = materials.inner[m]
         if uc < opacity and (front or materials.two_sided[inner] != 0):
-            nested = bsdf.sample(materials, inner, n, wo, eta, uc / opacity, u, uv, True, tangent)
+            nested = bsdf.sample(materials, inner, n, wo, eta, uc / opacity, u, uv, front, tangent)
             nested.pdf = nested.pdf * opacity
             return nested
         s = BSDFSample()

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import warp as wp
 import wrt.kernels  # noqa: F401
+from chi_square import hemisphere_chi_square
 from scipy.special import erf
-from scipy.stats import chi2
 from wrt.kernels.microfacet import BECKMANN, DISTRIBUTIONS, GGX, microfacet, smith_g1, visible_normals
 from wrt.kernels.sampling import independent_1d as sample_1d
 from wrt_harness.mitsuba_peer import mitsuba_available, variant
@@ -210,36 +210,16 @@ def test_sampling_passes_a_chi_square_test_against_pdf(distribution, alpha, thet
     wo = np.array([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)])
     n = 500_000
     wi, weights = draw(wo, alpha, distribution, n)
-    kept = weights > 0
-    cos_t, phi = wi[kept, 2], np.arctan2(wi[kept, 1], wi[kept, 0]) % (2 * np.pi)
-    res_t, res_p, nodes = 40, 80, 7
-    observed, _, _ = np.histogram2d(cos_t, phi, bins=[res_t, res_p], range=[[0, 1], [0, 2 * np.pi]])
-    # Simpson nodes in each cell, on the (cos theta, phi) square (its area element is the solid angle)
-    s = np.linspace(0.0, 1.0, nodes)
-    simpson = np.array([1, 4, 2, 4, 2, 4, 1], float) / 18.0
-    ct = ((np.arange(res_t)[:, None] + s[None]) / res_t).ravel()
-    ph = ((np.arange(res_p)[:, None] + s[None]) / res_p * 2 * np.pi).ravel()
-    ctg, phg = np.meshgrid(ct, ph, indexing="ij")
-    st = np.sqrt(np.maximum(0.0, 1 - ctg**2))
-    dirs = np.stack([st * np.cos(phg), st * np.sin(phg), ctg], -1).reshape(-1, 3)
-    pdf = wp.zeros(len(dirs), dtype=float)
-    wp.launch(
-        pdf_at,
-        dim=len(dirs),
-        inputs=[wp.vec3(*wo), wp.array(dirs.astype(np.float32), dtype=wp.vec3), vec(alpha), CODES[distribution], pdf],
-    )
-    values = pdf.numpy().astype(np.float64).reshape(res_t, nodes, res_p, nodes)
-    cell = (1.0 / res_t) * (2 * np.pi / res_p)
-    expected = np.einsum("injm,n,m->ij", values, simpson, simpson) * cell * n
-    assert observed.sum() == pytest.approx(expected.sum(), rel=5e-3)
-    order = np.argsort(expected.ravel())
-    e, o = expected.ravel()[order], observed.ravel()[order]
-    pooled = np.cumsum(e) < 20.0  # the lightest cells, pooled into one with the next
-    pooled[np.argmin(pooled)] = True
-    e = np.append(e[~pooled], e[pooled].sum())
-    o = np.append(o[~pooled], o[pooled].sum())
-    statistic = np.sum((o - e) ** 2 / e)
-    assert chi2.sf(statistic, len(e) - 1) > 1e-3, statistic
+
+    def pdf_of(dirs):
+        pdf = wp.zeros(len(dirs), dtype=float)
+        directions = wp.array(dirs.astype(np.float32), dtype=wp.vec3)
+        wp.launch(pdf_at, dim=len(dirs), inputs=[wp.vec3(*wo), directions, vec(alpha), CODES[distribution], pdf])
+        return pdf.numpy()
+
+    test = hemisphere_chi_square(wi[weights > 0], pdf_of, n)
+    assert test.observed == pytest.approx(test.expected, rel=5e-3)
+    assert test.p_value > 1e-3, test
 
 
 @pytest.mark.parametrize("distribution", DISTRIBUTIONS)

@@ -52,6 +52,7 @@ def test_features_follow_the_scene():
         textures=False,
         rough_dielectric=False,
         plastic=False,
+        blend=False,
         mask=False,
         null=False,
         normal_map=False,
@@ -92,6 +93,7 @@ def test_features_follow_the_scene():
         textures=False,
         rough_dielectric=False,
         plastic=False,
+        blend=False,
         mask=False,
         null=False,
         normal_map=False,
@@ -146,10 +148,10 @@ def test_a_cuda_device_gets_modules_of_its_own_with_the_traversal_out_of_line():
     """NVRTC inlining the traversal and the BSDF interface at each call site took the Whitted
     module 11-14 minutes: the CUDA kernels are modules of their own (``_cuda``) in which both are
     ``noinline``; the CPU's leave them to the compiler, and a render picks by its device. (A mask's
-    BSDF wraps the others': the dispatch under it is out of line.)"""
+    and a blend's BSDF wrap the others': the dispatch under them is out of line.)"""
     assert traversal(ALL, False).closest_hit.inline_hint == traversal(ALL, False).any_hit.inline_hint == "noinline"
     assert traversal(ALL).closest_hit.inline_hint is None and traversal(ALL).any_hit.inline_hint is None
-    unmasked = tuple(name for name in ALL_FAMILIES if name != "mask")
+    unmasked = tuple(name for name in ALL_FAMILIES if name not in ("mask", "blend"))
     assert {f.inline_hint for f in make_bsdf(unmasked, True, False)} == {"noinline"}
     assert {f.inline_hint for f in make_bsdf(unmasked, True)} == {None}
     plain = Features(lights=False, specular=False, dielectric=False, lens=False, motion=False)

@@ -45,6 +45,7 @@ PARAMETERS = {  # one [[material]] table per type, besides its name
     "plastic": {},
     "rough_plastic": {"roughness": 0.2},
     "mask": {"opacity": 0.5, "material": "inner"},
+    "blend": {"weight": 0.5, "materials": ["inner", "inner"]},
     "null": {},
 }
 # What a scene of each type asks of the kernels, written out here (not derived from the registry):
@@ -63,13 +64,14 @@ EXPECTED = {
     "plastic": (True, False, {"plastic"}),
     "rough_plastic": (False, False, {"plastic"}),
     "mask": (False, False, {"mask"}),
+    "blend": (False, False, {"blend"}),
     "null": (False, False, {"null"}),
 }
 
 
 def scene_of(name: str):
     table = {"name": "m", "type": name.replace("rough_conductor", "conductor"), **PARAMETERS[name]}
-    return make_scene([SPHERE], materials=[table, INNER] if name == "mask" else [table])
+    return make_scene([SPHERE], materials=[table, INNER] if name in ("mask", "blend") else [table])
 
 
 def test_the_types_and_codes_are_each_familys_and_unique():
@@ -81,10 +83,10 @@ def test_the_types_and_codes_are_each_familys_and_unique():
 
 def test_the_material_flags_are_features_and_relevant_to_path():
     fields = [f.name for f in dataclasses.fields(Features)]
-    assert MATERIAL_FLAGS == ("rough_dielectric", "plastic", "mask", "null")
+    assert MATERIAL_FLAGS == ("rough_dielectric", "plastic", "blend", "mask", "null")
     assert set(MATERIAL_FLAGS) <= set(fields) and set(MATERIAL_FLAGS) <= set(RELEVANT["path"])
     assert Features(plastic=False).plastic is False and ALL.plastic is True
-    assert families_for(Features(plastic=False, mask=False, null=False)) == (
+    assert families_for(Features(plastic=False, blend=False, mask=False, null=False)) == (
         "diffuse",
         "phong",
         "conductor",
@@ -94,6 +96,7 @@ def test_the_material_flags_are_features_and_relevant_to_path():
         "emitter",
     )
     assert "mask" not in families_for(ALL, whitted=True) and "mask" in families_for(ALL)
+    assert "blend" not in families_for(ALL, whitted=True) and "blend" in families_for(ALL)
 
 
 @pytest.mark.parametrize("name", EXPECTED)
@@ -108,10 +111,11 @@ def test_scene_features_follow_each_familys_description(name):
 def test_the_loader_reads_exactly_each_types_keys(name):
     """A key of another type is refused, naming it; each of the type's own keys is read."""
     own = set(TYPES[name].keys)
-    foreign = sorted({key for t in TYPES.values() for key in t.keys} - own - {"two_sided", "material", "opacity"})
+    nested = {"two_sided", "material", "opacity", "materials", "weight"}  # a nested material's keys are its own
+    foreign = sorted({key for t in TYPES.values() for key in t.keys} - own - nested)
     table = {"name": "m", "type": name, **PARAMETERS[name], foreign[0]: 0.5}
     with pytest.raises(SceneError, match=foreign[0]):
-        make_scene([SPHERE], materials=[table, INNER] if name == "mask" else [table])
+        make_scene([SPHERE], materials=[table, INNER] if name in ("mask", "blend") else [table])
     scene_of(name)  # its own keys: accepted
 
 
@@ -125,6 +129,7 @@ MITSUBA_BODIES = {
     "plastic": "",
     "roughplastic": '<string name="distribution" value="ggx"/>',
     "mask": '<bsdf type="diffuse"/>',
+    "blendbsdf": '<bsdf type="diffuse"/><bsdf type="diffuse"/>',
     "null": "",
 }
 

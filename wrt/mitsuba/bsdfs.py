@@ -2,7 +2,8 @@
 uses it, with the nearest wrt material (and a warning) for what wrt has no exact match for.
 Mitsuba's one-sided BSDFs (``diffuse``, the conductors, the default BSDF) become materials with
 ``two_sided = false``, wrapped in ``twosided`` the same materials two-sided. A ``mask`` becomes a
-wrt mask over its nested BSDF's material (named after the mask's, with ``_material``)."""
+wrt mask over its nested BSDF's material (named after the mask's, with ``_material``), a
+``blendbsdf`` a wrt blend of its two nested BSDFs' (``_a`` and ``_b``)."""
 
 from __future__ import annotations
 
@@ -50,7 +51,7 @@ class Material:
 
     params: dict  # the [[material]] table but its name and two_sided (a mask's: but its material)
     two_sided: bool
-    nested: Material | None = None  # a mask's nested BSDF
+    nested: tuple[Material, ...] = ()  # a mask's nested BSDF, a blend's two
 
     @property
     def table(self) -> dict:
@@ -61,6 +62,8 @@ class Material:
         colour = self.params.get("albedo", self.params.get("reflectance", [1.0]))
         if isinstance(colour, dict):  # a texture (wrt.mitsuba.textures)
             return True
+        if self.params["type"] == "blend":
+            return any(nested.reflects() for nested in self.nested)
         return self.params["type"] in (*TRANSMITTING, "plastic", "rough_plastic") or any(c > 0 for c in colour)
 
 
@@ -202,8 +205,11 @@ class Materials:
             if element is not None:
                 base = element.attrs.get("id") or f"{material.params['type']}@{element.line}"
             table = material.table
-            if material.nested is not None:
-                table = {**table, "material": self.add(f"{base}_material", material.nested.table, element)}
+            if material.params["type"] == "mask":
+                table = {**table, "material": self.add(f"{base}_material", material.nested[0].table, element)}
+            elif material.params["type"] == "blend":
+                names = [self.add(f"{base}_{k}", nested.table, element) for k, nested in zip("ab", material.nested)]
+                table = {**table, "materials": names}
             self.names[id(element)] = self.add(base, table, element)
         return self.names[id(element)]
 
@@ -247,7 +253,7 @@ class Materials:
             front = self._convert(inner[0])
             if front.params["type"] in (*TRANSMITTING, "mask"):
                 raise self.doc.error(inner[0], "a twosided BSDF cannot nest a BSDF that transmits (Mitsuba rejects it)")
-            return Material(front.params, True)
+            return Material(front.params, True, tuple(Material(n.params, True, n.nested) for n in front.nested))
         if p.type == "diffuse":
             material = Material({"type": "diffuse", "albedo": textured_color(p, "reflectance", 0.5)}, False)
         elif p.type in ("conductor", "roughconductor"):
@@ -283,6 +289,8 @@ class Materials:
             material = Material({"type": "null"}, True)
         elif p.type == "mask":
             return self._mask(p)
+        elif p.type == "blendbsdf":
+            return self._blend(p)
         elif p.type == "normalmap":
             return self._normal_map(p)
         else:
@@ -302,7 +310,23 @@ class Materials:
         if inner.params["type"] in ("mask", "dielectric", "rough_dielectric"):
             self.doc.warn(p.element, f"a mask over a {inner.params['type']} is not supported: the mask is left out")
             return inner
-        return Material({"type": "mask", "opacity": opacity}, True, inner)
+        return Material({"type": "mask", "opacity": opacity}, True, (inner,))
+
+    def _blend(self, p: Plugin) -> Material:
+        """A ``blendbsdf``, exact: its ``weight`` (a number clamped to [0, 1], or a texture's
+        ``eval_1``, clamped in the kernels) between its two nested BSDFs, neither of which is a
+        mask, a blend, null or a dielectric (a medium's boundary in wrt)."""
+        nested = p.children("bsdf")
+        if len(nested) != 2:
+            raise self.doc.error(p.element, "a blendbsdf needs exactly two nested <bsdf>s (Mitsuba rejects it)")
+        weight = textured_number(p, "weight", 0.5)
+        p.finish()
+        materials = tuple(self._convert(element) for element in nested)
+        for element, material in zip(nested, materials):
+            if material.params["type"] in ("mask", "blend", "null", "dielectric", "rough_dielectric"):
+                raise self.doc.error(element, f"a blendbsdf of a {material.params['type']} is not supported")
+        weight = weight if isinstance(weight, dict) else min(max(weight, 0.0), 1.0)
+        return Material({"type": "blend", "weight": weight}, True, materials)
 
     def _normal_map(self, p: Plugin) -> Material:
         """``normalmap``: the nested BSDF's material with the ``normalmap`` bitmap (or constant:
