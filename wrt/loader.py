@@ -873,6 +873,15 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
                     "dielectric or a rough dielectric (they bound a medium)",
                     m.material,
                 )
+            if any(key == "normal_map" for key, _ in inner.textures):
+                raise SceneError(
+                    file,
+                    f"material[{i}]",
+                    "material",
+                    "names a material with a normal map: a mask's shading frame is its own (give the mask the "
+                    "normal map)",
+                    m.material,
+                )
         if m.type == "blend":
             for name in m.materials:
                 nested = materials[material_index[name]] if name in material_index else None

@@ -76,18 +76,22 @@ def parse(materials, integrator="path"):
         ({"material": "green", "opacity": 1.5}, "opacity", "[0, 1]"),
         ({"material": "green", "opacity": {"texture": "checkerboard", "color0": [2.0] * 3}}, "opacity", "[0, 1]"),
         ({"material": "green", "two_sided": False}, "two_sided", ""),
+        ({"material": "bumpy"}, "material", "names a material with a normal map"),
     ],
 )
 def test_bad_masks_are_refused(material, key, message):
+    """A mask's normal map would be read at the mask (the hit's material), never at its material's:
+    refused there, where it would be silently ignored."""
     materials = [
         {"name": "green", "albedo": [0.2, 0.6, 0.15]},
         {"name": "glass", "type": "dielectric"},
         {"name": "other", "type": "mask", "material": "green"},
+        {"name": "bumpy", "normal_map": {"texture": "constant", "value": [0.5, 0.5, 1.0]}},
         {"name": "leaf", "type": "mask", **material},
     ]
     with pytest.raises(SceneError, match=key) as error:
         parse(materials)
-    assert message in str(error.value) and "material[3]" in str(error.value)
+    assert message in str(error.value) and "material[4]" in str(error.value)
 
 
 def test_whitted_refuses_masks():
