@@ -80,26 +80,26 @@ def _opaque(mask: Material) -> bool:
     return mask.opacity == 1.0 and not any(name == "opacity" for name, _ in mask.textures)
 
 
-def _base_color(material: Material, index: dict[str, Material]) -> np.ndarray:
+def _base_color(material: Material, by_name: dict[str, Material]) -> np.ndarray:
     """The colour the raycast integrator shows for a material (``Family.base_color``): a mask's
     material's, a blend's materials' weighted by its constant weight."""
     if material.type == "mask":
-        return _base_color(index[material.material], index)
+        return _base_color(by_name[material.material], by_name)
     if material.type == "blend":
-        a, b = (_base_color(index[name], index) for name in material.materials)
+        a, b = (_base_color(by_name[name], by_name) for name in material.materials)
         return (1.0 - material.weight) * a + material.weight * b
     base = FAMILY_OF[material.type].base_color
     return np.asarray(base(material) if callable(base) else getattr(material, base), dtype=np.float64)
 
 
-def _flags(material: Material, index: dict[str, Material]) -> int:
+def _flags(material: Material, by_name: dict[str, Material]) -> int:
     """The lobes of a material (``lobe_flags``; a mask's ``mask_flags`` of its material's, a blend's
     ``blend_flags`` of its two materials'), with ``BSDF_ANISOTROPIC`` where its lobes, or those of a
     material it masks or blends, need the hit's tangent."""
     if material.type == "mask":
-        return mask_flags(_flags(index[material.material], index), _opaque(material))
+        return mask_flags(_flags(by_name[material.material], by_name), _opaque(material))
     if material.type == "blend":
-        return blend_flags(*(_flags(index[name], index) for name in material.materials))
+        return blend_flags(*(_flags(by_name[name], by_name) for name in material.materials))
     return lobe_flags(material) | (BSDF_ANISOTROPIC if _anisotropic(material) else 0)
 
 
@@ -113,10 +113,10 @@ def _anisotropic(material: Material) -> bool:
     return textured or np.float32(material.roughness_v) != np.float32(material.roughness)
 
 
-def _two_sided(material: Material, index: dict[str, Material]) -> bool:
+def _two_sided(material: Material, by_name: dict[str, Material]) -> bool:
     """Scatters on its back side too: a blend where either of its materials does."""
     if material.type == "blend":
-        return any(_two_sided(index[name], index) for name in material.materials)
+        return any(_two_sided(by_name[name], by_name) for name in material.materials)
     return material.two_sided
 
 

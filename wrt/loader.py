@@ -58,6 +58,7 @@ from .scene import (
     SpotLight,
     Triangle,
     Volume,
+    constituents,
 )
 from .textures import SLOTS, Bitmap, Constant, read_texture
 from .volumes import KINDS as VOLUME_KINDS
@@ -860,58 +861,15 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
         if m.name in material_index or m.name == DEFAULT_MATERIAL.name:
             raise SceneError(file, f"material[{i}]", "name", "is already used (or reserved)", m.name)
         material_index[m.name] = i
+    by_name = {m.name: m for m in materials}
     for i, m in enumerate(materials):
-        if m.type == "mask":
-            inner = materials[material_index[m.material]] if m.material in material_index else None
-            if inner is None or inner.type in ("mask", "dielectric", "rough_dielectric"):
-                why = "names no material" if inner is None else f"names a {inner.type}"
-                raise SceneError(
-                    file,
-                    f"material[{i}]",
-                    "material",
-                    f"{why}: a mask's material must name a [[material]] of the file that is not a mask, a "
-                    "dielectric or a rough dielectric (they bound a medium)",
-                    m.material,
-                )
-            if any(key == "normal_map" for key, _ in inner.textures):
-                raise SceneError(
-                    file,
-                    f"material[{i}]",
-                    "material",
-                    "names a material with a normal map: a mask's shading frame is its own (give the mask the "
-                    "normal map)",
-                    m.material,
-                )
-        if m.type == "blend":
-            for name in m.materials:
-                nested = materials[material_index[name]] if name in material_index else None
-                if nested is None or nested.type in ("blend", "mask", "dielectric", "rough_dielectric", "null"):
-                    why = "names no material" if nested is None else f"names a {nested.type}"
-                    raise SceneError(
-                        file,
-                        f"material[{i}]",
-                        "materials",
-                        f"{why}: a blend's materials must name [[material]]s of the file that are not blends, "
-                        "masks, dielectrics, rough dielectrics (they bound a medium) or null",
-                        name,
-                    )
-                if any(key == "normal_map" for key, _ in nested.textures):
-                    raise SceneError(
-                        file,
-                        f"material[{i}]",
-                        "materials",
-                        "names a material with a normal map: a blend's shading frame is its own (give the blend "
-                        "the normal map)",
-                        name,
-                    )
+        _check_nested(file, i, m, by_name)
     material_index[DEFAULT_MATERIAL.name] = len(materials)
     materials.append(DEFAULT_MATERIAL)
-    by_name = {m.name: m for m in materials}
-
-    def needs_uv(m: Material) -> bool:  # a textured or anisotropic material (its tangent is dp/du), or one of one
-        return bool(m.textures) or m.anisotropic or any(needs_uv(by_name[name]) for name in m.nested)
-
-    textured = frozenset(i for i, m in enumerate(materials) if needs_uv(m))
+    by_name[DEFAULT_MATERIAL.name] = DEFAULT_MATERIAL
+    textured = frozenset(  # textured or anisotropic (the tangent is dp/du), or made of such a material
+        i for i, m in enumerate(materials) if any(c.textures or c.anisotropic for c in constituents(m, by_name))
+    )
     groups = [
         _group(file, i, g, material_index, scene_dir, textured)
         for i, g in enumerate(_array_of_tables(file, doc, "group"))
@@ -956,6 +914,46 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
         boundaries=tuple(boundaries),
         camera_medium=-1 if camera_medium is None else camera_medium,
     )
+
+
+NESTED_RULES = {
+    "mask": (
+        "material",
+        ("mask", "dielectric", "rough_dielectric"),
+        "a mask's material must name a [[material]] of the file that is not a mask, a dielectric or a rough "
+        "dielectric (they bound a medium)",
+    ),
+    "blend": (
+        "materials",
+        ("blend", "mask", "dielectric", "rough_dielectric", "null"),
+        "a blend's materials must name [[material]]s of the file that are not blends, masks, dielectrics, rough "
+        "dielectrics (they bound a medium) or null",
+    ),
+}
+"""Per type made of other materials (``Material.nested``): the key naming them, the types they may
+not be, and the rule a refusal states."""
+
+
+def _check_nested(file: str, i: int, material: Material, by_name: Mapping[str, Material]) -> None:
+    """Refuse a mask's or a blend's material (``material[i]``) that the file does not define, is of
+    a type it may not be (``NESTED_RULES``), or has a normal map (the kernels read the hit's
+    material's, the mask's or the blend's own, so it would be silently ignored)."""
+    for name in material.nested:
+        key, forbidden, rule = NESTED_RULES[material.type]
+        nested = by_name.get(name)
+        if nested is None or nested.type in forbidden:
+            why = "names no material" if nested is None else f"names a {nested.type}"
+            raise SceneError(file, f"material[{i}]", key, f"{why}: {rule}", name)
+        if any(slot == "normal_map" for slot, _ in nested.textures):
+            kind = material.type
+            raise SceneError(
+                file,
+                f"material[{i}]",
+                key,
+                f"names a material with a normal map: a {kind}'s shading frame is its own (give the {kind} the "
+                "normal map)",
+                name,
+            )
 
 
 def _check_whitted(source: str, lights, materials, media) -> None:

@@ -66,6 +66,7 @@ from .scene import (
     Sphere,
     SphereLight,
     Triangle,
+    constituents,
 )
 
 TILE_PIXELS = 4096  # pixels per CPU launch: small enough to balance two threads, large enough to amortise a launch
@@ -82,10 +83,8 @@ ADAPTIVE_FLOOR = 0.01  # luminance below which an adaptive pixel's error is meas
 def scene_features(scene: Scene) -> Features:
     """The ``wrt.kernels.features.Features`` ``scene`` needs: its kernels are specialised on them."""
     members = [shape for group in scene.groups for shape in group.shapes]
-    used = {scene.materials[shape.material] for shape in (*scene.shapes, *members)}
     by_name = {m.name: m for m in scene.materials}
-    for _ in range(2):  # the materials of masks and blends, and of the blends a mask masks
-        used |= {by_name[name] for m in used for name in m.nested}
+    used = {c for shape in (*scene.shapes, *members) for c in constituents(scene.materials[shape.material], by_name)}
     moving = any(any(shape.velocity) for shape in scene.shapes)
     shapes = {type(shape) for shape in (*scene.shapes, *members)} | {type(light) for light in scene.lights}
     return Features(

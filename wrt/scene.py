@@ -8,6 +8,7 @@ validates; code downstream trusts them.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -164,6 +165,14 @@ class Material:
         if self.type == "mask":
             return (self.material,)
         return self.materials if self.type == "blend" else ()
+
+
+def constituents(material: Material, by_name: Mapping[str, Material]) -> Iterator[Material]:
+    """``material`` and every material it is made of (``Material.nested``, through a mask over a
+    blend), ``by_name`` naming the scene's materials."""
+    yield material
+    for name in material.nested:
+        yield from constituents(by_name[name], by_name)
 
 
 MEDIUM_TYPES = tuple(MEDIUM_REGISTRY)

@@ -4,6 +4,7 @@ the features a blend asks of the kernels, and the Mitsuba importer's ``blendbsdf
 import numpy as np
 import pytest
 from conftest import make_scene
+from test_mask import parse
 from test_mitsuba_xml import convert, sensor
 
 import wrt
@@ -57,14 +58,6 @@ def test_a_blend_is_the_weighted_sum_of_its_materials_renders():
         images[material] = wrt.render(scene, specialize=False).rgb.astype(np.float64)
     expected = 0.3 * images["red"] + 0.7 * images["metal"]
     np.testing.assert_allclose(images["tarnish"].mean(axis=(0, 1)), expected.mean(axis=(0, 1)), rtol=0.02)
-
-
-def parse(materials, integrator="path"):
-    return make_scene(
-        [{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "material": materials[-1]["name"]}],
-        render={"integrator": integrator},
-        materials=materials,
-    )
 
 
 @pytest.mark.parametrize(
