@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from ..conductors import METALS
 from ..errors import token
 from ..kernels.microfacet import DISTRIBUTIONS
+from ..loader import NESTED_RULES
 from .textures import texture, textured_color
 from .xml import Document, Element, Plugin
 
@@ -323,7 +324,7 @@ class Materials:
         p.finish()
         materials = tuple(self._convert(element) for element in nested)
         for element, material in zip(nested, materials):
-            if material.params["type"] in ("mask", "blend", "null", "dielectric", "rough_dielectric"):
+            if material.params["type"] in NESTED_RULES["blend"][1]:  # the loader's rule, located here
                 raise self.doc.error(element, f"a blendbsdf of a {material.params['type']} is not supported")
         weight = weight if isinstance(weight, dict) else min(max(weight, 0.0), 1.0)
         return Material({"type": "blend", "weight": weight}, True, materials)
