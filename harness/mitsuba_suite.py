@@ -97,7 +97,14 @@ SUITES = {
         Suite(
             "suite",
             32,
-            ("envmap_path", "include_path_direct", "instances_path", "orthographic_direct", "spectra_path"),
+            (
+                "envmap_path",
+                "include_path_direct",
+                "instances_path",
+                "orthographic_direct",
+                "spectra_path",
+                "test_projector_constant_direct",
+            ),
         ),
         Suite(
             "participating_media",
@@ -194,6 +201,7 @@ CROSSCHECKS = {
         Crosscheck("mask", 64, 48, 1024),
         Crosscheck("anisotropic", 64, 48, 1024),
         Crosscheck("blend", 64, 48, 1024),
+        Crosscheck("projector", 64, 48, 1024),
         Crosscheck("fog_area_light", 48, 36, 1024, folder="media"),
         Crosscheck("milk_in_glass", 48, 36, 1024, folder="media"),
         Crosscheck("camera_in_fog", 48, 36, 1024, folder="media"),

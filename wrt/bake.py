@@ -37,7 +37,7 @@ from .scene import (
     Sphere,
     Volume,
 )
-from .textures import TextureTable, texture_table
+from .textures import TextureTable, light_texture_table, texture_table
 
 
 @dataclass
@@ -191,11 +191,13 @@ def bake_media(scene: Scene, surfaces: int) -> dict[str, np.ndarray]:
 
 @dataclass
 class BakedLights:
-    """``LightData``'s columns: one row per light (angles in radians), the environment map (at
-    most one: its image, frame and sampling distribution, 1-element placeholders without), and
-    the emissive primitives (None: not asked for)."""
+    """``LightData``'s columns: one row per light (angles in radians, ``texture`` an index in
+    ``textures``, the lights' own table), the environment map (at most one: its image, frame and
+    sampling distribution, 1-element placeholders without), and the emissive primitives (None:
+    not asked for)."""
 
     rows: dict[str, np.ndarray]
+    textures: TextureTable
     env_radiance: np.ndarray
     env_to_world: np.ndarray
     env_cdf: np.ndarray
@@ -208,9 +210,12 @@ def bake_lights(scene: Scene, prims: Primitives | None = None) -> BakedLights:
     the geometry), and the emitting primitives of ``prims`` (the scene flattened; none without it)."""
     rows = [light_row(light) for light in scene.lights]
     cutoff = np.radians([r["cutoff"] for r in rows])
-    names = ("type", "position", "direction", "power", "edge_u", "edge_v", "radius")
+    names = ("type", "position", "direction", "power", "edge_u", "edge_v", "radius", "frame", "uv_scale")
     columns = {name: np.array([r[name] for r in rows]) for name in names}
     columns.update(cos_cutoff=np.cos(cutoff), cutoff=cutoff, beam=np.radians([r["beam"] for r in rows]))
+    textures = [r["texture"] for r in rows if r["texture"] is not None]
+    index = iter(range(len(textures)))
+    columns["texture"] = np.array([-1 if r["texture"] is None else next(index) for r in rows], dtype=np.int32)
     maps = [light for light in scene.lights if isinstance(light, EnvironmentLight) and light.image is not None]
     if maps:
         image, to_world = maps[0].image, maps[0].to_world
@@ -220,7 +225,9 @@ def bake_lights(scene: Scene, prims: Primitives | None = None) -> BakedLights:
         image, to_world = np.zeros((1, 1, 3)), np.eye(3)
         cdf, pdf = np.zeros(1), np.zeros((1, 1))
     emitting = None if prims is None else emitting_primitives(scene, prims)
-    return BakedLights(columns, np.asarray(image), np.asarray(to_world), cdf, pdf, emitting)
+    return BakedLights(
+        columns, light_texture_table(textures), np.asarray(image), np.asarray(to_world), cdf, pdf, emitting
+    )
 
 
 def camera_media(scene: Scene) -> list[int]:

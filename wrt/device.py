@@ -85,6 +85,11 @@ def _vec3(a: np.ndarray, device) -> wp.array:
     return wp.array(np.asarray(a, dtype=np.float32).reshape(-1, 3), dtype=wp.vec3, device=device)
 
 
+def _rows(a: np.ndarray, dtype, shape: tuple[int, ...], device) -> wp.array:
+    """Rows of ``shape`` (a vector's or matrix's) as an array of ``dtype``."""
+    return wp.array(np.asarray(a, dtype=np.float32).reshape(-1, *shape), dtype=dtype, device=device)
+
+
 def _int(a: np.ndarray, device) -> wp.array:
     return wp.array(np.asarray(a, dtype=np.int32).reshape(-1), dtype=wp.int32, device=device)
 
@@ -224,6 +229,10 @@ def upload_lights(scene: Scene, device, prims: Primitives | None = None) -> Ligh
     lights.cos_cutoff = _float(rows["cos_cutoff"], device)
     lights.cutoff = _float(rows["cutoff"], device)
     lights.beam = _float(rows["beam"], device)
+    lights.frame = _rows(rows["frame"], wp.mat33, (3, 3), device)
+    lights.uv_scale = _rows(rows["uv_scale"], wp.vec2, (2,), device)
+    lights.texture = _int(rows["texture"], device)
+    lights.textures = _texture_data(baked.textures, device)
     lights.env_radiance = wp.array(np.asarray(baked.env_radiance, dtype=np.float32), dtype=wp.vec3, device=device)
     lights.env_to_world = wp.mat33(*np.asarray(baked.env_to_world, dtype=np.float32).ravel())
     lights.env_cdf = _float(baked.env_cdf, device)

@@ -51,6 +51,7 @@ from .scene import (
     Plane,
     PointLight,
     Polygon,
+    ProjectorLight,
     RenderSettings,
     Scene,
     Sphere,
@@ -769,6 +770,37 @@ def _unit(t: _Table, key: str) -> tuple[float, float, float]:
     return tuple(float(c) for c in v / np.linalg.norm(v))
 
 
+def _up(t: _Table, direction: tuple) -> tuple[float, float, float]:
+    """A light's ``up`` (default +y): its frame's y side (``wrt.scene.light_frame``), not along ``direction``."""
+    up = t.vec3("up", (0.0, 1.0, 0.0), nonzero=True)
+    u = np.asarray(up, dtype=np.float64) / np.linalg.norm(up)
+    if np.linalg.norm(np.cross(u, direction)) < 1e-6:
+        given = "" if "up" in t.data else " (the default: give an up)"
+        raise t.error("up", f"is parallel to direction{given} and leaves the light's frame undefined", list(up))
+    return tuple(float(c) for c in up)
+
+
+def _light_texture(t: _Table, key: str, scene_dir: str):
+    """A textured light's ``key``: a texture table (``wrt.textures.read_texture``), a number or 3
+    numbers (a constant), non-negative linear RGB."""
+    value = t.get(key, _REQUIRED)
+    if not isinstance(value, Mapping):
+        grey = isinstance(value, (int, float)) and not isinstance(value, bool)
+        colour = (t.number(key, lo=0.0),) * 3 if grey else t.vec3(key, lo=0.0)
+        return Constant(value=colour)
+    tt = _Table(t.file, f"{t.name}.{key}", value)
+    texture = read_texture(tt, scene_dir)
+    values = texture.values()
+    if values.min() < 0.0 or values.max() > MAX_MAGNITUDE:
+        field = "file" if isinstance(texture, Bitmap) else "value" if isinstance(texture, Constant) else "texture"
+        raise tt.error(
+            field,
+            f"its values range over [{values.min():.4g}, {values.max():.4g}]: must stay in [0, {MAX_MAGNITUDE:g}]",
+            value.get(field),
+        )
+    return texture
+
+
 def _environment(t: _Table, scene_dir: str) -> EnvironmentLight:
     """An ``environment`` table: a constant ``radiance``, or a map: ``file`` (an equirectangular
     OpenEXR or Radiance HDR image of linear RGB, relative to ``scene_dir``), ``scale`` and the
@@ -805,12 +837,33 @@ def _light(file: str, index: int, data, scene_dir: str):
         light = DirectionalLight(direction=_unit(t, "direction"), irradiance=t.vec3("irradiance", lo=0.0))
     elif light_type == "spot":
         cutoff = t.number("cutoff_angle", SpotLight.cutoff_angle, lo=0.0, hi=90.0, lo_open=True)
+        direction = _unit(t, "direction")
+        texture = _light_texture(t, "texture", scene_dir) if "texture" in t.data else None
+        if texture is None and "up" in t.data:
+            raise t.error("up", "orients a spot's texture: it applies to a spot with a texture only", t.data["up"])
         light = SpotLight(
             position=t.vec3("position"),
-            direction=_unit(t, "direction"),
+            direction=direction,
             intensity=t.vec3("intensity", lo=0.0),
             cutoff_angle=cutoff,
             beam_width=t.number("beam_width", 0.75 * cutoff, lo=0.0, hi=cutoff),
+            up=SpotLight.up if texture is None else _up(t, direction),
+            texture=texture,
+        )
+    elif light_type == "projector":
+        direction = _unit(t, "direction")
+        irradiance = _light_texture(t, "irradiance", scene_dir)
+        aspect = 1.0
+        if isinstance(irradiance, Bitmap):
+            aspect = irradiance.texels.shape[1] / irradiance.texels.shape[0]
+        light = ProjectorLight(
+            position=t.vec3("position"),
+            direction=direction,
+            irradiance=irradiance,
+            fov=t.number("fov", 45.0, lo=0.0, hi=180.0, lo_open=True, hi_open=True),
+            up=_up(t, direction),
+            scale=t.number("scale", 1.0, lo=0.0),
+            aspect=aspect,
         )
     elif light_type == "area":
         light = AreaLight(

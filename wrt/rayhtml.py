@@ -41,7 +41,7 @@ from .rayview import (
     ray_blocks,
     view_camera,
 )
-from .scene import PointLight, SpotLight
+from .scene import PointLight, ProjectorLight, SpotLight
 
 PAGE_TEMPLATE = "rayview_page.html"  # %TITLE% and %DATA% are filled in
 
@@ -147,7 +147,8 @@ def _html_scene(tree: RayTree, view: tuple[float, float] | None) -> dict:
             "length": NORMAL_FRACTION * size,
             "color": _rgb255(NORMAL_COLOR).tolist(),
         }
-    spots = [light.position for light in tree.scene.lights if isinstance(light, (PointLight, SpotLight))]
+    points = (PointLight, SpotLight, ProjectorLight)
+    spots = [light.position for light in tree.scene.lights if isinstance(light, points)]
     camera = view_camera(tree, view)
     scene_up = np.asarray(tree.scene.camera.up, dtype=np.float64)
     return {

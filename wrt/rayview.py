@@ -68,6 +68,7 @@ from .scene import (
     Mesh,
     Plane,
     PointLight,
+    ProjectorLight,
     Sphere,
     SphereLight,
     SpotLight,
@@ -193,7 +194,7 @@ def _light_blocks(scene, centre: np.ndarray, size: float) -> pv.MultiBlock:
     pieces = {}
     for k, light in enumerate(scene.lights):
         name = f"light[{k}] {light.type}"
-        if isinstance(light, (PointLight, SpotLight)):
+        if isinstance(light, (PointLight, SpotLight, ProjectorLight)):
             pieces[name] = pv.PolyData(np.asarray([light.position], dtype=np.float64))
         elif isinstance(light, DirectionalLight):
             d = np.asarray(light.direction) / np.linalg.norm(light.direction)

@@ -365,18 +365,68 @@ class DirectionalLight:
     type: str = "directional"
 
 
+def light_frame(direction, up) -> np.ndarray:
+    """The frame (3x3, float64, rows its x, y and z axes in world space) of a light looking along
+    unit ``direction`` with ``up`` (not parallel to it) toward its y: Mitsuba 3's ``lookat``
+    (x = up x direction normalised, y = direction x x)."""
+    z = np.asarray(direction, dtype=np.float64)
+    x = np.cross(np.asarray(up, dtype=np.float64), z)
+    x /= np.linalg.norm(x)
+    return np.array([x, np.cross(z, x), z])
+
+
 @dataclass(frozen=True)
 class SpotLight:
     """Point light restricted to a cone around ``direction`` (unit): full ``intensity`` (W/sr)
     within ``beam_width`` degrees of the axis, falling linearly in angle to 0 at ``cutoff_angle``
-    (Mitsuba 3's spot profile)."""
+    (Mitsuba 3's spot profile); times ``texture`` (a ``wrt.textures`` texture; None: 1) projected
+    through the cone, its square's edges at the cutoff along the frame's x and y (``up`` its y
+    side, ``light_frame``), as Mitsuba's spot ``texture``."""
 
     position: tuple[float, float, float]
     direction: tuple[float, float, float]
     intensity: tuple[float, float, float]
     cutoff_angle: float = 20.0
     beam_width: float = 15.0
+    up: tuple[float, float, float] = (0.0, 1.0, 0.0)
+    texture: object | None = None
     type: str = "spot"
+
+    def frame(self) -> np.ndarray:
+        return light_frame(self.direction, self.up)
+
+    def uv_scale(self) -> tuple[float, float]:
+        """``wrt.kernels.lights.delta``'s: the cone's tangent maps to the texture's edges."""
+        s = 0.5 / math.tan(math.radians(self.cutoff_angle))
+        return (s, s)
+
+
+@dataclass(frozen=True)
+class ProjectorLight:
+    """Mitsuba 3's ``projector``: a pinhole at ``position`` projecting its ``irradiance`` texture
+    (a ``wrt.textures`` texture, linear RGB) times ``scale`` along unit ``direction``, ``up`` the
+    image's top (``light_frame``), ``fov`` the vertical field of view in degrees (as the camera's),
+    the horizontal one following the texture's aspect ratio ``aspect`` (width / height; 1 for a
+    constant or a checkerboard). A plane facing it at depth z receives irradiance ``pi scale
+    irradiance(uv) / z^2`` (W/m^2; ``wrt.kernels.lights.delta``); the image's left is on the left
+    seen from the projector (u runs along ``-x``), its top row at ``+y``."""
+
+    position: tuple[float, float, float]
+    direction: tuple[float, float, float]
+    irradiance: object
+    fov: float
+    up: tuple[float, float, float] = (0.0, 1.0, 0.0)
+    scale: float = 1.0
+    aspect: float = 1.0
+    type: str = "projector"
+
+    def frame(self) -> np.ndarray:
+        return light_frame(self.direction, self.up)
+
+    def uv_scale(self) -> tuple[float, float]:
+        """``wrt.kernels.lights.delta``'s: Mitsuba's ``perspective_projection`` of the texture's size."""
+        s = -0.5 / math.tan(math.radians(self.fov) / 2.0)
+        return (s / self.aspect, s)
 
 
 @dataclass(frozen=True)
@@ -423,7 +473,7 @@ class EnvironmentLight:
 
 
 SURFACE_LIGHTS = (AreaLight, SphereLight)
-DELTA_LIGHTS = (PointLight, DirectionalLight, SpotLight)
+DELTA_LIGHTS = (PointLight, DirectionalLight, SpotLight, ProjectorLight)
 
 
 Shape = Sphere | Plane | Triangle | Polygon | Mesh | Disk | Cylinder | Instance

@@ -219,6 +219,17 @@ def texture_table(materials) -> TextureTable:
             slot[m, SLOTS.index(name)] = index[id(texture)]
         if material.roughness_v is None:  # isotropic: alpha_v is alpha_u, its texture too (one lookup)
             slot[m, SLOTS.index("roughness_v")] = slot[m, SLOTS.index("roughness")]
+    return _pack(textures, slot)
+
+
+def light_texture_table(textures: list[Texture]) -> TextureTable:
+    """The lights' own table of ``textures`` (in the order of their ``LightData.texture`` indices;
+    ``slot`` a placeholder row: lights have no slots)."""
+    return _pack(textures, np.full((1, len(SLOTS)), -1, dtype=np.int32))
+
+
+def _pack(textures: list[Texture], slot: np.ndarray) -> TextureTable:
+    """``textures`` (their index their position) in ``TextureData``'s flat arrays."""
     bitmaps = [t.texels for t in textures if isinstance(t, Bitmap)]
     sizes = [b.shape[0] * b.shape[1] for b in bitmaps]
     offsets = iter(np.cumsum([0, *sizes[:-1]]))

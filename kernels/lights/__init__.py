@@ -8,7 +8,7 @@ functions and its host rows. The registry (``FAMILIES``) derives from them the `
 (``make_lighting``). A new light family is one new module here, listed in ``FAMILIES``, with its
 tests and docs (its host dataclass in ``wrt.scene``, its keys read in ``wrt.loader``).
 
-Families: ``delta`` (``point``, ``directional``, ``spot``), ``area`` (a parallelogram),
+Families: ``delta`` (``point``, ``directional``, ``spot``, ``projector``), ``area`` (a parallelogram),
 ``sphere``, ``environment`` (constant or a map) and ``emitting`` (the emissive primitives of the
 scene's shapes, ``wrt.emitting``: one more light, after the rows).
 
@@ -51,7 +51,7 @@ from ..traverse import GeometryData
 from . import area, delta, emitting, environment, sphere
 from .area import AREA
 from .data import SHADOW_MARGIN, LightData, LightSample
-from .delta import DIRECTIONAL, POINT, SPOT, light_incident
+from .delta import DIRECTIONAL, POINT, PROJECTOR, SPOT, light_incident
 from .emitting import EMITTING
 from .environment import ENVIRONMENT, ENVIRONMENT_MAP
 from .interface import Family, Options
@@ -84,6 +84,7 @@ __all__ = [
     "LAST_DELTA",
     "LIGHT_TYPES",
     "POINT",
+    "PROJECTOR",
     "SHADOW_MARGIN",
     "SPHERE_LIGHT",
     "SPOT",
@@ -106,12 +107,16 @@ _ROW = {
     "radius": 0.0,
     "cutoff": 180.0,
     "beam": 180.0,
+    "frame": ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
+    "uv_scale": (0.0, 0.0),
+    "texture": None,
 }
 
 
 def light_row(light) -> dict:
     """The ``LightData`` columns of host light ``light`` (a ``wrt.scene`` light): its family's row
-    over the defaults of the columns it does not use (angles in degrees, as in the scene file)."""
+    over the defaults of the columns it does not use (angles in degrees, as in the scene file;
+    ``texture`` the ``wrt.textures`` texture object, or None, which ``wrt.bake`` numbers)."""
     return {**_ROW, **FAMILY_OF[light.type].row(light)}
 
 

@@ -10,7 +10,7 @@ import warp as wp
 from .data import LightData
 from .interface import Family, Functions, Options, surface_light
 
-AREA = wp.constant(3)
+AREA = wp.constant(4)
 
 
 @wp.func

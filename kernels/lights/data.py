@@ -11,6 +11,8 @@ area/sphere/environment ``radiance`` in W/(m^2 sr) (RGB).
 
 import warp as wp
 
+from ..textures import TextureData
+
 SHADOW_MARGIN = wp.constant(1.0e-4)  # shadow rays toward a light's surface stop this fraction short of it
 
 
@@ -26,6 +28,10 @@ class LightData:
     cos_cutoff: wp.array(dtype=float)  # spot: cos of the cone's half-angle
     cutoff: wp.array(dtype=float)  # spot: half-angle, radians
     beam: wp.array(dtype=float)  # spot: half-angle of full intensity, radians
+    frame: wp.array(dtype=wp.mat33)  # spot, projector: rows its unit local x, y, z (its direction) in world space
+    uv_scale: wp.array(dtype=wp.vec2)  # textured spot, projector: a local direction's uv is 1/2 + uv_scale (x, y) / z
+    texture: wp.array(dtype=wp.int32)  # textured spot, projector: its texture in ``textures``; -1 for none
+    textures: TextureData  # the lights' textures, a table of their own (the materials' is MaterialData's)
     env_radiance: wp.array2d(dtype=wp.vec3)  # (H, W) the map's pixels, W/(m^2 sr) before ``power``
     env_to_world: wp.mat33  # the map's frame (a rotation) to world space
     env_cdf: wp.array(dtype=float)  # marginal CDF over cell rows, then each row's conditional CDF

@@ -1,15 +1,27 @@
-"""``point``, ``directional`` and ``spot``: the delta lights, which have no surface to hit and no
-density, and what they deliver to a point.
+"""``point``, ``directional``, ``spot`` and ``projector``: the delta lights, which have no surface
+to hit and no density, and what they deliver to a point.
 
-Units: point and spot ``intensity`` in W/sr, directional ``irradiance`` in W/m^2. A point light at
-distance d delivers irradiance ``I / d^2`` on a surface facing it; the integrator multiplies by
-the BRDF and the cosine at the receiver. A spot has Mitsuba 3's profile.
+Units: point and spot ``intensity`` in W/sr, directional ``irradiance`` in W/m^2, a projector's
+``scale`` times its texture (W/m^2 on its image plane, below). A point light at distance d
+delivers irradiance ``I / d^2`` on a surface facing it; the integrator multiplies by the BRDF and
+the cosine at the receiver. A spot has Mitsuba 3's profile, times its texture where it has one.
+
+The textured spot and the projector look their texture up through a pinhole frustum, as Mitsuba
+3's ``spot`` and ``projector``: the direction from the light to the point, in the light's frame
+(``LightData.frame``: x, y and z its direction), has uv ``1/2 + uv_scale (x, y) / z``. A spot's
+``uv_scale`` is ``(1, 1) / (2 tan(cutoff))`` (its cone fits the texture's square); a projector's
+``-(1 / aspect, 1) / (2 tan(fov / 2))`` for its vertical field of view ``fov`` and its texture's
+aspect ratio (width / height): Mitsuba's ``perspective_projection``, whose image x runs against
+the frame's x. A projector delivers ``pi scale texture(uv) d / z^3`` at distance ``d`` and depth
+``z`` inside its frustum, nothing outside: a plane facing it at depth ``z`` receives irradiance
+``pi scale texture / z^2`` (Mitsuba's scaling "so that irradiance at z = 1 is correct").
 """
 
 import warp as wp
 
 from ..materials import MaterialData
 from ..sampling import Sampler
+from ..textures import texture_rgb
 from ..traverse import GeometryData
 from .data import LightData, LightSample
 from .interface import Family, Functions, Options
@@ -17,6 +29,7 @@ from .interface import Family, Functions, Options
 POINT = wp.constant(0)
 DIRECTIONAL = wp.constant(1)
 SPOT = wp.constant(2)
+PROJECTOR = wp.constant(3)
 
 
 @wp.func
@@ -33,6 +46,13 @@ def spot_falloff(lights: LightData, i: wp.int32, w: wp.vec3) -> float:
 
 
 @wp.func
+def frustum_uv(lights: LightData, i: wp.int32, local: wp.vec3) -> wp.vec2:
+    """The texture coordinates of light ``i``'s frustum along ``local`` (its frame, z > 0)."""
+    scale = lights.uv_scale[i]
+    return wp.vec2(0.5 + scale[0] * local[0] / local[2], 0.5 + scale[1] * local[1] / local[2])
+
+
+@wp.func
 def light_incident(lights: LightData, i: wp.int32, p: wp.vec3):
     """Light ``i`` seen from ``p``: ``(wi, distance, irradiance)`` with ``wi`` the unit direction
     toward the light, ``distance`` to it (inf for directional) and the irradiance (W/m^2) it
@@ -40,7 +60,7 @@ def light_incident(lights: LightData, i: wp.int32, p: wp.vec3):
     light_type = lights.type[i]
     if light_type == DIRECTIONAL:
         return -lights.direction[i], wp.inf, lights.power[i]
-    if light_type > SPOT:
+    if light_type > PROJECTOR:
         return wp.vec3(0.0, 0.0, 1.0), 0.0, wp.vec3(0.0)
     to_light = lights.position[i] - p
     dist2 = wp.dot(to_light, to_light)
@@ -49,14 +69,27 @@ def light_incident(lights: LightData, i: wp.int32, p: wp.vec3):
     dist = wp.sqrt(dist2)
     wi = to_light / dist
     e = lights.power[i] / dist2
+    t = lights.texture[i]
     if light_type == SPOT:
-        e = e * spot_falloff(lights, i, -wi)
+        falloff = spot_falloff(lights, i, -wi)
+        e = e * falloff
+        if t >= 0 and falloff > 0.0:
+            e = wp.cw_mul(e, texture_rgb(lights.textures, t, frustum_uv(lights, i, lights.frame[i] * (-wi))))
+    elif light_type == PROJECTOR:
+        local = lights.frame[i] * (-to_light)
+        z = local[2]
+        e = wp.vec3(0.0)
+        if z > 0.0:
+            uv = frustum_uv(lights, i, local)
+            if uv[0] >= 0.0 and uv[0] <= 1.0 and uv[1] >= 0.0 and uv[1] <= 1.0:
+                radiance = wp.cw_mul(lights.power[i], texture_rgb(lights.textures, t, uv))
+                e = radiance * (wp.pi * dist / (z * z * z))
     return wi, dist, e
 
 
 @wp.func
 def owns(light_type: wp.int32) -> bool:
-    return light_type <= SPOT
+    return light_type <= PROJECTOR
 
 
 @wp.func
@@ -87,7 +120,17 @@ def row(light) -> dict:
         return {"type": POINT, "position": light.position, "power": light.intensity}
     if light.type == "directional":
         return {"type": DIRECTIONAL, "direction": light.direction, "power": light.irradiance}
-    return {
+    if light.type == "projector":
+        return {
+            "type": PROJECTOR,
+            "position": light.position,
+            "direction": light.direction,
+            "power": (light.scale,) * 3,
+            "frame": light.frame(),
+            "uv_scale": light.uv_scale(),
+            "texture": light.irradiance,
+        }
+    row = {
         "type": SPOT,
         "position": light.position,
         "direction": light.direction,
@@ -95,6 +138,9 @@ def row(light) -> dict:
         "cutoff": light.cutoff_angle,
         "beam": light.beam_width,
     }
+    if light.texture is not None:
+        row.update(frame=light.frame(), uv_scale=light.uv_scale(), texture=light.texture)
+    return row
 
 
 def make(options: Options) -> Functions:
@@ -103,9 +149,9 @@ def make(options: Options) -> Functions:
 
 FAMILY = Family(
     name="delta",
-    codes=(POINT, DIRECTIONAL, SPOT),
+    codes=(POINT, DIRECTIONAL, SPOT, PROJECTOR),
     make=make,
-    light_types=("point", "directional", "spot"),
+    light_types=("point", "directional", "spot", "projector"),
     row=row,
     delta=True,
 )

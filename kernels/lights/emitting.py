@@ -18,7 +18,7 @@ from .data import LightData, LightSample, surface_sample
 from .interface import Family, Functions, Options
 from .sphere import sample_sphere_cone, sphere_solid_angle
 
-EMITTING = wp.constant(7)  # not a row's type: the pool, light ``lights.type.shape[0]``
+EMITTING = wp.constant(8)  # not a row's type: the pool, light ``lights.type.shape[0]``
 
 
 @functools.cache

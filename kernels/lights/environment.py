@@ -16,8 +16,8 @@ from ..traverse import GeometryData
 from .data import LightData, LightSample, surface_sample
 from .interface import Family, Functions, Options
 
-ENVIRONMENT = wp.constant(5)
-ENVIRONMENT_MAP = wp.constant(6)
+ENVIRONMENT = wp.constant(6)
+ENVIRONMENT_MAP = wp.constant(7)
 
 
 @wp.func

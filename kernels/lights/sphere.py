@@ -12,7 +12,7 @@ from ..sample_warps import cone_one_minus_cos, frame, uniform_cone
 from .data import LightData
 from .interface import Family, Functions, Options, surface_light
 
-SPHERE_LIGHT = wp.constant(4)
+SPHERE_LIGHT = wp.constant(5)
 
 
 @wp.func

@@ -36,6 +36,7 @@ LIGHTS = {
     "point": ({"position": [0, 2, 0], "intensity": [1, 1, 1]}, True),
     "directional": ({"direction": [0, -1, 0], "irradiance": [1, 1, 1]}, True),
     "spot": ({"position": [0, 2, 0], "direction": [0, -1, 0], "intensity": [1, 1, 1]}, True),
+    "projector": ({"position": [0, 2, 0], "direction": [0, -1, 0], "up": [0, 0, 1], "irradiance": 1.0}, True),
     "area": ({"corner": [-1, 2, -1], "edge_u": [2, 0, 0], "edge_v": [0, 0, 2], "radiance": [1, 1, 1]}, False),
     "sphere": ({"center": [0, 2, 0], "radius": 0.5, "radiance": [1, 1, 1]}, False),
     "environment": ({"radiance": [1, 1, 1]}, False),
@@ -67,7 +68,8 @@ def test_each_row_is_its_familys(name):
     others = [c for f in FAMILIES if not f.delta for c in f.codes]
     assert (code < min(others)) == delta
     row = light_row(scene.lights[0])
-    assert set(row) == {"type", "position", "direction", "power", "edge_u", "edge_v", "radius", "cutoff", "beam"}
+    columns = ("type", "position", "direction", "power", "edge_u", "edge_v", "radius", "cutoff", "beam")
+    assert set(row) == {*columns, "frame", "uv_scale", "texture"}
 
 
 def test_a_scene_compiles_in_the_emissive_primitives_only_where_it_has_them():

@@ -1,10 +1,16 @@
-"""Converting Mitsuba's emitters into wrt lights: ``point``, ``spot``, ``directional``,
-``constant`` and ``envmap`` on their own, ``area`` attached to a shape."""
+"""Converting Mitsuba's emitters into wrt lights: ``point``, ``spot`` (with its ``texture``),
+``projector``, ``directional``, ``constant`` and ``envmap`` on their own, ``area`` attached to a
+shape."""
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
+from ..imageio import oiio
+from .sensors import perspective_fov
+from .textures import textured_color
 from .transforms import as_list
 from .xml import Document, Element, Plugin
 
@@ -26,6 +32,13 @@ def emitter(doc: Document, element: Element) -> dict | None:
             "cutoff_angle": cutoff,
             "beam_width": p.number("beam_width", 0.75 * cutoff),
         }
+        if p.has("texture") or any(key == "texture" for key, _ in p.nested):
+            texture = textured_color(p, "texture", 1.0, emission=True)
+            if not isinstance(texture, dict):  # as Mitsuba refuses it
+                raise doc.error(element, "a spot's texture must be spatially varying (a bitmap or a checkerboard)")
+            light.update(texture=texture, up=_frame_up(doc, element, matrix))
+    elif p.type == "projector":
+        light = projector(doc, element, p, matrix)
     elif p.type == "directional":
         direction = p.vector("direction", matrix[:3, 2])
         light = {
@@ -42,6 +55,39 @@ def emitter(doc: Document, element: Element) -> dict | None:
         return None
     p.finish()
     return light
+
+
+def _frame_up(doc: Document, element: Element, matrix: np.ndarray) -> list[float]:
+    """The ``up`` of a light whose texture turns with its ``to_world``: the frame's y axis, when
+    the frame is a rotation (wrt's light frame is orthonormal and right-handed, ``lookat``'s)."""
+    basis = matrix[:3, :3]
+    if not np.allclose(basis.T @ basis, np.eye(3), rtol=0.0, atol=1e-6) or np.linalg.det(basis) < 0.0:
+        doc.warn(element, "to_world scales, shears or mirrors the light's texture: its frame's rotation is used")
+    return as_list(basis[:, 1])
+
+
+def projector(doc: Document, element: Element, p: Plugin, matrix: np.ndarray) -> dict:
+    """The ``projector`` table of Mitsuba's ``projector``: its ``irradiance`` (a texture or a
+    constant, required), ``scale``, and its field of view (``fov`` along ``fov_axis``, or
+    ``focal_length``) on a film of the texture's size (1 x 1 for a constant), made vertical."""
+    if not p.has("irradiance") and not any(key == "irradiance" for key, _ in p.nested):
+        raise doc.error(element, "a projector needs an irradiance (a texture or a constant)")
+    irradiance = textured_color(p, "irradiance", 1.0, emission=True)
+    size = {"width": 1, "height": 1}
+    if isinstance(irradiance, dict) and irradiance["texture"] == "bitmap":
+        image = oiio.ImageInput.open(os.path.join(os.path.dirname(doc.path) or ".", irradiance["file"]))
+        if image is not None:  # else the loader says why it cannot read the file
+            size = {"width": image.spec().width, "height": image.spec().height}
+            image.close()
+    return {
+        "type": "projector",
+        "position": as_list(matrix[:3, 3]),
+        "direction": as_list(matrix[:3, 2]),
+        "up": _frame_up(doc, element, matrix),
+        "fov": perspective_fov(doc, element, p, size),
+        "irradiance": irradiance,
+        "scale": p.number("scale", 1.0),
+    }
 
 
 def environment_map(doc: Document, p: Plugin, matrix: np.ndarray) -> dict:

@@ -18,12 +18,12 @@ FORMATS = ("variant", "uint8")
 """A bitmap's ``format`` values in Mitsuba 3.9: its texels stored as floats, or as 8-bit integers."""
 
 
-def textured_color(p: Plugin, name: str, default: float) -> list[float] | dict:
-    """Colour parameter ``name`` of ``p``: an RGB list (``Plugin.color``), or the texture table of
-    the ``<texture>`` given for it."""
+def textured_color(p: Plugin, name: str, default: float, emission: bool = False) -> list[float] | dict:
+    """Colour parameter ``name`` of ``p``: an RGB list (``Plugin.color``; ``emission`` as there), or
+    the texture table of the ``<texture>`` given for it."""
     nested = next((child for key, child in p.nested if key == name and child.tag == "texture"), None)
     if nested is None or name in p.params:
-        return p.color(name, default)
+        return p.color(name, default, emission=emission)
     p.used.add(name)
     p.used_nested.add(id(nested))
     return texture(p.doc, nested)
