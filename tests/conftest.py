@@ -76,9 +76,11 @@ DEVICES = [
 ]
 
 
-COMPILES_OWN_MODULE = re.compile(r"@wp\.kernel|specialize=(True|specialize)")
-"""What a test file has when its tests compile a Warp module that nothing ships: kernels of its
-own, or kernel variants (``specialize``) of its inline scenes."""
+ONE_WORKER = re.compile(r"@wp\.kernel|specialize=(True|specialize)|scope=\"module\"")
+"""What a test file has when its tests should share one xdist worker: they compile a Warp module
+that nothing ships (kernels of their own, or kernel variants, ``specialize``, of their inline
+scenes), or share a module-scoped fixture, which each worker would build again (the benchmark's
+quick run: 16 s and 14 s, twice)."""
 
 
 TEST_KERNEL_FLAGS = " ".join(
@@ -95,10 +97,11 @@ can afford. wrt's own modules keep their flags, and their shipped objects apply.
 
 @pytest.hookimpl(tryfirst=True)  # before pytest-xdist's, which reads the groups
 def pytest_collection_modifyitems(config, items):
-    """Under ``--dist loadgroup``, the tests of a file that compiles a module of its own run in one
-    worker: spread over two, each compiled the same module at the same time (a cold suite spent
-    13-17 s twice on each of test_shading_normals' variants), where one worker compiles it once
-    and the file's other tests load it. Tests already in a group keep theirs. Each test file's own
+    """Under ``--dist loadgroup``, the tests of a file that compiles a module of its own, or shares a
+    module-scoped fixture, run in one worker (``ONE_WORKER``): spread over two, each compiled the
+    same module at the same time (a cold suite spent 13-17 s twice on each of test_shading_normals'
+    variants), where one worker compiles it once and the file's other tests load it. Tests already
+    in a group keep theirs. Each test file's own
     kernels (its Warp module) compile with ``TEST_KERNEL_FLAGS``."""
     for name in {item.module.__name__ for item in items if getattr(item, "module", None) is not None}:
         wp.get_module(name).options["cpu_compiler_flags"] = TEST_KERNEL_FLAGS
@@ -108,7 +111,7 @@ def pytest_collection_modifyitems(config, items):
             continue
         path = item.path
         if path not in sources:
-            sources[path] = bool(COMPILES_OWN_MODULE.search(path.read_text()))
+            sources[path] = bool(ONE_WORKER.search(path.read_text()))
         if sources[path]:
             item.add_marker(pytest.mark.xdist_group(path.stem))
 
