@@ -202,6 +202,7 @@ CROSSCHECKS = {
         Crosscheck("anisotropic", 64, 48, 1024),
         Crosscheck("blend", 64, 48, 1024),
         Crosscheck("projector", 64, 48, 1024),
+        Crosscheck("bumpmap", 64, 48, 1024),
         Crosscheck("fog_area_light", 48, 36, 1024, folder="media"),
         Crosscheck("milk_in_glass", 48, 36, 1024, folder="media"),
         Crosscheck("camera_in_fog", 48, 36, 1024, folder="media"),

@@ -51,7 +51,9 @@ class SceneFeatures:
     instances: bool = True  # instances of groups: a two-level traversal
     smooth: bool = True  # smooth-shaded meshes: shading normals interpolated from vertex normals
     textures: bool = True  # textured material parameters: the hit's uv (wrt.kernels.textures)
-    normal_map: bool = True  # normal-mapped materials: the hit's tangent, a perturbed shading normal (wrt.kernels.hit)
+    normal_map: bool = (
+        True  # normal- or bump-mapped materials: the hit's frame, a tilted shading normal (wrt.kernels.hit)
+    )
     media: bool = True  # participating media: free-flight sampling, phase functions, medium changes (path)
     beckmann: bool = True  # Beckmann microfacets on a rough material (else GGX only: wrt.kernels.microfacet)
     anisotropic: bool = True  # an anisotropic rough material: the hit's tangent frame, two alphas (wrt.kernels.hit)

@@ -9,7 +9,7 @@ rays leaving it (``wrt.kernels.spawn``).
 
 Two normals, as in Mitsuba 3 and pbrt: the shading normal (``shading_normal``: interpolated from
 the vertex normals on smooth-shaded meshes, the geometric normal everywhere else; then tilted by
-the material's normal map, if it has one: ``perturbed_normal``) is the BSDF's:
+the material's normal map, ``perturbed_normal``, or its bump map, ``bumped_normal``) is the BSDF's:
 its local frame, its cosines and which side of a one-sided material the ray is on (``front``),
 and the side emission leaves from. The geometric normal decides where rays leaving the surface
 start (``spawn_origin``) and whether the ray enters or leaves a dielectric's medium
@@ -25,13 +25,13 @@ import warp as wp
 
 from .materials import BSDF_ANISOTROPIC, MaterialData
 from .sample_warps import frame
-from .textures import NORMAL_MAP, texture_rgb
+from .textures import BUMP_MAP, NORMAL_MAP, texture_float_grad, texture_rgb
 from .traverse import (
     GeometryData,
     RayHit,
     hit_point,
     hit_shape,
-    make_surface_dpdu,
+    make_surface_derivatives,
     make_surface_point,
     make_surface_uv,
     prim_shape,
@@ -58,7 +58,7 @@ class Hit:
 @wp.func
 def shading_tangent(n: wp.vec3, dpdu: wp.vec3) -> wp.vec3:
     """The unit tangent ``s`` of the shading frame of normal ``n``: the surface's ``dpdu``
-    (``surface_dpdu``) made orthogonal to ``n`` (Gram-Schmidt) and normalised, Mitsuba 3's
+    (``surface_derivatives``) made orthogonal to ``n`` (Gram-Schmidt) and normalised, Mitsuba 3's
     ``sh_frame.s``; where ``dpdu`` is zero or along ``n``, ``frame(n)``'s (Mitsuba's
     ``coordinate_system``)."""
     s = dpdu - wp.dot(n, dpdu) * n
@@ -84,10 +84,27 @@ def perturbed_normal(n: wp.vec3, dpdu: wp.vec3, rgb: wp.vec3) -> wp.vec3:
 
 
 @wp.func
+def bumped_normal(ns: wp.vec3, n: wp.vec3, dpdu: wp.vec3, dpdv: wp.vec3, grad: wp.vec2) -> wp.vec3:
+    """The unit shading normal ``ns`` (world space) of a surface with derivatives ``dpdu``, ``dpdv``
+    displaced along ``ns`` by a height field of gradient ``grad`` (d/du, d/dv, times the bump
+    map's scale; ``texture_float_grad``), as Mitsuba 3's ``bumpmap``: each derivative's component
+    along ``ns`` replaced by the height's, their cross product normalised and turned to the side
+    of the geometric normal ``n``."""
+    du = dpdu + (grad[0] - wp.dot(ns, dpdu)) * ns
+    dv = dpdv + (grad[1] - wp.dot(ns, dpdv)) * ns
+    m = wp.cross(du, dv)
+    if not (wp.length_sq(m) > 0.0):
+        return ns
+    m = wp.normalize(m)
+    return wp.where(wp.dot(n, m) < 0.0, -m, m)
+
+
+@wp.func
 def normal_map_shadowing(hit: Hit, wi: wp.vec3) -> float:
-    """The factor a normal-mapped BSDF's value and sample weight take for direction ``wi`` (Mitsuba
-    3's ``normalmap``, its shadowing function after Estevez et al., "A Microfacet-Based Shadowing
-    Function to Solve the Bump Terminator Problem", Ray Tracing Gems, 2019): 0 where ``wi`` lies on
+    """The factor a normal- or bump-mapped BSDF's value and sample weight take for direction ``wi``
+    (Mitsuba 3's ``normalmap`` and ``bumpmap``, their shadowing function after Estevez et al., "A
+    Microfacet-Based Shadowing Function to Solve the Bump Terminator Problem", Ray Tracing Gems,
+    2019): 0 where ``wi`` lies on
     different sides of the mapped and the unmapped shading normal, else the Smith G1 of ``wi``
     against the unmapped normal for a GGX alpha^2 of ``min(tan^2(tilt) / 8, 1)``, ``tilt`` the
     angle between the two normals; exactly 1 where the material has no normal map."""
@@ -109,7 +126,7 @@ def make_surface_hit(
     """``surface_hit``; without ``smooth`` (no smooth-shaded mesh in the scene) the shading normal
     is the geometric one, and its interpolation is compiled out; without ``textures`` so is the
     texture coordinates' computation (``uv`` stays (0, 0)); without ``normal_map`` (no material with
-    a normal map; a scene with one has ``textures``) so are the tangent and the normal map's lookup
+    a normal or bump map; a scene with one has ``textures``) so are the tangent and the map's lookup
     (raycast shades with the unperturbed normal); without ``anisotropic`` (no anisotropic
     material) so is the shading frame's tangent (``Hit.tangent`` stays zero, as it does at an
     isotropic material's hits); without ``instances`` no hit goes
@@ -118,7 +135,7 @@ def make_surface_hit(
     to a quarter of its time on the CPU, even when not taken)."""
     surface_point = make_surface_point(quadrics)
     surface_uv = make_surface_uv(quadrics)
-    surface_dpdu = make_surface_dpdu(quadrics)
+    surface_derivatives = make_surface_derivatives(quadrics)
 
     @wp.func
     def surface_hit(
@@ -154,9 +171,14 @@ def make_surface_hit(
         ns0 = ns
         if wp.static(normal_map):
             t_map = materials.textures.slot[hit.material, NORMAL_MAP]
-            if t_map >= 0:
-                rgb = texture_rgb(materials.textures, t_map, hit.uv)
-                ns = perturbed_normal(ns, surface_dpdu(geometry, prim, inst, p, time), rgb)
+            t_bump = materials.textures.slot[hit.material, BUMP_MAP]
+            if t_map >= 0 or t_bump >= 0:
+                dpdu, dpdv = surface_derivatives(geometry, prim, inst, p, time)
+                if t_map >= 0:
+                    ns = perturbed_normal(ns, dpdu, texture_rgb(materials.textures, t_map, hit.uv))
+                else:
+                    grad = materials.bump_scale[hit.material] * texture_float_grad(materials.textures, t_bump, hit.uv)
+                    ns = bumped_normal(ns, n, dpdu, dpdv, grad)
                 if wp.dot(d, ns) * wp.dot(d, ns0) < 0.0:  # seen from below the mapped surface only
                     ns = 2.0 * wp.dot(ns, ns0) * ns0 - ns  # mirrored about the unmapped normal, as Mitsuba 3's
         hit.front = wp.dot(d, ns) < 0.0
@@ -167,7 +189,8 @@ def make_surface_hit(
         hit.tangent = wp.vec3(0.0)  # perpendicular to n_facing where set: the frame (s, n_facing x s, n_facing)
         if wp.static(anisotropic):
             if (materials.flags[hit.material] & BSDF_ANISOTROPIC) != 0:  # it, or a material it masks or blends
-                hit.tangent = shading_tangent(ns, surface_dpdu(geometry, prim, inst, p, time))
+                dpdu, _dpdv = surface_derivatives(geometry, prim, inst, p, time)
+                hit.tangent = shading_tangent(ns, dpdu)
         return hit
 
     return surface_hit

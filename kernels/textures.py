@@ -43,6 +43,7 @@ NORMAL_MAP = wp.constant(5)
 TRANSMITTANCE = wp.constant(6)
 ROUGHNESS_V = wp.constant(7)
 WEIGHT = wp.constant(8)
+BUMP_MAP = wp.constant(9)
 SLOTS = (
     "albedo",
     "specular",
@@ -53,13 +54,15 @@ SLOTS = (
     "transmittance",
     "roughness_v",
     "weight",
+    "bump_map",
 )
 """The material parameters a texture can give, in slot order (``slot[m, s]``); ``normal_map`` is
 a raw bitmap of tangent-space normals (``wrt.kernels.hit.perturbed_normal``), not a BSDF parameter;
 ``transmittance`` a thin dielectric's only (a dielectric's is an absorption per unit length, a
 property of its volume; whitted's filtered shadow rays, which compute no uv, take its mean);
 ``roughness_v`` an anisotropic material's alpha along the bitangent (``roughness`` the one along the
-tangent); ``weight`` a blend's (its second material's share)."""
+tangent); ``weight`` a blend's (its second material's share); ``bump_map`` a height field, whose
+gradient (``texture_float_grad``) tilts the shading normal (``wrt.kernels.hit.bumped_normal``)."""
 
 
 @wp.struct
@@ -119,11 +122,20 @@ def bitmap_rgb(textures: TextureData, t: wp.int32, uv: wp.vec2) -> wp.vec3:
     return (1.0 - fy) * top + fy * bottom
 
 
+LUMINANCE = wp.constant(wp.vec3(0.212671, 0.715160, 0.072169))  # Mitsuba 3's (Rec. 709) weights
+
+
+@wp.func
+def texture_st(textures: TextureData, t: wp.int32, uv: wp.vec2) -> wp.vec2:
+    """Surface coordinates ``uv`` through texture ``t``'s ``to_uv``."""
+    m = textures.to_uv[t]
+    return wp.vec2(m[0, 0] * uv[0] + m[0, 1] * uv[1] + m[0, 2], m[1, 0] * uv[0] + m[1, 1] * uv[1] + m[1, 2])
+
+
 @wp.func
 def texture_rgb(textures: TextureData, t: wp.int32, uv: wp.vec2) -> wp.vec3:
     """Texture ``t`` at surface coordinates ``uv``: linear RGB."""
-    m = textures.to_uv[t]
-    st = wp.vec2(m[0, 0] * uv[0] + m[0, 1] * uv[1] + m[0, 2], m[1, 0] * uv[0] + m[1, 1] * uv[1] + m[1, 2])
+    st = texture_st(textures, t, uv)
     if textures.kind[t] == CHECKERBOARD:
         above_u = st[0] - wp.floor(st[0]) > 0.5
         above_v = st[1] - wp.floor(st[1]) > 0.5
@@ -138,8 +150,38 @@ def texture_float(textures: TextureData, t: wp.int32, uv: wp.vec2) -> float:
     checkerboard also swaps its two colours, against its own ``eval``: not followed here)."""
     weights = wp.vec3(1.0 / 3.0)
     if textures.kind[t] == BITMAP:
-        weights = wp.vec3(0.212671, 0.715160, 0.072169)
+        weights = LUMINANCE
     return wp.dot(texture_rgb(textures, t, uv), weights)
+
+
+@wp.func
+def texture_float_grad(textures: TextureData, t: wp.int32, uv: wp.vec2) -> wp.vec2:
+    """The gradient (d/du, d/dv) of ``texture_float`` of texture ``t`` at ``uv``, as Mitsuba 3's
+    bitmap ``eval_1_grad``: a bilinear bitmap's, from its four texels' luminances, per texel
+    spacing times the bitmap's size, taken back through ``to_uv``'s linear part by its transpose
+    before that scaling (Mitsuba's order, the chain rule where ``to_uv`` neither rotates nor
+    shears); zero for a nearest-filtered bitmap and for other kinds."""
+    if textures.kind[t] != BITMAP or textures.filter[t] == NEAREST:
+        return wp.vec2(0.0)
+    st = texture_st(textures, t, uv)
+    w = float(textures.width[t])
+    h = float(textures.height[t])
+    x = st[0] * w - 0.5
+    y = st[1] * h - 0.5
+    x0 = wp.floor(x)
+    y0 = wp.floor(y)
+    fx = x - x0
+    fy = y - y0
+    i = int(x0)
+    j = int(y0)
+    f00 = wp.dot(texel(textures, t, i, j), LUMINANCE)
+    f10 = wp.dot(texel(textures, t, i + 1, j), LUMINANCE)
+    f01 = wp.dot(texel(textures, t, i, j + 1), LUMINANCE)
+    f11 = wp.dot(texel(textures, t, i + 1, j + 1), LUMINANCE)
+    dfx = (1.0 - fy) * (f10 - f00) + fy * (f11 - f01)
+    dfy = (1.0 - fx) * (f01 - f00) + fx * (f11 - f10)
+    m = textures.to_uv[t]
+    return wp.vec2(w * (m[0, 0] * dfx + m[1, 0] * dfy), h * (m[0, 1] * dfx + m[1, 1] * dfy))
 
 
 @wp.func

@@ -71,6 +71,7 @@ class GeometryData:
     sphere_center: wp.array(dtype=wp.vec3)
     sphere_radius: wp.array(dtype=float)
     sphere_shape: wp.array(dtype=wp.int32)
+    sphere_to_object: wp.array(dtype=wp.mat33)  # world offsets from the centre to the sphere's object axes
     tri_verts: wp.array(dtype=wp.vec3)  # 3 per triangle
     tri_shape: wp.array(dtype=wp.int32)
     tri_normals: wp.array(dtype=wp.vec3)  # parallel to tri_verts: unit shading normals of smooth triangles, zero
@@ -749,7 +750,7 @@ def make_surface_uv(quadrics: bool):
         - triangles: the corners' ``tri_uvs`` interpolated (a mesh without texture coordinates, or a
           ``triangle`` shape: ``(b1, b2)``, the barycentric coordinates of the second and third corners);
         - spheres: ``(phi / 2 pi, theta / pi)``, phi the azimuth around +z from +x in [0, 2 pi), theta
-          the angle from +z (the scene's axes: a sphere has no frame of its own);
+          the angle from +z, of the point in the sphere's object axes (``sphere_to_object``);
         - disks: ``(r, phi / 2 pi)`` of the unit disk's point (object space, ``wrt.scene.Disk``);
         - cylinders: ``(phi / 2 pi, z)`` of the unit tube's point;
         - polygons and planes: the affine maps ``poly_uv`` and ``plane_uv`` (``wrt.geometry``).
@@ -765,7 +766,7 @@ def make_surface_uv(quadrics: bool):
                 + b2 * geometry.tri_uvs[3 * i + 2]
             )
         if kind == SPHERE:
-            local = wp.normalize(q - geometry.sphere_center[i])
+            local = wp.normalize(geometry.sphere_to_object[i] * (q - geometry.sphere_center[i]))
             return wp.vec2(turns(local[1], local[0]), unit_angle_z(local) / wp.pi)
         if wp.static(quadrics):
             if kind == DISK or kind == CYLINDER:
@@ -788,24 +789,28 @@ surface_uv = make_surface_uv(True)
 
 
 @functools.cache
-def make_surface_dpdu(quadrics: bool):
-    """``surface_dpdu``, with the disk and cylinder case compiled in only with ``quadrics``."""
+def make_surface_derivatives(quadrics: bool):
+    """``surface_derivatives``, with the disk and cylinder case compiled in only with ``quadrics``."""
 
     @wp.func
-    def surface_dpdu(geometry: GeometryData, prim: wp.int32, inst: wp.int32, p: wp.vec3, time: float) -> wp.vec3:
-        """The derivative dp/du (world space, scene units per unit u) of the surface point along the
-        first texture coordinate of ``surface_uv``, at the hit point ``p`` of ``(prim, inst)`` from
-        ``closest_hit``: Mitsuba 3's ``si.dp_du`` on the same shapes (the tangent of a normal map's
-        frame). Triangles: solved per triangle from its corners and their ``tri_uvs`` (barycentric
-        for a mesh without texture coordinates: dp/du its first edge, as Mitsuba 3.9's); spheres
-        ``2 pi (-y, x, 0)`` of the point relative to the centre; disks the unit radial direction;
-        cylinders ``2 pi (-y, x, 0)`` of the unit tube's point; polygons and planes the in-plane
-        vector their affine uv map takes to (1, 0). Zero where it is undefined (a triangle whose uvs
-        are collinear, a sphere's poles, a disk's centre)."""
+    def surface_derivatives(geometry: GeometryData, prim: wp.int32, inst: wp.int32, p: wp.vec3, time: float):
+        """``(dpdu, dpdv)``: the derivatives (world space, scene units per unit u and v) of the
+        surface point along the texture coordinates of ``surface_uv``, at the hit point ``p`` of
+        ``(prim, inst)`` from ``closest_hit``: Mitsuba 3's ``si.dp_du`` and ``si.dp_dv`` on the same
+        shapes (a normal map's tangent, a bump map's surface). Triangles: solved per triangle from
+        its corners and their ``tri_uvs`` (barycentric for a mesh without texture coordinates: its
+        first and second edges, as Mitsuba 3.9's); spheres ``2 pi (-y, x, 0)`` and ``pi (z x / r,
+        z y / r, -r)`` of the point relative to the centre in the sphere's object axes, ``r`` its
+        distance from their z axis, taken back to world axes;
+        disks the unit radial direction and ``2 pi (-y, x, 0)`` of the unit disk's point; cylinders
+        ``2 pi (-y, x, 0)`` of the unit tube's point and the axis; polygons and planes the
+        in-plane vectors their affine uv map takes to (1, 0) and (0, 1). Zero where undefined (a
+        triangle whose uvs are collinear, a sphere's poles, a disk's centre)."""
         q = object_point(geometry, prim, inst, p, time)
         kind = prim & KIND_MASK
         i = prim >> KIND_BITS
         dpdu = wp.vec3(0.0)
+        dpdv = wp.vec3(0.0)
         if kind == TRIANGLE:
             a = geometry.tri_verts[3 * i]
             e1 = geometry.tri_verts[3 * i + 1] - a
@@ -816,18 +821,26 @@ def make_surface_dpdu(quadrics: bool):
             det = d1[0] * d2[1] - d1[1] * d2[0]
             if det != 0.0:
                 dpdu = (d2[1] * e1 - d1[1] * e2) / det
+                dpdv = (d1[0] * e2 - d2[0] * e1) / det
         elif kind == SPHERE:
-            r = q - geometry.sphere_center[i]
-            dpdu = 2.0 * wp.pi * wp.vec3(-r[1], r[0], 0.0)
+            to_object = geometry.sphere_to_object[i]
+            r = to_object * (q - geometry.sphere_center[i])
+            dpdu = wp.transpose(to_object) * (2.0 * wp.pi * wp.vec3(-r[1], r[0], 0.0))
+            axial = wp.sqrt(r[0] * r[0] + r[1] * r[1])
+            if axial > 0.0:
+                dpdv = wp.transpose(to_object) * (wp.pi * wp.vec3(r[2] * r[0] / axial, r[2] * r[1] / axial, -axial))
         elif wp.static(quadrics) and (kind == DISK or kind == CYLINDER):
             local = wp.transform_point(geometry.quadric_to_object[i], q)
             tangent = 2.0 * wp.pi * wp.vec3(-local[1], local[0], 0.0)
+            along = wp.vec3(0.0, 0.0, 1.0)
             if kind == DISK:
                 radial = wp.sqrt(local[0] * local[0] + local[1] * local[1])
+                along = tangent
                 tangent = wp.vec3(0.0)
                 if radial > 0.0:
                     tangent = wp.vec3(local[0] / radial, local[1] / radial, 0.0)
             dpdu = wp.transform_vector(geometry.quadric_to_world[i], tangent)
+            dpdv = wp.transform_vector(geometry.quadric_to_world[i], along)
         else:
             m = mat24()
             n = wp.vec3(0.0)
@@ -837,18 +850,25 @@ def make_surface_dpdu(quadrics: bool):
             else:
                 m = geometry.plane_uv[i]
                 n = geometry.plane_normal[i]
-            across_v = wp.cross(wp.vec3(m[1, 0], m[1, 1], m[1, 2]), n)  # in the plane, v constant along it
-            du = wp.dot(wp.vec3(m[0, 0], m[0, 1], m[0, 2]), across_v)
+            grad_u = wp.vec3(m[0, 0], m[0, 1], m[0, 2])
+            grad_v = wp.vec3(m[1, 0], m[1, 1], m[1, 2])
+            across_v = wp.cross(grad_v, n)  # in the plane, v constant along it
+            du = wp.dot(grad_u, across_v)
             if du != 0.0:
                 dpdu = across_v / du
+            across_u = wp.cross(grad_u, n)  # in the plane, u constant along it
+            dv = wp.dot(grad_v, across_u)
+            if dv != 0.0:
+                dpdv = across_u / dv
         if inst >= 0:
             dpdu = wp.transform_vector(geometry.inst_to_world[inst], dpdu)
-        return dpdu
+            dpdv = wp.transform_vector(geometry.inst_to_world[inst], dpdv)
+        return dpdu, dpdv
 
-    return surface_dpdu
+    return surface_derivatives
 
 
-surface_dpdu = make_surface_dpdu(True)
+surface_derivatives = make_surface_derivatives(True)
 
 
 def _trace_kernels(trace: Traversal, module: str | None):

@@ -23,6 +23,7 @@ from wrt.kernels.traverse import CYLINDER, DISK, INSTANCE, KIND_BITS, KIND_MASK,
 
 from .bvh import DeviceBvh, build_bvh
 from .scene import (
+    IDENTITY3,
     AreaLight,
     Cylinder,
     Disk,
@@ -48,6 +49,7 @@ class Primitives:
     sphere_center: np.ndarray  # (S, 3)
     sphere_radius: np.ndarray  # (S,)
     sphere_shape: np.ndarray
+    sphere_to_object: np.ndarray  # (S, 3, 3): world offsets to the sphere's object axes (Sphere.to_object)
     tri_verts: np.ndarray  # (T, 3, 3) float32: triangle, vertex, xyz
     tri_shape: np.ndarray
     tri_normals: np.ndarray  # (T, 3, 3) float32 unit shading normals at the corners of smooth triangles, zero
@@ -198,7 +200,7 @@ def flatten(scene: Scene) -> Primitives:
     tri_blocks, tri_shape_blocks, normal_blocks, uv_blocks = [], [], [], []
     for i, shape in enumerate(scene.shapes):
         if isinstance(shape, Sphere):
-            spheres.append((shape.center, shape.radius, i))
+            spheres.append((shape.center, shape.radius, i, shape.to_object))
         elif isinstance(shape, Plane):
             planes.append((shape.point, shape.normal, i))
         elif isinstance(shape, Triangle):
@@ -221,7 +223,7 @@ def flatten(scene: Scene) -> Primitives:
     for k, light in enumerate(scene.lights):
         surface = len(scene.shapes) + k
         if isinstance(light, SphereLight):
-            spheres.append((light.center, light.radius, surface))
+            spheres.append((light.center, light.radius, surface, IDENTITY3))
         elif isinstance(light, AreaLight):
             normal = np.cross(np.asarray(light.edge_u, dtype=np.float64), light.edge_v)
             polys.append((light.corners(), tuple(normal / np.linalg.norm(normal)), surface, None))
@@ -237,9 +239,10 @@ def flatten(scene: Scene) -> Primitives:
     barycentric = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], dtype=np.float32)  # uv = (b1, b2)
     uv_blocks.insert(0, None)  # the [[shape]] triangles'
     return Primitives(
-        sphere_center=np.asarray([c for c, _, _ in spheres], dtype=np.float64).reshape(-1, 3),
-        sphere_radius=np.asarray([r for _, r, _ in spheres], dtype=np.float64),
-        sphere_shape=np.asarray([s for _, _, s in spheres], dtype=np.int32),
+        sphere_center=np.asarray([c for c, _, _, _ in spheres], dtype=np.float64).reshape(-1, 3),
+        sphere_radius=np.asarray([r for _, r, _, _ in spheres], dtype=np.float64),
+        sphere_shape=np.asarray([s for _, _, s, _ in spheres], dtype=np.int32),
+        sphere_to_object=np.asarray([m for _, _, _, m in spheres], dtype=np.float64).reshape(-1, 3, 3),
         tri_verts=_joined(tri_blocks),
         tri_shape=_joined(tri_shape_blocks),
         tri_normals=tri_normals,
@@ -377,6 +380,7 @@ def _build_tree(p: Primitives, shutter: tuple[float, float], device) -> None:
         s, t, g, q, i = leaf_order
     if counts[0]:
         p.sphere_center, p.sphere_radius, p.sphere_shape = p.sphere_center[s], p.sphere_radius[s], p.sphere_shape[s]
+        p.sphere_to_object = p.sphere_to_object[s]
     if counts[1]:
         p.tri_verts, p.tri_shape = p.tri_verts[t], p.tri_shape[t]
         if len(p.tri_normals):
@@ -457,6 +461,7 @@ def _append_groups(p: Primitives, groups: list[Primitives], device) -> None:
         p.sphere_center = np.concatenate([p.sphere_center, g.sphere_center])
         p.sphere_radius = np.concatenate([p.sphere_radius, g.sphere_radius])
         p.sphere_shape = np.concatenate([p.sphere_shape, g.sphere_shape])
+        p.sphere_to_object = np.concatenate([p.sphere_to_object, g.sphere_to_object])
         p.tri_verts = _joined([p.tri_verts, g.tri_verts])
         p.tri_normals = _joined_normals(p, g)
         p.tri_uvs = _joined([p.tri_uvs, g.tri_uvs])

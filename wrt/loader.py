@@ -357,6 +357,18 @@ def _texture(t: _Table, key: str, scene_dir: str) -> tuple:
     return texture, float(mean) if number else tuple(float(c) for c in mean)
 
 
+def _bump_map(t: _Table, scene_dir: str) -> Bitmap:
+    """A material's ``bump_map``: a bitmap texture table (decoded as any bitmap unless ``raw``, as
+    Mitsuba's); its luminance is the height field (``wrt.kernels.textures.texture_float_grad``)."""
+    t.used.add("bump_map")
+    data = t.data["bump_map"]
+    if not isinstance(data, Mapping) or data.get("texture") != "bitmap":
+        raise t.error(
+            "bump_map", 'must be a texture table with texture = "bitmap" (a height field has a gradient)', data
+        )
+    return read_texture(_Table(t.file, f"{t.name}.bump_map", data), scene_dir)
+
+
 def _normal_map(t: _Table, scene_dir: str) -> Bitmap | Constant:
     """A material's ``normal_map``: a bitmap texture table whose file is read raw whatever its format
     (no sRGB decoding: texel (r, g, b) is the tangent-space normal 2 (r, g, b) - 1, normalised;
@@ -418,6 +430,13 @@ def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
             )
     if "normal_map" in t.data:
         textures.append(("normal_map", _normal_map(t, scene_dir)))
+    if "bump_map" in t.data:
+        if "normal_map" in t.data:
+            raise t.error("bump_map", "is given with a normal_map: a material's shading normal comes from one of them")
+        textures.append(("bump_map", _bump_map(t, scene_dir)))
+        values["bump_scale"] = t.number("bump_scale", Material.bump_scale)
+    elif "bump_scale" in t.data:
+        raise t.error("bump_scale", "scales a bump_map: it applies to a material with one only", t.data["bump_scale"])
     if "two_sided" in t.data and "two_sided" not in values:
         raise t.error(
             "two_sided", f"does not apply to a {kind}: it reflects and refracts on both sides", t.data["two_sided"]
@@ -703,7 +722,7 @@ def _shape(
     else:
         material = material_index[name]
     if kind == "sphere":
-        shape = Sphere(center=t.vec3("center"), radius=t.number("radius", lo=0.0, lo_open=True), material=material)
+        shape = _sphere(t, material)
     elif kind == "plane":
         normal = np.asarray(t.vec3("normal", nonzero=True))
         shape = Plane(point=t.vec3("point"), normal=tuple(normal / np.linalg.norm(normal)), material=material)
@@ -731,6 +750,34 @@ def _shape(
     velocity = t.vec3("velocity", STILL) if group_index is not None else STILL
     t.finish()
     return (dataclasses.replace(shape, velocity=velocity) if velocity != STILL else shape), boundary
+
+
+def _sphere(t: _Table, material: int) -> Sphere:
+    """A sphere: ``center``, ``radius``, and an optional ``transform`` that may rotate, mirror, scale
+    uniformly and translate it (a sphere stays a sphere): the centre and radius follow it, and its
+    rotation turns the sphere's object axes (``Sphere.to_object``), its texture with them."""
+    center, radius = t.vec3("center"), t.number("radius", lo=0.0, lo_open=True)
+    if "transform" not in t.data:
+        return Sphere(center=center, radius=radius, material=material)
+    matrix = _transform(t)
+    linear = matrix[:3, :3]
+    scale = abs(np.linalg.det(linear)) ** (1.0 / 3.0)
+    rotation = linear / scale
+    if not np.allclose(rotation.T @ rotation, np.eye(3), rtol=0.0, atol=1e-9):
+        raise t.error(
+            "transform", "must rotate, scale uniformly and translate (a sphere stays a sphere)", t.data["transform"]
+        )
+    placed = matrix[:3, :3] @ np.asarray(center) + matrix[:3, 3]
+    if not (np.all(np.abs(placed) <= MAX_MAGNITUDE) and 0.0 < radius * scale <= MAX_MAGNITUDE):
+        raise t.error(
+            "transform",
+            f"places the sphere beyond float32: its centre and radius {BEYOND_FLOAT32}",
+            t.data["transform"],
+        )
+    to_object = tuple(tuple(float(x) for x in row) for row in rotation.T)
+    return Sphere(
+        center=tuple(float(x) for x in placed), radius=float(radius * scale), material=material, to_object=to_object
+    )
 
 
 def _polygon_uvs(t: _Table, count: int) -> tuple | None:
@@ -989,7 +1036,7 @@ not be, and the rule a refusal states."""
 
 def _check_nested(file: str, i: int, material: Material, by_name: Mapping[str, Material]) -> None:
     """Refuse a mask's or a blend's material (``material[i]``) that the file does not define, is of
-    a type it may not be (``NESTED_RULES``), or has a normal map (the kernels read the hit's
+    a type it may not be (``NESTED_RULES``), or has a normal or bump map (the kernels read the hit's
     material's, the mask's or the blend's own, so it would be silently ignored)."""
     for name in material.nested:
         key, forbidden, rule = NESTED_RULES[material.type]
@@ -997,14 +1044,14 @@ def _check_nested(file: str, i: int, material: Material, by_name: Mapping[str, M
         if nested is None or nested.type in forbidden:
             why = "names no material" if nested is None else f"names a {nested.type}"
             raise SceneError(file, f"material[{i}]", key, f"{why}: {rule}", name)
-        if any(slot == "normal_map" for slot, _ in nested.textures):
-            kind = material.type
+        mapped = [slot for slot, _ in nested.textures if slot in ("normal_map", "bump_map")]
+        if mapped:
+            kind, what = material.type, mapped[0].replace("_", " ")
             raise SceneError(
                 file,
                 f"material[{i}]",
                 key,
-                f"names a material with a normal map: a {kind}'s shading frame is its own (give the {kind} the "
-                "normal map)",
+                f"names a material with a {what}: a {kind}'s shading frame is its own (give the {kind} the {what})",
                 name,
             )
 

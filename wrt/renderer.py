@@ -107,7 +107,7 @@ def scene_features(scene: Scene) -> Features:
         instances=Instance in shapes,
         smooth=any(isinstance(shape, Mesh) and shape.normals is not None for shape in (*scene.shapes, *members)),
         textures=any(m.textures for m in used),
-        normal_map=any(name == "normal_map" for m in used for name, _ in m.textures),
+        normal_map=any(name in ("normal_map", "bump_map") for m in used for name, _ in m.textures),
         media=bool(scene.media),
         beckmann=any(m.distribution == "beckmann" for m in used),
         anisotropic=any(m.anisotropic for m in used),

@@ -152,6 +152,7 @@ class Material:
     material: str = ""  # mask: the name of the material it masks
     materials: tuple[str, ...] = ()  # blend: the names of its two materials
     weight: float = 0.5  # blend: the share of its second material
+    bump_scale: float = 1.0  # bump-mapped: the height field's scale (Mitsuba's bumpmap scale)
     textures: tuple = ()  # (parameter, wrt.textures texture) pairs; the parameter's own value is its mean
 
     @property
@@ -217,12 +218,20 @@ STILL = (0.0, 0.0, 0.0)
 (scene units per unit time)."""
 
 
+IDENTITY3 = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+
+
 @dataclass(frozen=True)
 class Sphere:
+    """``to_object``: the rows of the orthogonal matrix taking world offsets from ``center`` to the
+    sphere's object axes, in which its texture coordinates and dp/du, dp/dv are measured
+    (Mitsuba 3's sphere frame: a ``transform`` that rotates the sphere turns its texture)."""
+
     center: tuple[float, float, float]
     radius: float
     material: int
     velocity: tuple[float, float, float] = STILL
+    to_object: tuple = IDENTITY3
 
 
 @dataclass(frozen=True)

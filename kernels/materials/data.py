@@ -43,6 +43,7 @@ class MaterialData:
     emission: wp.array(dtype=wp.vec3)
     two_sided: wp.array(dtype=wp.int32)  # 1: both sides reflect; 0: the back side reflects nothing
     textures: TextureData  # the textures of textured parameters (wrt.kernels.textures)
+    bump_scale: wp.array(dtype=float)  # bump-mapped: the height field's scale (Mitsuba's bumpmap scale)
     inner: wp.array(dtype=wp.int32)  # mask: the index of the material it masks (-1 for other types)
     opacity: wp.array(dtype=float)  # mask: the probability of its inner material (textured: slot OPACITY)
     plastic: PlasticData  # the plastics' own table (wrt.kernels.materials.plastic)

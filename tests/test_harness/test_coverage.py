@@ -92,7 +92,8 @@ def test_the_scene_model_names_its_kinds_as_the_tables_do():
     """What the coverage reads off a parsed scene (a shape's class, a light's type, a texture's
     class) is spelled as the tables spell the kinds, so no kind is counted under another name."""
     assert sorted(cov.kind_name(c) for c in typing.get_args(model.Shape)) == sorted(loader.SHAPE_TYPES)
-    lights = [model.PointLight, model.DirectionalLight, model.SpotLight, model.AreaLight, model.SphereLight]
+    lights = [model.PointLight, model.DirectionalLight, model.SpotLight, model.ProjectorLight, model.AreaLight]
+    lights += [model.SphereLight]
     types = [f.default for c in (*lights, model.EnvironmentLight) for f in dataclasses.fields(c) if f.name == "type"]
     assert sorted(types) == sorted(loader.LIGHT_TYPES)
     assert sorted(cov.kind_name(c) for c in typing.get_args(textures.Texture)) == sorted(textures.KINDS)

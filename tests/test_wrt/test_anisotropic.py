@@ -123,17 +123,18 @@ def test_mitsubas_incomplete_alphas_are_refused(tmp_path, params, message):
         convert(tmp_path, f'<shape type="sphere"><bsdf type="roughconductor">{params}</bsdf></shape>')
 
 
-def test_an_anisotropic_rotated_sphere_is_approximated_not_converted(tmp_path):
-    """wrt's spheres have no frame of their own: their tangent follows the scene's z axis, so a
-    sphere that Mitsuba turns has another tangent field; refused by default, warned with
-    ``--approximate``."""
+def test_an_anisotropic_rotated_sphere_converts_exactly_with_its_frame(tmp_path):
+    """A sphere that Mitsuba's to_world turns keeps its frame (a ``transform`` turning its object
+    axes, which its tangent field follows: test_normal_map compares it with Mitsuba's); before,
+    wrt's spheres had none and this was only an approximation."""
     body = """<shape type="sphere"><transform name="to_world"><rotate x="1" angle="40"/></transform>
         <bsdf type="roughconductor"><float name="alpha_u" value="0.2"/><float name="alpha_v" value="0.05"/></bsdf>
         </shape>"""
-    with pytest.raises(WrtError, match="anisotropic sphere's to_world rotates it"):
-        convert(tmp_path, body, approximate=False)
-    _, warnings = convert(tmp_path, body, approximate=True)
-    assert any("tangents follow the scene axes" in w for w in warnings)
+    doc, warnings = convert(tmp_path, body, approximate=False)
+    (sphere,) = doc["shape"]
+    assert not warnings and np.allclose(
+        np.reshape(sphere["transform"]["matrix"], (4, 4))[1:3, 1:3], [[0.766, -0.643], [0.643, 0.766]], atol=1e-3
+    )
 
 
 def test_mitsubas_identity_normal_map_over_an_anisotropic_conductor_converts_exactly(tmp_path):

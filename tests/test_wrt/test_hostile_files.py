@@ -405,15 +405,15 @@ def test_deeply_nested_xml_is_one_line(tmp_path, capsys, tag):
 
 
 def test_nesting_a_real_scene_needs_converts(tmp_path):
-    """Twosided around bumpmap around diffuse inside a shape: well within the limit (approximated:
-    the bump map is left out)."""
+    """Twosided around bumpmap around diffuse inside a shape: well within the limit."""
+    heights = Path(__file__).resolve().parents[2] / "examples" / "textures" / "bump_map.png"
     path = xml_scene(
         tmp_path,
         '<shape type="sphere"><bsdf type="twosided"><bsdf type="bumpmap"><bsdf type="diffuse"/>'
-        '<texture type="bitmap"/></bsdf></bsdf></shape>',
+        f'<texture type="bitmap"><string name="filename" value="{heights}"/></texture></bsdf></bsdf></shape>',
     )
-    doc, _ = load_mitsuba(path, approximate=True)
-    assert doc["material"][0]["type"] == "diffuse"
+    doc, _ = load_mitsuba(path)
+    assert doc["material"][0]["type"] == "diffuse" and "bump_map" in doc["material"][0]
 
 
 # --- 4. entities -----------------------------------------------------------------------------------

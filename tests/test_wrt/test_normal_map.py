@@ -1,7 +1,7 @@
-"""Normal maps: the hit's tangent frame (``wrt.kernels.traverse.surface_dpdu``) against Mitsuba 3's
-``si.dp_du`` and ``sh_frame``, the perturbed normal (``wrt.kernels.hit.perturbed_normal``) against a
-float64 reference, a flat normal map rendering as none, the scene key's checks and the Mitsuba
-importer's ``normalmap``."""
+"""Normal maps: the hit's tangent frame (``wrt.kernels.traverse.surface_derivatives``) against
+Mitsuba 3's ``si.dp_du``, ``si.dp_dv`` and ``sh_frame``, the perturbed normal
+(``wrt.kernels.hit.perturbed_normal``) against a float64 reference, a flat normal map rendering as
+none, the scene key's checks and the Mitsuba importer's ``normalmap``."""
 
 import numpy as np
 import pytest
@@ -10,7 +10,15 @@ from conftest import EXAMPLES
 from test_textures import SHAPES, needs_mitsuba, rays_toward, scene_xml, write_exr, write_meshes, write_png
 from wrt.kernels.hit import perturbed_normal, surface_hit
 from wrt.kernels.materials import MaterialData
-from wrt.kernels.traverse import NO_HIT, GeometryData, closest_hit, hit_point, ray_hit, shading_normal, surface_dpdu
+from wrt.kernels.traverse import (
+    NO_HIT,
+    GeometryData,
+    closest_hit,
+    hit_point,
+    ray_hit,
+    shading_normal,
+    surface_derivatives,
+)
 
 import wrt
 from wrt.device import upload_geometry, upload_materials
@@ -29,10 +37,11 @@ def trace_frames(
     origins: wp.array(dtype=wp.vec3),
     directions: wp.array(dtype=wp.vec3),
     out_dpdu: wp.array(dtype=wp.vec3),
+    out_dpdv: wp.array(dtype=wp.vec3),
     out_frame: wp.array(dtype=wp.mat33),
     out_hit: wp.array(dtype=wp.int32),
 ):
-    """dp/du and the shading frame (rows s, t, n) at each ray's closest hit."""
+    """dp/du, dp/dv and the shading frame (rows s, t, n) at each ray's closest hit."""
     i = wp.tid()
     o = origins[i]
     d = directions[i]
@@ -41,17 +50,18 @@ def trace_frames(
     if prim != NO_HIT:
         p, n, _err = hit_point(geometry, ray_hit(o, d, 0.0, t, prim, inst))
         ns = shading_normal(geometry, prim, inst, p, n, 0.0)
-        dpdu = surface_dpdu(geometry, prim, inst, p, 0.0)
+        dpdu, dpdv = surface_derivatives(geometry, prim, inst, p, 0.0)
         out_dpdu[i] = dpdu
+        out_dpdv[i] = dpdv
         out_frame[i] = wp.matrix_from_rows(perturbed_normal(ns, dpdu, S_RGB), perturbed_normal(ns, dpdu, T_RGB), ns)
 
 
 @needs_mitsuba
 @pytest.mark.parametrize("name", SHAPES)
 def test_tangent_frame_is_mitsubas(tmp_path, name):
-    """dp/du and the shading frame (s, t, n) of wrt's hits equal Mitsuba's ``si.dp_du`` and
-    ``si.sh_frame`` for the same rays, on every shape kind (meshes with and without texture
-    coordinates, instances)."""
+    """dp/du, dp/dv and the shading frame (s, t, n) of wrt's hits equal Mitsuba's ``si.dp_du``,
+    ``si.dp_dv`` and ``si.sh_frame`` for the same rays, on every shape kind (meshes with and without
+    texture coordinates, instances)."""
     import mitsuba as mi
 
     mi.set_variant("scalar_rgb")
@@ -61,10 +71,10 @@ def test_tangent_frame_is_mitsubas(tmp_path, name):
     origins, directions = rays_toward(np.random.default_rng(len(name)), target, spread, n=200)
     geometry = upload_geometry(build(load_scene(path), "cpu"), "cpu")
     n = len(origins)
-    dpdu, frames, hit = wp.zeros(n, wp.vec3), wp.zeros(n, wp.mat33), wp.zeros(n, wp.int32)
-    inputs = [geometry, wp.array(origins, dtype=wp.vec3), wp.array(directions, dtype=wp.vec3), dpdu, frames, hit]
-    wp.launch(trace_frames, dim=n, inputs=inputs, device="cpu")
-    dpdu, frames, hit = dpdu.numpy(), frames.numpy(), hit.numpy().astype(bool)
+    dpdu, dpdv, frames, hit = wp.zeros(n, wp.vec3), wp.zeros(n, wp.vec3), wp.zeros(n, wp.mat33), wp.zeros(n, wp.int32)
+    rays = [wp.array(origins, dtype=wp.vec3), wp.array(directions, dtype=wp.vec3)]
+    wp.launch(trace_frames, dim=n, inputs=[geometry, *rays, dpdu, dpdv, frames, hit], device="cpu")
+    dpdu, dpdv, frames, hit = dpdu.numpy(), dpdv.numpy(), frames.numpy(), hit.numpy().astype(bool)
     mi_scene = mi.load_file(str(path))
     compared = 0
     for k in np.flatnonzero(hit):
@@ -75,6 +85,8 @@ def test_tangent_frame_is_mitsubas(tmp_path, name):
         if not si.is_valid() or np.linalg.norm(mi_dpdu) < 1e-3:  # a miss at an edge, or near a pole or centre
             continue
         np.testing.assert_allclose(dpdu[k], mi_dpdu, atol=2e-3 * np.linalg.norm(mi_dpdu), err_msg=name)
+        mi_dpdv = np.array(si.dp_dv, dtype=np.float64)
+        np.testing.assert_allclose(dpdv[k], mi_dpdv, atol=2e-3 * np.linalg.norm(mi_dpdv), err_msg=name)
         mi_frame = np.array([si.sh_frame.s, si.sh_frame.t, si.sh_frame.n], dtype=np.float64)
         np.testing.assert_allclose(frames[k], mi_frame, atol=2e-3, err_msg=name)
         compared += 1

@@ -120,6 +120,10 @@ TRANSFORM = '<transform name="to_world"><scale x="1.5" y="0.7" z="1.2"/><rotate 
 SHAPES = {
     "sphere": ('<shape type="sphere"><point name="center" x="0.3" y="-0.2" z="0.1"/>'
                '<float name="radius" value="0.8"/>BSDF</shape>', (0.3, -0.2, 0.1), 0.8),
+    "sphere rotated": ('<shape type="sphere"><point name="center" x="0.3" y="-0.2" z="0.1"/>'
+                       '<float name="radius" value="0.8"/><transform name="to_world"><rotate x="1" angle="-70"/>'
+                       '<rotate z="1" angle="25"/><scale value="1.2"/><translate y="0.3"/></transform>BSDF</shape>',
+                       (0.3, 0.06, 0.35), 0.96),
     "rectangle": (f'<shape type="rectangle">{TRANSFORM}<translate x="0.2"/></transform>BSDF</shape>', (0.2, 0, 0), 1.0),
     "cube": (f'<shape type="cube">{TRANSFORM}<translate x="0.2"/></transform>BSDF</shape>', (0.2, 0, 0), 1.2),
     "cube mirrored": ('<shape type="cube"><transform name="to_world"><scale x="-1" y="0.8" z="1.2"/>'
@@ -143,7 +147,14 @@ SHAPES = {
                  f'<shape type="instance"><ref id="g"/>{TRANSFORM}<translate z="1"/></transform></shape>',
                  (0, 0, 0), 2.5),
 }  # fmt: skip
-PERIODIC = {"sphere": (0,), "disk": (1,), "disk flipped": (1,), "cylinder": (0,), "instance": (0,)}
+PERIODIC = {
+    "sphere": (0,),
+    "sphere rotated": (0,),
+    "disk": (1,),
+    "disk flipped": (1,),
+    "cylinder": (0,),
+    "instance": (0,),
+}
 """Coordinates that wrap around (an angle in turns): compared modulo 1."""
 
 
@@ -611,3 +622,37 @@ def test_a_dielectrics_transmittance_cannot_be_a_texture(tmp_path):
         parse_scene({**doc, "material": [{"name": "g", "type": "dielectric", "transmittance": checks}]})
     scene = parse_scene({**doc, "material": [{"name": "g", "type": "thin_dielectric", "transmittance": checks}]})
     assert [name for name, _ in scene.materials[0].textures] == ["transmittance"]
+
+
+def test_a_sphere_transform_turns_its_texture_and_places_it():
+    """A sphere's ``transform`` scales its radius and turns its object axes: under a quarter turn
+    about z the texture lags a quarter of u, so with ``to_uv`` shifting u by 1/4 the turned sphere
+    renders the unturned one's image (the same samples, the same texels: to rounding), and
+    without the shift another."""
+    grid = {"texture": "bitmap", "file": str(EXAMPLES / "textures" / "grid.png"), "filter": "nearest"}
+    render = {"width": 32, "height": 32, "spp": 1, "integrator": "path", "max_depth": 2}
+    camera = {"origin": [0.0, 4.0, 3.0], "look_at": [0.0, 0.0, 0.0], "fov": 30.0}
+
+    def image(shift, transform):
+        material = {"name": "m", "albedo": {**grid, "to_uv": [1, 0, shift, 0, 1, 0]}}
+        sphere = {"type": "sphere", "center": [0.0, 0.0, 0.0], "radius": 0.5, "material": "m", "transform": transform}
+        light = {"type": "environment", "radiance": [1.0, 1.0, 1.0]}
+        doc = {"render": render, "camera": camera, "material": [material], "shape": [sphere], "light": [light]}
+        return wrt.render(parse_scene(doc, file="<test>"), specialize=False).rgb
+
+    plain = image(0.0, {"scale": 2.0})
+    assert (plain.max(axis=-1) > 0).sum() > 300  # the sphere, radius 1, fills the view
+    np.testing.assert_allclose(image(0.25, {"rotate": [0.0, 0.0, 90.0], "scale": 2.0}), plain, rtol=1e-5, atol=1e-6)
+    assert not np.allclose(image(0.0, {"rotate": [0.0, 0.0, 90.0], "scale": 2.0}), plain, rtol=1e-2)
+
+
+@pytest.mark.parametrize(
+    "transform", [{"scale": [1.0, 2.0, 1.0]}, {"matrix": [1, 0.5, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]}]
+)
+def test_a_sphere_transform_that_is_not_a_similarity_is_refused(transform):
+    doc = {
+        "camera": {"origin": [0, 0, 5], "look_at": [0, 0, 0]},
+        "shape": [{"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "transform": transform}],
+    }
+    with pytest.raises(SceneError, match=r"shape\[0\].*transform.*a sphere stays a sphere"):
+        parse_scene(doc, file="<test>")

@@ -294,6 +294,8 @@ class Materials:
             return self._blend(p)
         elif p.type == "normalmap":
             return self._normal_map(p)
+        elif p.type == "bumpmap":
+            return self._bump_map(p)
         else:
             return self._closest(p)
         p.finish()
@@ -361,12 +363,43 @@ class Materials:
         inner = self._convert(nested[0])
         return Material({**inner.params, "normal_map": table}, inner.two_sided, inner.nested)
 
+    def _bump_map(self, p: Plugin) -> Material:
+        """``bumpmap``: the nested BSDF's material with its height texture (a bitmap, of any name)
+        as its ``bump_map`` and ``scale`` as its ``bump_scale``, exact: the shading frame of the
+        height field's gradient (wrt's ``bumped_normal``), mirrored and shadowed as a normal map's.
+        The shadowing function turned off is an approximation, and so is a bump map over an
+        anisotropic BSDF: Mitsuba 3.9 makes its tangent of the surface's dp/du in world space and
+        the tilted normal in the shading frame's coordinates, wrt of both in world space (the
+        tangent plane's; measured on examples/mitsuba/bumpmap.xml's sphere made anisotropic: means
+        +1.8%). A bump map over a normal- or bump-mapped BSDF is refused."""
+        nested = p.children("bsdf")
+        textures = [child for _, child in p.nested if child.tag == "texture"]
+        if len(nested) != 1 or len(textures) != 1:
+            raise self.doc.error(p.element, "a bumpmap BSDF needs one nested <bsdf> and one <texture> (Mitsuba's)")
+        p.used_nested.add(id(textures[0]))
+        table = texture(self.doc, textures[0])
+        if table["texture"] != "bitmap":
+            raise self.doc.error(textures[0], "a bump map must be a bitmap texture in wrt (a height field's gradient)")
+        scale = p.number("scale", 1.0)
+        if not p.boolean("use_shadowing_function", True):
+            self.doc.warn(
+                p.params["use_shadowing_function"],
+                "a bump map without its shadowing function is not supported: converted with it",
+            )
+        p.finish()
+        inner = self._convert(nested[0])
+        if "normal_map" in inner.params or "bump_map" in inner.params:
+            raise self.doc.error(p.element, "a bumpmap over a normal- or bump-mapped BSDF is not supported")
+        if any("roughness_v" in m.params for m in (inner, *inner.nested)):
+            self.doc.warn(
+                p.element,
+                "a bumpmap over an anisotropic BSDF: its tangent is the bumped surface's, not Mitsuba 3.9's"
+                " (which mixes world and shading-frame coordinates)",
+            )
+        return Material({**inner.params, "bump_map": table, "bump_scale": scale}, inner.two_sided, inner.nested)
+
     def _closest(self, p: Plugin) -> Material:
         """An unsupported BSDF: its nearest wrt material, with a warning saying which."""
-        nested = p.children("bsdf")
-        if p.type == "bumpmap" and nested:
-            self.doc.warn(p.element, "not supported: the nested BSDF is used without it")
-            return self._convert(nested[0])
         if p.type == "principled":
             albedo = p.color("base_color", 0.5)
             self.doc.warn(p.element, f"not supported: converted as diffuse, albedo {albedo}")

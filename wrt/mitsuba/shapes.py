@@ -70,13 +70,21 @@ def shape(
             doc.warn(element, "non-uniform scale: the radius is the to_world x axis scale (as in Mitsuba)")
         if front < 0:
             doc.warn(p.params["flip_normals"], "flip_normals on a sphere is not supported: normals point outward")
-        if oriented and not np.allclose(placed[:3, :3], radius * np.eye(3), rtol=0.0, atol=1e-9 * radius):
-            doc.warn(
-                element,
-                "a textured or anisotropic sphere's to_world rotates it: wrt's texture coordinates and tangents"
-                " follow the scene axes",
-            )
         tables = [{"type": "sphere", "center": as_list(placed[:3, 3]), "radius": radius}]
+        if oriented and not np.allclose(placed[:3, :3], radius * np.eye(3), rtol=0.0, atol=1e-9 * radius):
+            # its frame turns its uv and tangents, as Mitsuba's: the nearest rotation of its to_world
+            # (Mitsuba's transform_decompose), placed at its centre with its radius
+            u, _, vt = np.linalg.svd(placed[:3, :3])
+            frame = np.eye(4)
+            frame[:3, :3], frame[:3, 3] = radius * (u @ vt), placed[:3, 3]
+            tables = [
+                {
+                    "type": "sphere",
+                    "center": [0.0, 0.0, 0.0],
+                    "radius": 1.0,
+                    "transform": {"matrix": as_list(frame.ravel())},
+                }
+            ]
     elif p.type in ("rectangle", "cube"):
         tables = []
         for loop, uvs in faces(p.type):
