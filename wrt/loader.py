@@ -349,7 +349,7 @@ def _texture(t: _Table, key: str, scene_dir: str) -> tuple:
     if values.min() < lo or values.max() > hi:
         what = "the file's texels" if isinstance(texture, Bitmap) else "its colours"
         raise tt.error(
-            "file" if isinstance(texture, Bitmap) else "value" if isinstance(texture, Constant) else "texture",
+            _texture_key(texture),
             f"{what} range over [{values.min():.4g}, {values.max():.4g}]: {key} must stay in [{lo:g}, {hi:g}]",
             tt.data.get("file", tt.data.get("texture")),
         )
@@ -369,6 +369,12 @@ def _bump_map(t: _Table, scene_dir: str) -> Bitmap:
     return read_texture(_Table(t.file, f"{t.name}.bump_map", data), scene_dir)
 
 
+def _texture_key(texture) -> str:
+    """The key of a texture table that holds its values: a bitmap's ``file``, a constant's
+    ``value``, else (a checkerboard's colours) its ``texture``."""
+    return "file" if isinstance(texture, Bitmap) else "value" if isinstance(texture, Constant) else "texture"
+
+
 def _normal_map(t: _Table, scene_dir: str) -> Bitmap | Constant:
     """A material's ``normal_map``: a bitmap texture table whose file is read raw whatever its format
     (no sRGB decoding: texel (r, g, b) is the tangent-space normal 2 (r, g, b) - 1, normalised;
@@ -385,7 +391,7 @@ def _normal_map(t: _Table, scene_dir: str) -> Bitmap | Constant:
     texture = read_texture(tt, scene_dir)
     texels = texture.values()
     if texels.min() < 0.0 or texels.max() > 1.0:
-        key = "file" if bitmap else "value"
+        key = _texture_key(texture)
         what = "the file's texels range" if bitmap else "its value ranges"
         raise tt.error(key, f"{what} over [{texels.min():.4g}, {texels.max():.4g}]: must stay in [0, 1]", data.get(key))
     return texture
@@ -839,7 +845,7 @@ def _light_texture(t: _Table, key: str, scene_dir: str):
     texture = read_texture(tt, scene_dir)
     values = texture.values()
     if values.min() < 0.0 or values.max() > MAX_MAGNITUDE:
-        field = "file" if isinstance(texture, Bitmap) else "value" if isinstance(texture, Constant) else "texture"
+        field = _texture_key(texture)
         raise tt.error(
             field,
             f"its values range over [{values.min():.4g}, {values.max():.4g}]: must stay in [0, {MAX_MAGNITUDE:g}]",
@@ -900,9 +906,6 @@ def _light(file: str, index: int, data, scene_dir: str):
     elif light_type == "projector":
         direction = _unit(t, "direction")
         irradiance = _light_texture(t, "irradiance", scene_dir)
-        aspect = 1.0
-        if isinstance(irradiance, Bitmap):
-            aspect = irradiance.texels.shape[1] / irradiance.texels.shape[0]
         light = ProjectorLight(
             position=t.vec3("position"),
             direction=direction,
@@ -910,7 +913,6 @@ def _light(file: str, index: int, data, scene_dir: str):
             fov=t.number("fov", 45.0, lo=0.0, hi=180.0, lo_open=True, hi_open=True),
             up=_up(t, direction),
             scale=t.number("scale", 1.0, lo=0.0),
-            aspect=aspect,
         )
     elif light_type == "area":
         light = AreaLight(

@@ -415,10 +415,10 @@ class ProjectorLight:
     """Mitsuba 3's ``projector``: a pinhole at ``position`` projecting its ``irradiance`` texture
     (a ``wrt.textures`` texture, linear RGB) times ``scale`` along unit ``direction``, ``up`` the
     image's top (``light_frame``), ``fov`` the vertical field of view in degrees (as the camera's),
-    the horizontal one following the texture's aspect ratio ``aspect`` (width / height; 1 for a
-    constant or a checkerboard). A plane facing it at depth z receives irradiance ``pi scale
-    irradiance(uv) / z^2`` (W/m^2; ``wrt.kernels.lights.delta``); the image's left is on the left
-    seen from the projector (u runs along ``-x``), its top row at ``+y``."""
+    the horizontal one following the texture's aspect ratio (``aspect``). A plane facing it at
+    depth z receives irradiance ``pi scale irradiance(uv) / z^2`` (W/m^2;
+    ``wrt.kernels.lights.delta``); the image's left is on the left seen from the projector (u runs
+    along ``-x``), its top row at ``+y``."""
 
     position: tuple[float, float, float]
     direction: tuple[float, float, float]
@@ -426,8 +426,14 @@ class ProjectorLight:
     fov: float
     up: tuple[float, float, float] = (0.0, 1.0, 0.0)
     scale: float = 1.0
-    aspect: float = 1.0
     type: str = "projector"
+
+    @property
+    def aspect(self) -> float:
+        """The irradiance's width over its height: a bitmap's texels' (H, W, 3); 1 for a constant
+        or a checkerboard, which have no size (Mitsuba's 1 x 1 resolution)."""
+        texels = getattr(self.irradiance, "texels", None)
+        return 1.0 if texels is None else texels.shape[1] / texels.shape[0]
 
     def frame(self) -> np.ndarray:
         return light_frame(self.direction, self.up)
