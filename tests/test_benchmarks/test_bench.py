@@ -58,7 +58,10 @@ def test_error_falls_with_spp_and_slopes_are_computed(quick_run):
             assert all(math.isfinite(p[k]) and p[k] > 0 for k in ("wall_s", "rmse", "one_minus_ssim", "mean_spp"))
         assert points[-1]["rmse"] < points[0]["rmse"], c["label"]
         assert points[-1]["one_minus_ssim"] < points[0]["one_minus_ssim"], c["label"]
-        assert math.isfinite(c["slope_rmse"]) and c["slope_rmse"] < 0, c["label"]
+        # Error against spp is deterministic; against time it carries the machine's timing noise
+        # (three points 0.1 s apart), so a time slope is only required to exist.
+        assert c["slope_rmse_spp"] < 0, c["label"]
+        assert math.isfinite(c["slope_rmse"]) and math.isfinite(c["slope_one_minus_ssim"]), c["label"]
     for e in results["scenes"]:
         assert 0 < e["reference"]["rmse_floor"] < min(p["rmse"] for c in e["curves"] for p in c.get("points", []))
 
