@@ -15,6 +15,7 @@ import sys
 import tempfile
 import textwrap
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -161,11 +162,12 @@ def serving_fifo(path: Path, data: bytes):
         yield path
     finally:
         done.set()
-        with contextlib.suppress(OSError):  # release the writer waiting for a reader
-            fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
-            writer.join(10)
-            os.close(fd)
-        writer.join(10)
+        deadline = time.monotonic() + 10
+        while writer.is_alive() and time.monotonic() < deadline:  # release a writer waiting for a reader
+            with contextlib.suppress(OSError):
+                fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+                writer.join(0.05)
+                os.close(fd)
 
 
 def assert_refused(scene: Path, *fragments) -> str:
