@@ -354,14 +354,19 @@ class Materials:
             raise self.doc.error(element, "a normal map must be a bitmap or a constant texture in wrt")
         if table["texture"] == "bitmap" and not table.pop("raw", False):
             self.doc.warn(element, "a normal map without raw = true (sRGB-decoded) is not supported: read raw")
+        inner = self._shadowed_inner(p, nested[0], "normal map")
+        return Material({**inner.params, "normal_map": table}, inner.two_sided, inner.nested)
+
+    def _shadowed_inner(self, p: Plugin, element, what: str) -> Material:
+        """The nested BSDF ``element`` of a normal or bump map ``p`` (``what``), converted after
+        ``p``'s keys: its shadowing function is always on (turned off: a warning)."""
         if not p.boolean("use_shadowing_function", True):
             self.doc.warn(
                 p.params["use_shadowing_function"],
-                "a normal map without its shadowing function is not supported: converted with it",
+                f"a {what} without its shadowing function is not supported: converted with it",
             )
         p.finish()
-        inner = self._convert(nested[0])
-        return Material({**inner.params, "normal_map": table}, inner.two_sided, inner.nested)
+        return self._convert(element)
 
     def _bump_map(self, p: Plugin) -> Material:
         """``bumpmap``: the nested BSDF's material with its height texture (a bitmap, of any name)
@@ -381,13 +386,7 @@ class Materials:
         if table["texture"] != "bitmap":
             raise self.doc.error(textures[0], "a bump map must be a bitmap texture in wrt (a height field's gradient)")
         scale = p.number("scale", 1.0)
-        if not p.boolean("use_shadowing_function", True):
-            self.doc.warn(
-                p.params["use_shadowing_function"],
-                "a bump map without its shadowing function is not supported: converted with it",
-            )
-        p.finish()
-        inner = self._convert(nested[0])
+        inner = self._shadowed_inner(p, nested[0], "bump map")
         if "normal_map" in inner.params or "bump_map" in inner.params:
             raise self.doc.error(p.element, "a bumpmap over a normal- or bump-mapped BSDF is not supported")
         if any("roughness_v" in m.params for m in (inner, *inner.nested)):
