@@ -71,7 +71,8 @@ class GeometryData:
     sphere_center: wp.array(dtype=wp.vec3)
     sphere_radius: wp.array(dtype=float)
     sphere_shape: wp.array(dtype=wp.int32)
-    sphere_to_object: wp.array(dtype=wp.mat33)  # world offsets from the centre to the sphere's object axes
+    sphere_to_object: wp.array(dtype=wp.mat33)  # world offsets from the centre to the sphere's object axes;
+    # empty where no sphere is turned (sphere_axes)
     tri_verts: wp.array(dtype=wp.vec3)  # 3 per triangle
     tri_shape: wp.array(dtype=wp.int32)
     tri_normals: wp.array(dtype=wp.vec3)  # parallel to tri_verts: unit shading normals of smooth triangles, zero
@@ -737,6 +738,23 @@ def turns(y: float, x: float) -> float:
     return wp.where(phi < 0.0, phi + 1.0, phi)
 
 
+@wp.func
+def sphere_axes(geometry: GeometryData, i: wp.int32, offset: wp.vec3) -> wp.vec3:
+    """World ``offset`` from the centre of sphere ``i`` in the sphere's object axes
+    (``sphere_to_object``; ``offset`` itself where no sphere of the scene is turned)."""
+    if geometry.sphere_to_object.shape[0] == 0:
+        return offset
+    return geometry.sphere_to_object[i] * offset
+
+
+@wp.func
+def sphere_world_axes(geometry: GeometryData, i: wp.int32, v: wp.vec3) -> wp.vec3:
+    """``v`` in sphere ``i``'s object axes taken back to the world's (``sphere_axes`` inverted)."""
+    if geometry.sphere_to_object.shape[0] == 0:
+        return v
+    return wp.transpose(geometry.sphere_to_object[i]) * v
+
+
 @functools.cache
 def make_surface_uv(quadrics: bool):
     """``surface_uv``, with the disk and cylinder case compiled in only with ``quadrics``."""
@@ -766,7 +784,7 @@ def make_surface_uv(quadrics: bool):
                 + b2 * geometry.tri_uvs[3 * i + 2]
             )
         if kind == SPHERE:
-            local = wp.normalize(geometry.sphere_to_object[i] * (q - geometry.sphere_center[i]))
+            local = wp.normalize(sphere_axes(geometry, i, q - geometry.sphere_center[i]))
             return wp.vec2(turns(local[1], local[0]), unit_angle_z(local) / wp.pi)
         if wp.static(quadrics):
             if kind == DISK or kind == CYLINDER:
@@ -823,12 +841,11 @@ def make_surface_derivatives(quadrics: bool):
                 dpdu = (d2[1] * e1 - d1[1] * e2) / det
                 dpdv = (d1[0] * e2 - d2[0] * e1) / det
         elif kind == SPHERE:
-            to_object = geometry.sphere_to_object[i]
-            r = to_object * (q - geometry.sphere_center[i])
-            dpdu = wp.transpose(to_object) * (2.0 * wp.pi * wp.vec3(-r[1], r[0], 0.0))
+            r = sphere_axes(geometry, i, q - geometry.sphere_center[i])
+            dpdu = sphere_world_axes(geometry, i, 2.0 * wp.pi * wp.vec3(-r[1], r[0], 0.0))
             axial = wp.sqrt(r[0] * r[0] + r[1] * r[1])
             if axial > 0.0:
-                dpdv = wp.transpose(to_object) * (wp.pi * wp.vec3(r[2] * r[0] / axial, r[2] * r[1] / axial, -axial))
+                dpdv = sphere_world_axes(geometry, i, wp.pi * wp.vec3(r[2] * r[0] / axial, r[2] * r[1] / axial, -axial))
         elif wp.static(quadrics) and (kind == DISK or kind == CYLINDER):
             local = wp.transform_point(geometry.quadric_to_object[i], q)
             tangent = 2.0 * wp.pi * wp.vec3(-local[1], local[0], 0.0)
