@@ -260,6 +260,17 @@ SCENES = {
         {"shutter": [0, 1]},
         "path",
     ),
+    "path blend of a diffuse and a glossy material": (  # no plastic, nothing specular: the blend's choice alone
+        [FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "tarnished"}],
+        DIFFUSE
+        + [
+            {"name": "gold", "type": "glossy", "reflectance": [0.95, 0.75, 0.35], "roughness": 0.15},
+            {"name": "tarnished", "type": "blend", "materials": ["white", "gold"], "weight": 0.7},
+        ],
+        [AREA],
+        {},
+        "path",
+    ),
     "raycast": (
         [FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"}],
         DIFFUSE,
