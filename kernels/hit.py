@@ -25,15 +25,20 @@ import warp as wp
 
 from .materials import BSDF_ANISOTROPIC, MaterialData
 from .sample_warps import frame
-from .textures import BUMP_MAP, NORMAL_MAP, texture_float_grad, texture_rgb
+from .textures import BUMP_MAP, NORMAL_MAP, TextureEvalContext, texture_float_grad, texture_rgb
 from .traverse import (
+    KIND_BITS,
+    KIND_MASK,
+    TRIANGLE,
     GeometryData,
     RayHit,
+    barycentric,
     hit_point,
     hit_shape,
     make_surface_derivatives,
     make_surface_point,
     make_surface_uv,
+    object_point,
     prim_shape,
     shading_normal,
 )
@@ -50,7 +55,8 @@ class Hit:
     material: wp.int32
     entering: bool  # the ray hits the geometric front side (dot(d, n) < 0): media, dielectric interfaces
     front: bool  # the ray hits the shading front side (dot(d, shading normal) < 0): the BSDF's side, emission
-    uv: wp.vec2  # texture coordinates (surface_uv); (0, 0) where the scene has no textures
+    tex: TextureEvalContext  # where its textures are looked up: uv (surface_uv; (0, 0) where the scene has no
+    # textures) and, where the scene has mesh attributes, the triangle and its barycentric coordinates
     n_unmapped: wp.vec3  # the shading normal before its normal map, flipped as n_facing (n_facing without one)
     tangent: wp.vec3  # the shading frame's unit tangent s (shading_tangent); zero at isotropic materials
 
@@ -161,10 +167,16 @@ def make_surface_hit(
         hit.entering = wp.dot(d, n) < 0.0
         hit.material = materials.shape_material[prim_shape(geometry, prim)]
         hit.shape = hit_shape(geometry, prim, inst)
-        hit.uv = wp.vec2(0.0)
+        tex = TextureEvalContext()
+        tex.prim = -1
         if wp.static(textures):
             if materials.textures.kind.shape[0] > 0:  # the uv arrays are empty in a scene without textures
-                hit.uv = surface_uv(geometry, prim, inst, p, time)
+                tex.uv = surface_uv(geometry, prim, inst, p, time)
+                if materials.textures.corners.shape[0] > 0 and (prim & KIND_MASK) == TRIANGLE:  # mesh attributes
+                    tex.prim = prim >> KIND_BITS
+                    b1, b2 = barycentric(geometry, tex.prim, object_point(geometry, prim, inst, p, time))
+                    tex.bary = wp.vec2(b1, b2)
+        hit.tex = tex
         ns = n
         if wp.static(smooth):
             ns = shading_normal(geometry, prim, inst, p, n, time)
@@ -175,9 +187,9 @@ def make_surface_hit(
             if t_map >= 0 or t_bump >= 0:
                 dpdu, dpdv = surface_derivatives(geometry, prim, inst, p, time)
                 if t_map >= 0:
-                    ns = perturbed_normal(ns, dpdu, texture_rgb(materials.textures, t_map, hit.uv))
+                    ns = perturbed_normal(ns, dpdu, texture_rgb(materials.textures, t_map, hit.tex))
                 else:
-                    grad = materials.bump_scale[hit.material] * texture_float_grad(materials.textures, t_bump, hit.uv)
+                    grad = materials.bump_scale[hit.material] * texture_float_grad(materials.textures, t_bump, hit.tex)
                     ns = bumped_normal(ns, n, dpdu, dpdv, grad)
                 if wp.dot(d, ns) * wp.dot(d, ns0) < 0.0:  # seen from below the mapped surface only
                     ns = 2.0 * wp.dot(ns, ns0) * ns0 - ns  # mirrored about the unmapped normal, as Mitsuba 3's

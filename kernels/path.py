@@ -202,11 +202,13 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
             cos_theta = seen_through(cos_theta, flags)
         if cos_theta <= 0.0:
             return wp.vec3(0.0), cos_theta, 0.0
-        f = wp.static(bsdf.eval)(materials, hit.material, hit.n_facing, hit.wo, wi, eta, hit.uv, hit.front, hit.tangent)
+        f = wp.static(bsdf.eval)(
+            materials, hit.material, hit.n_facing, hit.wo, wi, eta, hit.tex, hit.front, hit.tangent
+        )
         if wp.static(features.normal_map):
             f = f * normal_map_shadowing(hit, wi)
         pdf = wp.static(bsdf.pdf)(
-            materials, hit.material, hit.n_facing, hit.wo, wi, eta, hit.uv, hit.front, hit.tangent
+            materials, hit.material, hit.n_facing, hit.wo, wi, eta, hit.tex, hit.front, hit.tangent
         )
         return f, cos_theta, pdf
 
@@ -515,7 +517,7 @@ def make_path_radiance(record: bool, features: Features = ALL, inline: bool | No
                 if non_specular(flags):
                     u = sample_2d(sampler, ray.pixel, ray.sample, bounce_dim(vertex, 0))
                 bs = wp.static(bsdf.sample)(
-                    materials, hit.material, hit.n_facing, hit.wo, interface.eta, uc, u, hit.uv, hit.front, hit.tangent
+                    materials, hit.material, hit.n_facing, hit.wo, interface.eta, uc, u, hit.tex, hit.front, hit.tangent
                 )
                 if bs.pdf == 0.0:
                     break

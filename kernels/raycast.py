@@ -43,7 +43,7 @@ def make_raycast_radiance(textures: bool):
         hit = surface_hit(geometry, materials, camera_hit(ray))
         color = materials.base_color[hit.material]
         if wp.static(textures):
-            color = material_rgb(materials.textures, hit.material, ALBEDO, hit.uv, color)
+            color = material_rgb(materials.textures, hit.material, ALBEDO, hit.tex, color)
         return color * wp.abs(wp.dot(hit.n_facing, ray.d))
 
     return raycast_radiance

@@ -15,17 +15,23 @@ Kinds, as Mitsuba 3's plugins of the same names:
 - ``BITMAP``: an image of ``width`` x ``height`` texels from ``offset`` in ``texels``, looked up
   with ``filter`` ``NEAREST`` (the texel holding ``uv * size``) or ``BILINEAR`` (texel centres at
   ``(i + 1/2) / size``, the four nearest weighted), integer texel coordinates outside the image
-  taken back by ``wrap`` ``REPEAT``, ``MIRROR`` or ``CLAMP``.
+  taken back by ``wrap`` ``REPEAT``, ``MIRROR`` or ``CLAMP``;
+- ``MESH_ATTRIBUTE``: a mesh's vertex or face attribute (Mitsuba 3's ``mesh_attribute``): attribute
+  ``offset`` of the ``width`` the scene has, per triangle corner in ``corners`` (a face attribute
+  the same at its three corners), interpolated by the hit's barycentric coordinates and times
+  ``color0`` (its ``scale``); its uv and ``to_uv`` are not used.
 
-``texture_rgb`` evaluates a texture (linear RGB), ``texture_float`` one number of it (Mitsuba 3's
-``eval_1``: a bitmap's luminance), ``material_rgb`` / ``material_float`` a material parameter,
-textured or constant.
+Textures are evaluated at a ``TextureEvalContext`` (pbrt's name): the hit's uv, and for a triangle
+its index and barycentric coordinates. ``texture_rgb`` evaluates a texture (linear RGB),
+``texture_float`` one number of it (Mitsuba 3's ``eval_1``: a bitmap's luminance),
+``material_rgb`` / ``material_float`` a material parameter, textured or constant.
 """
 
 import warp as wp
 
 CHECKERBOARD = wp.constant(0)
 BITMAP = wp.constant(1)
+MESH_ATTRIBUTE = wp.constant(2)
 
 NEAREST = wp.constant(0)
 BILINEAR = wp.constant(1)
@@ -78,6 +84,27 @@ class TextureData:
     filter: wp.array(dtype=wp.int32)  # NEAREST or BILINEAR
     wrap: wp.array(dtype=wp.int32)  # REPEAT, MIRROR or CLAMP
     texels: wp.array(dtype=wp.vec3)  # every bitmap's texels, linear RGB, row-major from the top row
+    corners: wp.array(dtype=wp.vec3)  # mesh attributes: (triangle, corner, attribute) row-major; empty without
+
+
+@wp.struct
+class TextureEvalContext:
+    """Where a texture is evaluated: the surface's texture coordinates ``uv`` (``surface_uv``) and,
+    at a triangle (where the scene has mesh attributes), its index ``prim`` in ``tri_verts`` and
+    the barycentric coordinates ``bary`` = (b1, b2) of its second and third corners."""
+
+    uv: wp.vec2
+    prim: wp.int32
+    bary: wp.vec2
+
+
+@wp.func
+def uv_context(uv: wp.vec2) -> TextureEvalContext:
+    """The context of texture coordinates ``uv`` alone (no triangle)."""
+    ctx = TextureEvalContext()
+    ctx.uv = uv
+    ctx.prim = -1
+    return ctx
 
 
 @wp.func
@@ -103,20 +130,24 @@ def texel(textures: TextureData, t: wp.int32, x: wp.int32, y: wp.int32) -> wp.ve
 
 
 @wp.func
-def bitmap_rgb(textures: TextureData, t: wp.int32, uv: wp.vec2) -> wp.vec3:
-    """Bitmap ``t`` at ``uv`` (already through ``to_uv``), nearest or bilinear."""
-    x = uv[0] * float(textures.width[t])
-    y = uv[1] * float(textures.height[t])
-    if textures.filter[t] == NEAREST:
-        return texel(textures, t, int(wp.floor(x)), int(wp.floor(y)))
-    x = x - 0.5
-    y = y - 0.5
+def bilinear_footprint(textures: TextureData, t: wp.int32, st: wp.vec2):
+    """``(i, j, fx, fy)``: the top-left texel of the four a bilinear lookup of bitmap ``t`` at ``st``
+    (already through ``to_uv``) weighs, and the lookup's fractional offsets from its centre."""
+    x = st[0] * float(textures.width[t]) - 0.5
+    y = st[1] * float(textures.height[t]) - 0.5
     x0 = wp.floor(x)
     y0 = wp.floor(y)
-    fx = x - x0
-    fy = y - y0
-    i = int(x0)
-    j = int(y0)
+    return int(x0), int(y0), x - x0, y - y0
+
+
+@wp.func
+def bitmap_rgb(textures: TextureData, t: wp.int32, uv: wp.vec2) -> wp.vec3:
+    """Bitmap ``t`` at ``uv`` (already through ``to_uv``), nearest or bilinear."""
+    if textures.filter[t] == NEAREST:
+        x = uv[0] * float(textures.width[t])
+        y = uv[1] * float(textures.height[t])
+        return texel(textures, t, int(wp.floor(x)), int(wp.floor(y)))
+    i, j, fx, fy = bilinear_footprint(textures, t, uv)
     top = (1.0 - fx) * texel(textures, t, i, j) + fx * texel(textures, t, i + 1, j)
     bottom = (1.0 - fx) * texel(textures, t, i, j + 1) + fx * texel(textures, t, i + 1, j + 1)
     return (1.0 - fy) * top + fy * bottom
@@ -133,10 +164,31 @@ def texture_st(textures: TextureData, t: wp.int32, uv: wp.vec2) -> wp.vec2:
 
 
 @wp.func
-def texture_rgb(textures: TextureData, t: wp.int32, uv: wp.vec2) -> wp.vec3:
-    """Texture ``t`` at surface coordinates ``uv``: linear RGB."""
-    st = texture_st(textures, t, uv)
-    if textures.kind[t] == CHECKERBOARD:
+def mesh_attribute_rgb(textures: TextureData, t: wp.int32, ctx: TextureEvalContext) -> wp.vec3:
+    """Mesh-attribute texture ``t`` at ``ctx``: its corners' values interpolated by the barycentric
+    coordinates, times its scale; zero off a triangle (a host check keeps such lookups out)."""
+    if ctx.prim < 0:
+        return wp.vec3(0.0)
+    stride = textures.width[t]
+    first = 3 * ctx.prim * stride + textures.offset[t]
+    b1 = ctx.bary[0]
+    b2 = ctx.bary[1]
+    value = (
+        (1.0 - b1 - b2) * textures.corners[first]
+        + b1 * textures.corners[first + stride]
+        + b2 * textures.corners[first + 2 * stride]
+    )
+    return wp.cw_mul(value, textures.color0[t])
+
+
+@wp.func
+def texture_rgb(textures: TextureData, t: wp.int32, ctx: TextureEvalContext) -> wp.vec3:
+    """Texture ``t`` at ``ctx``: linear RGB."""
+    kind = textures.kind[t]
+    if kind == MESH_ATTRIBUTE:
+        return mesh_attribute_rgb(textures, t, ctx)
+    st = texture_st(textures, t, ctx.uv)
+    if kind == CHECKERBOARD:
         above_u = st[0] - wp.floor(st[0]) > 0.5
         above_v = st[1] - wp.floor(st[1]) > 0.5
         return wp.where(above_u == above_v, textures.color0[t], textures.color1[t])
@@ -144,36 +196,29 @@ def texture_rgb(textures: TextureData, t: wp.int32, uv: wp.vec2) -> wp.vec3:
 
 
 @wp.func
-def texture_float(textures: TextureData, t: wp.int32, uv: wp.vec2) -> float:
-    """Texture ``t`` at ``uv`` as one number, as Mitsuba 3's ``eval_1``: a bitmap's luminance
+def texture_float(textures: TextureData, t: wp.int32, ctx: TextureEvalContext) -> float:
+    """Texture ``t`` at ``ctx`` as one number, as Mitsuba 3's ``eval_1``: a bitmap's luminance
     (Rec. 709 weights), the mean of a checkerboard colour's channels (Mitsuba's ``eval_1`` of a
-    checkerboard also swaps its two colours, against its own ``eval``: not followed here)."""
+    checkerboard also swaps its two colours, against its own ``eval``: not followed here), a
+    one-channel mesh attribute's value (held in all three channels)."""
     weights = wp.vec3(1.0 / 3.0)
     if textures.kind[t] == BITMAP:
         weights = LUMINANCE
-    return wp.dot(texture_rgb(textures, t, uv), weights)
+    return wp.dot(texture_rgb(textures, t, ctx), weights)
 
 
 @wp.func
-def texture_float_grad(textures: TextureData, t: wp.int32, uv: wp.vec2) -> wp.vec2:
-    """The gradient (d/du, d/dv) of ``texture_float`` of texture ``t`` at ``uv``, as Mitsuba 3's
+def texture_float_grad(textures: TextureData, t: wp.int32, ctx: TextureEvalContext) -> wp.vec2:
+    """The gradient (d/du, d/dv) of ``texture_float`` of texture ``t`` at ``ctx``, as Mitsuba 3's
     bitmap ``eval_1_grad``: a bilinear bitmap's, from its four texels' luminances, per texel
     spacing times the bitmap's size, taken back through ``to_uv``'s linear part by its transpose
     before that scaling (Mitsuba's order, the chain rule where ``to_uv`` neither rotates nor
     shears); zero for a nearest-filtered bitmap and for other kinds."""
     if textures.kind[t] != BITMAP or textures.filter[t] == NEAREST:
         return wp.vec2(0.0)
-    st = texture_st(textures, t, uv)
+    i, j, fx, fy = bilinear_footprint(textures, t, texture_st(textures, t, ctx.uv))
     w = float(textures.width[t])
     h = float(textures.height[t])
-    x = st[0] * w - 0.5
-    y = st[1] * h - 0.5
-    x0 = wp.floor(x)
-    y0 = wp.floor(y)
-    fx = x - x0
-    fy = y - y0
-    i = int(x0)
-    j = int(y0)
     f00 = wp.dot(texel(textures, t, i, j), LUMINANCE)
     f10 = wp.dot(texel(textures, t, i + 1, j), LUMINANCE)
     f01 = wp.dot(texel(textures, t, i, j + 1), LUMINANCE)
@@ -185,20 +230,24 @@ def texture_float_grad(textures: TextureData, t: wp.int32, uv: wp.vec2) -> wp.ve
 
 
 @wp.func
-def material_rgb(textures: TextureData, m: wp.int32, slot: wp.int32, uv: wp.vec2, constant: wp.vec3) -> wp.vec3:
-    """Colour parameter ``slot`` of material ``m`` at ``uv``: its texture's value, or ``constant``
+def material_rgb(
+    textures: TextureData, m: wp.int32, slot: wp.int32, ctx: TextureEvalContext, constant: wp.vec3
+) -> wp.vec3:
+    """Colour parameter ``slot`` of material ``m`` at ``ctx``: its texture's value, or ``constant``
     (the material's own value) where it has none."""
     t = textures.slot[m, slot]
     if t < 0:
         return constant
-    return texture_rgb(textures, t, uv)
+    return texture_rgb(textures, t, ctx)
 
 
 @wp.func
-def material_float(textures: TextureData, m: wp.int32, slot: wp.int32, uv: wp.vec2, constant: float) -> float:
-    """Number parameter ``slot`` of material ``m`` at ``uv`` (roughness): its texture's
+def material_float(
+    textures: TextureData, m: wp.int32, slot: wp.int32, ctx: TextureEvalContext, constant: float
+) -> float:
+    """Number parameter ``slot`` of material ``m`` at ``ctx`` (roughness): its texture's
     ``texture_float``, or ``constant`` where it has none."""
     t = textures.slot[m, slot]
     if t < 0:
         return constant
-    return texture_float(textures, t, uv)
+    return texture_float(textures, t, ctx)

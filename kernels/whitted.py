@@ -162,7 +162,7 @@ def make_direct_light(record: bool, trace: Traversal, features: Features):
                     parent,
                     throughput,
                 )
-                f = wp.static(bsdf.eval)(materials, hit.material, n, hit.wo, wi, 1.0, hit.uv, True, hit.tangent)
+                f = wp.static(bsdf.eval)(materials, hit.material, n, hit.wo, wi, 1.0, hit.tex, True, hit.tangent)
                 if wp.static(features.normal_map):
                     f = f * normal_map_shadowing(hit, wi)
                 total += wp.cw_mul(wp.cw_mul(f, irradiance), visible) * cos_theta
@@ -258,7 +258,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL, inline: bool |
                 if non_specular(flags):
                     albedo = materials.albedo[hit.material]
                     if wp.static(features.textures):
-                        albedo = material_rgb(materials.textures, hit.material, ALBEDO, hit.uv, albedo)
+                        albedo = material_rgb(materials.textures, hit.material, ALBEDO, hit.tex, albedo)
                     local = wp.cw_mul(settings.ambient, albedo)
                     if wp.static(features.lights):
                         if depth < settings.max_depth:
@@ -305,7 +305,7 @@ def make_whitted_radiance(record: bool, features: Features = ALL, inline: bool |
                             segment_parent = current
                         elif depth < settings.max_depth:
                             lobes = wp.static(bsdf.specular_lobes)(
-                                materials, hit.material, hit.n_facing, hit.wo, eta, hit.uv
+                                materials, hit.material, hit.n_facing, hit.wo, eta, hit.tex
                             )
                             if wp.static(features.normal_map):
                                 lobes.reflectance = lobes.reflectance * normal_map_shadowing(hit, lobes.wr)

@@ -31,7 +31,7 @@ from .emitting import EmittingPrimitives
 from .errors import WrtError
 from .geometry import Primitives
 from .scene import Camera, RenderSettings, Scene
-from .textures import TextureTable, texture_table
+from .textures import TextureTable, attribute_names, texture_table
 
 SAMPLER_CODES = {"independent": INDEPENDENT, "stratified": STRATIFIED, "sobol": SOBOL}
 FILTER_CODES = {"box": BOX, "tent": TENT, "gaussian": GAUSSIAN}
@@ -143,14 +143,21 @@ def upload_geometry(p: Primitives, device) -> GeometryData:
     return s
 
 
-def upload_materials(scene: Scene, device) -> MaterialData:
-    """``MaterialData`` of ``scene`` (its bake, ``wrt.bake.bake_materials``), on ``device``."""
+def upload_materials(scene: Scene, device, prims: Primitives | None = None) -> MaterialData:
+    """``MaterialData`` of ``scene`` (its bake, ``wrt.bake.bake_materials``), on ``device``; its
+    textures' mesh attributes those of ``prims`` (``wrt.geometry.build``'s, in its triangle order:
+    needed where a texture reads mesh attributes)."""
     baked = bake_materials(scene)
     mats = baked.materials
     m = MaterialData()
     m.shape_material = _int(baked.shape_material, device)
     m.type = _int(baked.type, device)
-    m.textures = _texture_data(baked.textures, device)
+    corners = np.zeros((0, 3), np.float32)
+    if attribute_names(scene.materials):
+        if prims is None:
+            raise ValueError("the scene's textures read mesh attributes: upload_materials needs its primitives")
+        corners = prims.tri_attributes.reshape(-1, 3)
+    m.textures = _texture_data(baked.textures, device, corners)
     m.bump_scale = _float([mat.bump_scale for mat in mats], device)
     m.flags = _int(baked.flags, device)
     m.inner = _int(baked.inner, device)
@@ -185,7 +192,8 @@ def upload_textures(scene: Scene, device) -> TextureData:
     return _texture_data(texture_table(surface_materials(scene)[1]), device)
 
 
-def _texture_data(table: TextureTable, device) -> TextureData:
+def _texture_data(table: TextureTable, device, corners: np.ndarray | None = None) -> TextureData:
+    """``table`` on ``device``, with the mesh attributes ``corners`` (T * 3 * A, 3) (none by default)."""
     t = TextureData()
     t.slot = wp.array(table.slot, dtype=wp.int32, device=device)
     t.kind = _int(table.kind, device)
@@ -198,6 +206,7 @@ def _texture_data(table: TextureTable, device) -> TextureData:
     t.filter = _int(table.filter, device)
     t.wrap = _int(table.wrap, device)
     t.texels = _vec3(table.texels, device)
+    t.corners = _vec3(np.zeros((0, 3)) if corners is None else corners, device)
     return t
 
 

@@ -37,6 +37,7 @@ from .scene import (
     Triangle,
     box_corners,
 )
+from .textures import attribute_names
 
 FLOAT32_EPS = float(np.finfo(np.float32).eps)
 
@@ -66,6 +67,9 @@ class Primitives:
     quadric_shape: np.ndarray
     # texture coordinates (wrt.kernels.traverse.surface_uv), empty in scenes without textures:
     tri_uvs: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 2), np.float32))  # (T, 3, 2) per corner
+    # mesh attributes (wrt.textures.attribute_names' order) at each triangle corner, 1-channel ones in all three
+    # channels, zero on a triangle without them; (0, 3, 0, 3) in a scene whose textures read none:
+    tri_attributes: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 0, 3), np.float32))  # (T, 3, A, 3)
     poly_uv: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 4)))  # (P, 2, 4): uv = M (p, 1)
     plane_uv: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 4)))  # (L, 2, 4)
     surface_velocity: np.ndarray | None = None  # (shapes + lights, 3): scene units per unit time
@@ -197,7 +201,8 @@ def flatten(scene: Scene) -> Primitives:
     """Collect the primitives of every shape, tagged with the shape's index in file order (with
     their texture coordinates when a material of the scene has textures)."""
     spheres, tris, polys, planes, quadrics, insts = [], [], [], [], [], []
-    tri_blocks, tri_shape_blocks, normal_blocks, uv_blocks = [], [], [], []
+    tri_blocks, tri_shape_blocks, normal_blocks, uv_blocks, attribute_blocks = [], [], [], [], []
+    names = attribute_names(scene.materials)
     for i, shape in enumerate(scene.shapes):
         if isinstance(shape, Sphere):
             spheres.append((shape.center, shape.radius, i, shape.to_object))
@@ -211,6 +216,7 @@ def flatten(scene: Scene) -> Primitives:
             tri_blocks.append(shape.vertices.astype(np.float32)[shape.faces])
             tri_shape_blocks.append(np.full(len(shape.faces), i, dtype=np.int32))
             uv_blocks.append(None if shape.uvs is None else shape.uvs.astype(np.float32)[shape.faces])
+            attribute_blocks.append(_corner_attributes(shape, names))
             normal_blocks.append(
                 None if shape.normals is None else _corner_normals(shape.normals[shape.faces], tri_blocks[-1])
             )
@@ -238,6 +244,7 @@ def flatten(scene: Scene) -> Primitives:
     textured = any(material.textures or material.anisotropic for material in scene.materials)  # uv, dp/du
     barycentric = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], dtype=np.float32)  # uv = (b1, b2)
     uv_blocks.insert(0, None)  # the [[shape]] triangles'
+    attribute_blocks.insert(0, np.zeros((len(tris), 3, len(names), 3), np.float32))
     return Primitives(
         sphere_center=np.asarray([c for c, _, _, _ in spheres], dtype=np.float64).reshape(-1, 3),
         sphere_radius=np.asarray([r for _, r, _, _ in spheres], dtype=np.float64),
@@ -261,6 +268,7 @@ def flatten(scene: Scene) -> Primitives:
         )
         if textured
         else np.zeros((0, 3, 2), np.float32),
+        tri_attributes=_joined(attribute_blocks) if names else np.zeros((0, 3, 0, 3), np.float32),
         poly_uv=np.asarray([polygon_uv(v, n, uv) for v, n, _, uv in polys] if textured else []).reshape(-1, 2, 4),
         plane_uv=np.asarray([plane_uv(p, n) for p, n, _ in planes] if textured else []).reshape(-1, 2, 4),
         surface_velocity=np.asarray(velocity, dtype=np.float64).reshape(-1, 3),
@@ -306,6 +314,19 @@ def _plane_axes(normal) -> tuple[np.ndarray, np.ndarray]:
     a = -1.0 / (sign + z)
     b = x * y * a
     return np.array([1.0 + sign * x * x * a, sign * b, -sign * x]), np.array([b, sign + y * y * a, -y])
+
+
+def _corner_attributes(mesh: Mesh, names: tuple[str, ...]) -> np.ndarray:
+    """float32 (T, 3, A, 3): attributes ``names`` of ``mesh`` at its triangles' corners (a vertex
+    attribute at each corner's vertex, a face attribute at all three), one channel spread to
+    three; zero for an attribute the mesh does not have."""
+    out = np.zeros((len(mesh.faces), 3, len(names), 3), np.float32)
+    for a, name in enumerate(names):
+        values = mesh.attributes.get(name)
+        if values is not None:
+            corners = values[mesh.faces] if name.startswith("vertex_") else values[:, None, :]
+            out[:, :, a, :] = np.broadcast_to(corners, (len(mesh.faces), 3, values.shape[1]))
+    return out
 
 
 def _joined(blocks: list[np.ndarray]) -> np.ndarray:
@@ -387,6 +408,8 @@ def _build_tree(p: Primitives, shutter: tuple[float, float], device) -> None:
             p.tri_normals = p.tri_normals[t]
         if len(p.tri_uvs):
             p.tri_uvs = p.tri_uvs[t]
+        if len(p.tri_attributes):
+            p.tri_attributes = p.tri_attributes[t]
     if counts[2]:
         p.poly_verts, p.poly_normal, p.poly_shape = [p.poly_verts[k] for k in g], p.poly_normal[g], p.poly_shape[g]
         if len(p.poly_uv):
@@ -465,6 +488,7 @@ def _append_groups(p: Primitives, groups: list[Primitives], device) -> None:
         p.tri_verts = _joined([p.tri_verts, g.tri_verts])
         p.tri_normals = _joined_normals(p, g)
         p.tri_uvs = _joined([p.tri_uvs, g.tri_uvs])
+        p.tri_attributes = _joined([p.tri_attributes, g.tri_attributes])
         p.tri_shape = _joined([p.tri_shape, g.tri_shape])
         p.poly_verts = p.poly_verts + g.poly_verts
         p.poly_normal = np.concatenate([p.poly_normal, g.poly_normal])

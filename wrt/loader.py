@@ -26,7 +26,7 @@ from .kernels.microfacet import DISTRIBUTIONS
 from .kernels.volumes import MEDIUM_TYPES as MEDIUM_REGISTRY
 from .kernels.volumes import PHASE_TYPES as PHASE_REGISTRY
 from .limits import MAX_DEPTH, MAX_IMAGE_SIDE, MAX_MAGNITUDE, MAX_SEED, MAX_SPP
-from .meshio import apply_transform, load_mesh, transform_matrix, transform_normals, vertex_normals
+from .meshio import apply_transform, load_mesh, ply_attributes, transform_matrix, transform_normals, vertex_normals
 from .scene import (
     CAMERA_TYPES,
     DIELECTRIC_SHADOWS,
@@ -61,7 +61,7 @@ from .scene import (
     Volume,
     constituents,
 )
-from .textures import SLOTS, Bitmap, Constant, read_texture
+from .textures import SLOTS, Bitmap, Constant, MeshAttribute, read_texture
 from .volumes import KINDS as VOLUME_KINDS
 from .volumes import VolumeFileError, box_matrix, read_vol
 
@@ -336,6 +336,15 @@ TEXTURED = ", ".join(slot for slot in SLOTS if slot != "transmittance") + " and 
 """What a texture can give (a dielectric's ``transmittance`` is an absorption per unit length: its volume's)."""
 
 
+NUMBER_SLOTS = ("roughness", "roughness_v", "opacity", "weight")
+"""The textured parameters read as one number (``texture_float``)."""
+
+
+def _slot_range(key: str) -> tuple[float, float]:
+    """The range a textured parameter's values must stay in."""
+    return (1e-3, 1.0) if key in ("roughness", "roughness_v") else (0.0, 1.0)
+
+
 def _texture(t: _Table, key: str, scene_dir: str) -> tuple:
     """Material parameter ``key`` given by a texture (an inline table, ``wrt.textures.read_texture``):
     ``(texture, value)``, its values checked against the parameter's range (roughness: as the
@@ -343,9 +352,11 @@ def _texture(t: _Table, key: str, scene_dir: str) -> tuple:
     t.used.add(key)
     tt = _Table(t.file, f"{t.name}.{key}", t.data[key])
     texture = read_texture(tt, scene_dir)
-    number = key in ("roughness", "roughness_v", "opacity", "weight")  # read as one number (texture_float)
+    number = key in NUMBER_SLOTS
+    lo, hi = _slot_range(key)
+    if isinstance(texture, MeshAttribute):  # its values are its meshes': checked and averaged with them
+        return texture, lo if number else (lo,) * 3
     values = texture.numbers() if number else texture.values()
-    lo, hi = (1e-3, 1.0) if key in ("roughness", "roughness_v") else (0.0, 1.0)
     if values.min() < lo or values.max() > hi:
         what = "the file's texels" if isinstance(texture, Bitmap) else "its colours"
         raise tt.error(
@@ -652,12 +663,14 @@ def _cylinder_to_world(t: _Table) -> np.ndarray:
     return _placed(t, "cylinder", placement)
 
 
-def _mesh(t: _Table, scene_dir: str, material: int, textured: bool) -> Mesh:
+def _mesh(t: _Table, scene_dir: str, material: int, textured: tuple | None) -> Mesh:
     """A ``mesh`` table: its ``file`` (of a ``.serialized`` file, mesh ``shape_index``) placed by
     its ``transform``; with ``shading = "smooth"`` the file's vertex normals (by the inverse
     transpose), or Mitsuba 3's computed from the placed vertices when it has none;
     ``flip_normals`` reverses the winding and turns the normals around; with a ``textured``
-    material (or an anisotropic one: its tangent is dp/du), the file's texture coordinates."""
+    material (or an anisotropic one: its tangent is dp/du; not None), the file's texture
+    coordinates, and the PLY attributes of its ``(parameter, MeshAttribute)`` uses, checked
+    against their parameters' ranges."""
     name = t.string("file")
     matrix = _transform(t)
     smooth = t.string("shading", "flat", choices=MESH_SHADING) == "smooth"
@@ -679,9 +692,10 @@ def _mesh(t: _Table, scene_dir: str, material: int, textured: bool) -> Mesh:
         )
     except MeshFileError as e:
         raise t.error("file", str(e), name) from None
+    attributes = _mesh_attributes(t, name, path, textured or ())
     if not smooth:
         normals = None
-    if not textured:
+    if textured is None:
         uvs = None
     elif uvs is not None and not np.all(np.abs(uvs) <= MAX_MAGNITUDE):
         raise t.error("file", f"texture coordinates {BEYOND_FLOAT32}", name)
@@ -693,7 +707,45 @@ def _mesh(t: _Table, scene_dir: str, material: int, textured: bool) -> Mesh:
         raise t.error("file", f"vertices (after the transform) {BEYOND_FLOAT32}", name)
     if smooth:
         normals = vertex_normals(vertices, faces) if normals is None else transform_normals(normals, matrix)
-    return Mesh(file=path, vertices=vertices, faces=faces, material=material, normals=normals, uvs=uvs)
+    return Mesh(
+        file=path, vertices=vertices, faces=faces, material=material, normals=normals, uvs=uvs, attributes=attributes
+    )
+
+
+def _mesh_attributes(t: _Table, name: str, path: str, uses: tuple) -> dict[str, np.ndarray]:
+    """The attributes of mesh file ``name`` that its material's mesh-attribute textures read
+    (``uses``: ``(parameter, MeshAttribute)`` pairs), each finite, of a number parameter one
+    channel (Mitsuba's ``eval_1``), of a colour one or three, and times the texture's scale within
+    the parameter's range."""
+    if not uses:
+        return {}
+    if not path.lower().endswith(".ply"):
+        raise t.error("file", "is not a PLY file: its material reads mesh attributes (mesh_attribute)", name)
+    try:
+        attributes = ply_attributes(path, sorted({texture.name for _, texture in uses}))
+    except MeshFileError as e:
+        raise t.error("file", str(e), name) from None
+    for key, texture in uses:
+        values = attributes[texture.name]
+        channels = values.shape[1]
+        if not np.all(np.isfinite(values)):
+            raise t.error("file", f"mesh attribute '{texture.name}' has NaN or infinite values", name)
+        if channels != (1 if key in NUMBER_SLOTS else 3) and channels != 1:
+            need = "1 channel (a number)" if key in NUMBER_SLOTS else "1 or 3 channels (a colour)"
+            raise t.error("file", f"mesh attribute '{texture.name}' has {channels} channels: {key} needs {need}", name)
+        scaled = values * texture.scale
+        lo, hi = _slot_range(key)
+        if scaled.min() < lo or scaled.max() > hi:
+            raise t.error(
+                "file",
+                f"mesh attribute '{texture.name}' times its scale {texture.scale:g} ranges over"
+                f" [{scaled.min():.4g}, {scaled.max():.4g}]: {key} must stay in [{lo:g}, {hi:g}]",
+                name,
+            )
+    return attributes
+
+
+_NONE_TEXTURED: Mapping[int, tuple] = {}
 
 
 def _shape(
@@ -703,15 +755,16 @@ def _shape(
     material_index: Mapping[str, int],
     scene_dir: str,
     group_index: Mapping[str, int] | None = None,
-    textured: frozenset = frozenset(),
+    textured: Mapping[int, tuple] = _NONE_TEXTURED,
     media_index: Mapping[str, int] | None = None,
 ):
     """``(shape, boundary)`` of table ``name`` (``shape[3]``, or ``group[0].shape[1]`` without
     ``group_index``: a group's shapes are bounded, still, not instances and bound no media);
-    ``textured``: the indices of materials with textures or anisotropic roughness (their meshes'
-    texture coordinates are read). ``boundary``: for a shape of the scene (``media_index``: the media by name), the
-    ``(interior, exterior)`` media it bounds (-1 for the side it does not name); None where it
-    names neither, and for a group's shape."""
+    ``textured``: the materials (by index) with textures or anisotropic roughness (their meshes'
+    texture coordinates are read), each to its mesh-attribute uses (``_mesh_attributes``).
+    ``boundary``: for a shape of the scene (``media_index``: the media by name), the ``(interior,
+    exterior)`` media it bounds (-1 for the side it does not name); None where it names neither,
+    and for a group's shape."""
     t = _Table(file, name, data)
     boundary = None
     if media_index is not None:
@@ -727,6 +780,11 @@ def _shape(
         raise t.error("material", f"no [[material]] with this name (known: {known})", name)
     else:
         material = material_index[name]
+    if kind not in ("mesh", "instance") and textured.get(material):
+        attribute = textured[material][0][1].name
+        raise t.error(
+            "material", f"reads mesh attribute '{attribute}' (mesh_attribute): only a mesh has attributes", name
+        )
     if kind == "sphere":
         shape = _sphere(t, material)
     elif kind == "plane":
@@ -739,7 +797,7 @@ def _shape(
         uvs = _polygon_uvs(t, len(vertices))
         shape = Polygon(vertices=vertices, normal=_newell_normal(t, vertices), material=material, uvs=uvs)
     elif kind == "mesh":
-        shape = _mesh(t, scene_dir, material, material in textured)
+        shape = _mesh(t, scene_dir, material, textured.get(material))
     elif kind == "disk":
         shape = Disk(to_world=_disk_to_world(t), material=material)
     elif kind == "cylinder":
@@ -802,8 +860,36 @@ def _polygon_uvs(t: _Table, count: int) -> tuple | None:
     return tuple((float(u), float(v)) for u, v in uvs)
 
 
+def _attribute_means(materials: list[Material], shapes) -> list[Material]:
+    """``materials`` with each mesh-attribute parameter's constant the mean of its values (times
+    the texture's scale) over the meshes that read it: what stands for it where a constant is read
+    (``Material.textures``)."""
+    by_name = {m.name: m for m in materials}
+    sums: dict[tuple[str, str], list] = {}
+    for shape in shapes:
+        if isinstance(shape, Mesh) and shape.attributes:
+            for c in constituents(materials[shape.material], by_name):
+                for key, texture in c.textures:
+                    if isinstance(texture, MeshAttribute):
+                        sums.setdefault((c.name, key), []).append(shape.attributes[texture.name] * texture.scale)
+    out = []
+    for m in materials:
+        means = {key: np.concatenate(v).mean(axis=0) for (name, key), v in sums.items() if name == m.name}
+        values = {
+            key: float(mean.mean()) if key in NUMBER_SLOTS else tuple(float(c) for c in np.broadcast_to(mean, 3))
+            for key, mean in means.items()
+        }
+        out.append(dataclasses.replace(m, **values) if values else m)
+    return out
+
+
 def _group(
-    file: str, index: int, data, material_index: Mapping[str, int], scene_dir: str, textured: frozenset = frozenset()
+    file: str,
+    index: int,
+    data,
+    material_index: Mapping[str, int],
+    scene_dir: str,
+    textured: Mapping[int, tuple] = _NONE_TEXTURED,
 ) -> Group:
     t = _Table(file, f"group[{index}]", data)
     name = t.string("name")
@@ -843,6 +929,8 @@ def _light_texture(t: _Table, key: str, scene_dir: str):
         return Constant(value=colour)
     tt = _Table(t.file, f"{t.name}.{key}", value)
     texture = read_texture(tt, scene_dir)
+    if isinstance(texture, MeshAttribute):
+        raise tt.error("texture", "a light's texture cannot be a mesh attribute (a light is no mesh)", "mesh_attribute")
     values = texture.values()
     if values.min() < 0.0 or values.max() > MAX_MAGNITUDE:
         field = _texture_key(texture)
@@ -969,9 +1057,16 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
     material_index[DEFAULT_MATERIAL.name] = len(materials)
     materials.append(DEFAULT_MATERIAL)
     by_name[DEFAULT_MATERIAL.name] = DEFAULT_MATERIAL
-    textured = frozenset(  # textured or anisotropic (the tangent is dp/du), or made of such a material
-        i for i, m in enumerate(materials) if any(c.textures or c.anisotropic for c in constituents(m, by_name))
-    )
+    textured = {  # textured or anisotropic (the tangent is dp/du), or made of such a material: its attributes
+        i: tuple(
+            (key, texture)
+            for c in constituents(m, by_name)
+            for key, texture in c.textures
+            if isinstance(texture, MeshAttribute)
+        )
+        for i, m in enumerate(materials)
+        if any(c.textures or c.anisotropic for c in constituents(m, by_name))
+    }
     groups = [
         _group(file, i, g, material_index, scene_dir, textured)
         for i, g in enumerate(_array_of_tables(file, doc, "group"))
@@ -986,6 +1081,7 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
         shapes.append(shape)
         if boundary is not None:
             boundaries.append((i, *boundary))
+    materials = _attribute_means(materials, [*shapes, *(shape for group in groups for shape in group.shapes)])
     longest_time = max(abs(c) for c in camera.shutter)
     for i, shape in enumerate(shapes):  # a moving shape's displacement is a coordinate too
         displacement = float(np.linalg.norm(shape.velocity)) * longest_time

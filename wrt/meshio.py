@@ -639,6 +639,120 @@ class _PlyHeader:
     body_line: int
 
 
+def ply_attributes(path, names) -> dict[str, np.ndarray]:
+    """The mesh attributes ``names`` of a PLY file, as Mitsuba 3 names and reads them: per vertex
+    (``vertex_...``, (V, k)) or per face (``face_...``, (F, k)), float64, values as written (an
+    integer colour is not scaled to [0, 1]: Mitsuba warns and keeps it). An element's ``r``,
+    ``g``, ``b`` (or ``red``, ``green``, ``blue``; and ``a`` or ``alpha``, a fourth field) are its
+    ``color``; its other properties named ``PREFIX_c``, consecutive with one prefix and the
+    postfixes in sequence within one of ``xyzw``, ``rgba``, ``0123``, ``1234``, are attribute
+    ``PREFIX`` of 1 to 3 fields (``PREFIX_color`` for ``rgba``); properties of no such form are
+    not attributes. Raises MeshFileError for a malformed file, an attribute the file lacks
+    (naming those it has), and a face attribute of a file with faces of more than 3 vertices
+    (they are triangulated: give a triangle mesh)."""
+    path = Path(path)
+    _check_mesh_path(path)
+    data = read_bytes(path, "mesh", limit=MAX_MESH_BYTES, error=MeshFileError)
+    try:
+        header = _parse_ply_header(data)
+        if header.encoding == "ascii":
+            values = _read_ascii_body(data[header.body_start :], header.elements, header.body_line)
+        else:
+            values = _read_binary_body(memoryview(data)[header.body_start :], header.elements, header.encoding)
+    except _PlyError as err:
+        raise MeshFileError(f"{path}: not a readable mesh: {err}") from None
+    found = {}
+    for element in header.elements:
+        if element.name in ("vertex", "face"):
+            for name, fields in _ply_attribute_fields(element).items():
+                found[name] = np.column_stack([np.asarray(values[element.name][f], dtype=np.float64) for f in fields])
+    out = {}
+    for name in names:
+        if name not in found:
+            has = listed(sorted(found)) if found else "none"
+            raise MeshFileError(f"{path}: has no mesh attribute '{name}' (its attributes: {has})")
+        if name.startswith("face_"):
+            face = values.get("face", {})
+            counts = next((face[key][0] for key in _PLY_FACE_LISTS if key in face), [])
+            if np.any(np.asarray(counts) != 3):
+                raise MeshFileError(
+                    f"{path}: face attribute '{name}' of a mesh with faces of more than 3 vertices"
+                    " (they are triangulated: give a triangle mesh)"
+                )
+        out[name] = found[name]
+    return out
+
+
+_PLY_POSTFIXES = ("xyzw", "rgba", "0123", "1234")
+"""The postfix sequences of a PLY attribute's fields (Mitsuba 3's)."""
+
+
+def _ply_attribute_fields(element) -> dict[str, tuple[str, ...]]:
+    """Mesh attribute name -> the properties holding its fields, for one PLY element: Mitsuba
+    3.9's rule (``PLYMesh::find_other_fields``), run as its state machine so that the files it
+    half-reads name the same attributes here, quirks included: after an invalid postfix it skips
+    the properties starting with the prefix and the one after them, and the next attribute
+    starts one field on. An attribute whose fields that leaves out of the file is not one."""
+    props = [p.name for p in element.properties if not p.count_type]
+    effective = dict(zip(props, props))  # property -> the name Mitsuba reads it under
+    reserved = {"r", "g", "b", "a"}
+    if element.name == "vertex":
+        reserved |= {"x", "y", "z", *_PLY_NORMALS, "u", "v"}
+        if not {"u", "v"} <= set(props):
+            pair = next((p for p in (("texture_u", "texture_v"), ("s", "t")) if set(p) <= set(props)), ())
+            effective.update(zip(pair, ("u", "v")))
+    out = {}
+    if not {"r", "g", "b"} <= set(props) and {"red", "green", "blue"} <= set(props):
+        effective.update(red="r", green="g", blue="b", **({"alpha": "a"} if "alpha" in props else {}))
+    by_name = {name: prop for prop, name in effective.items()}
+    if {"r", "g", "b"} <= set(by_name):
+        out[f"{element.name}_color"] = tuple(by_name[c] for c in "rgba" if c in by_name)
+    names = [effective[p] for p in props]
+    encountered, prefix, sequence, level, reading = set(), "", 0, 0, False
+
+    def flush():
+        nonlocal prefix, sequence, level, reading
+        fields = [f"{prefix}_{_PLY_POSTFIXES[sequence][k]}" for k in range(level)]
+        if level in (1, 3) and all(f in by_name for f in fields):
+            out[f"{element.name}_{prefix}" + ("_color" if sequence == 1 else "")] = tuple(by_name[f] for f in fields)
+            encountered.add(prefix)
+        prefix, sequence, level, reading = "", 0, 0, False
+
+    i = 0
+    while i < len(names):
+        name = names[i]
+        head, bar, postfix = name.rpartition("_")
+        if name in reserved:
+            pass
+        elif not bar or len(postfix) != 1:
+            if reading:
+                flush()
+        else:
+            if reading and head != prefix:
+                flush()
+            if not reading and head in encountered:
+                while i < len(names) and names[i].startswith(head):
+                    i += 1
+            elif not reading:
+                sequence = next((k for k, s in enumerate(_PLY_POSTFIXES) if s[0] == postfix), -1)
+                if sequence >= 0:
+                    reading, prefix = True, head
+                    level += 1
+                else:
+                    sequence = 0
+            elif level < 4 and postfix == _PLY_POSTFIXES[sequence][level]:
+                level += 1
+            else:
+                prefix, sequence, level, reading = "", 0, 0, False
+                while i < len(names) and names[i].startswith(head):
+                    i += 1
+                level += 1
+        i += 1
+    if reading:
+        flush()
+    return out
+
+
 def _read_ply(path):
     """Parse a PLY file into its vertices (V, 3), face sizes (F,), flat vertex indices, vertex
     normals (V, 3) (None without ``nx``, ``ny``, ``nz``) and texture coordinates (V, 2) (None

@@ -232,7 +232,7 @@ def prepare(scene: Scene, dev: wp.context.Device) -> DeviceScene:
             width=w,
             height=h,
             geometry=upload_geometry(prims, dev),
-            materials=upload_materials(scene, dev),
+            materials=upload_materials(scene, dev, prims),
             lights=upload_lights(scene, dev, prims),
             settings=integrator_settings(scene),
             camera=camera_data(scene.camera, scene.render, w, h),

@@ -273,7 +273,9 @@ class Mesh:
     normals): world space, unit, one per vertex, interpolated over each triangle; a zero row is a
     vertex without a normal, whose triangles take their face normal at it. ``uvs`` are the file's
     texture coordinates (read for textured meshes only; None: a triangle's uv is its barycentric
-    coordinates (b1, b2) of its second and third corners, as in Mitsuba 3)."""
+    coordinates (b1, b2) of its second and third corners, as in Mitsuba 3). ``attributes``: the
+    file's mesh attributes its material's ``mesh_attribute`` textures read (``vertex_...`` per
+    vertex, ``face_...`` per face, 1 or 3 channels)."""
 
     file: str
     vertices: np.ndarray  # (V, 3) float64, world space
@@ -282,6 +284,7 @@ class Mesh:
     velocity: tuple[float, float, float] = STILL
     normals: np.ndarray | None = None  # (V, 3) float64, world space, unit or zero
     uvs: np.ndarray | None = None  # (V, 2) float64, Mitsuba 3's convention (wrt.meshio.load_mesh)
+    attributes: dict = field(default_factory=dict)  # name -> (V, k) or (F, k) float64 (wrt.meshio.ply_attributes)
 
 
 @dataclass(frozen=True, eq=False)

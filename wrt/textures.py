@@ -2,15 +2,17 @@
 textures into the flat arrays of ``wrt.kernels.textures.TextureData``.
 
 A texture gives a material parameter (``SLOTS``: ``albedo``, ``specular``, ``reflectance``,
-``roughness``) a value that varies with the surface's (u, v) coordinates
+``roughness``, ...) a value that varies with the surface's (u, v) coordinates
 (``wrt.kernels.traverse.surface_uv``). Three kinds, as Mitsuba 3's plugins: ``Constant`` (one
 value everywhere, Mitsuba's ``rawconstant``: what a constant normal map is; on the device a
 checkerboard of two equal colours), ``Checkerboard`` (two colours in squares of side 1/2 in uv)
 and ``Bitmap`` (an image file read
 with OpenImageIO: 8- and 16-bit integer files are sRGB-encoded and decoded to linear unless
 ``raw``, floating-point files (OpenEXR, Radiance HDR) are linear; a grey image is grey in all
-three channels, an alpha channel is ignored). Both map uv through ``to_uv`` first, a 2D affine
-transform (3x3, acting on ``(u, v, 1)``). The scene format is in docs/scene-format.md.
+three channels, an alpha channel is ignored). These map uv through ``to_uv`` first, a 2D affine
+transform (3x3, acting on ``(u, v, 1)``). A fourth, ``MeshAttribute`` (Mitsuba's
+``mesh_attribute``), takes a mesh's vertex or face values instead of uv. The scene format is in
+docs/scene-format.md.
 """
 
 from __future__ import annotations
@@ -21,13 +23,24 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from wrt.kernels.textures import BILINEAR, BITMAP, CHECKERBOARD, CLAMP, MIRROR, NEAREST, REPEAT, SLOTS
+from wrt.kernels.textures import (
+    BILINEAR,
+    BITMAP,
+    CHECKERBOARD,
+    CLAMP,
+    MESH_ATTRIBUTE,
+    MIRROR,
+    NEAREST,
+    REPEAT,
+    SLOTS,
+)
 
 from .imageio import oiio, read_pixels, srgb_decode
 
 FILTERS = {"bilinear": BILINEAR, "nearest": NEAREST}
 WRAPS = {"repeat": REPEAT, "mirror": MIRROR, "clamp": CLAMP}
-KINDS = ("constant", "checkerboard", "bitmap")
+KINDS = ("constant", "checkerboard", "bitmap", "mesh_attribute")
+ATTRIBUTE_PREFIXES = ("vertex_", "face_")  # a mesh attribute's name starts with one of them (Mitsuba 3's rule)
 MAX_TEXELS = 1 << 26  # texels of one bitmap (64 Mi: 768 MiB of float32 RGB on the device)
 LUMINANCE = np.array([0.212671, 0.715160, 0.072169])  # Mitsuba 3's (Rec. 709) weights: a bitmap's texture_float
 
@@ -92,7 +105,25 @@ class Bitmap:
         return self.values() @ LUMINANCE
 
 
-Texture = Constant | Checkerboard | Bitmap
+@dataclass(frozen=True, eq=False)
+class MeshAttribute:
+    """Mitsuba 3's ``mesh_attribute``: attribute ``name`` of the mesh it is on (``wrt.scene.Mesh.
+    attributes``; ``vertex_...`` interpolated over each triangle by its barycentric coordinates,
+    ``face_...`` constant over each face) times ``scale``. Its values are the meshes', known once
+    they are read (``wrt.loader``); uv and ``to_uv`` play no part."""
+
+    name: str
+    scale: float = 1.0
+    to_uv: np.ndarray = field(default_factory=lambda: np.eye(3))
+
+
+Texture = Constant | Checkerboard | Bitmap | MeshAttribute
+
+
+def attribute_names(materials) -> tuple[str, ...]:
+    """The mesh attributes the textures of ``materials`` read, sorted: the order of their corner
+    values on the device (``wrt.geometry.Primitives.tri_attributes``)."""
+    return tuple(sorted({t.name for m in materials for _, t in m.textures if isinstance(t, MeshAttribute)}))
 
 
 def mean_value(texture: Texture) -> tuple[float, float, float]:
@@ -131,11 +162,18 @@ def read_texture(t, scene_dir: str) -> Texture:
     """The texture of an inline table ``t`` (a ``wrt.loader._Table``): ``texture`` (its kind) and
     the keys of that kind (docs/scene-format.md). Its checks raise ``t.error``."""
     kind = t.string("texture", choices=KINDS)
-    to_uv = _to_uv(t)
+    to_uv = np.eye(3) if kind == "mesh_attribute" else _to_uv(t)  # a mesh attribute's scale scales its values
     if kind == "constant":
         value = t.get("value", None)
         grey = isinstance(value, (int, float)) and not isinstance(value, bool)
         texture = Constant(value=(t.number("value"),) * 3 if grey else t.vec3("value"), to_uv=to_uv)
+    elif kind == "mesh_attribute":
+        if "to_uv" in t.data:
+            raise t.error("to_uv", "does not apply to a mesh attribute (it is not looked up by uv)", t.data["to_uv"])
+        name = t.string("name")
+        if not name.startswith(ATTRIBUTE_PREFIXES) or name in ATTRIBUTE_PREFIXES:
+            raise t.error("name", "must start with vertex_ or face_ (a vertex or a face attribute)", name)
+        texture = MeshAttribute(name=name, scale=t.number("scale", 1.0, lo=-1e18, hi=1e18))
     elif kind == "checkerboard":
         texture = Checkerboard(
             color0=t.vec3("color0", Checkerboard.color0), color1=t.vec3("color1", Checkerboard.color1), to_uv=to_uv
@@ -207,7 +245,8 @@ class TextureTable:
 
 def texture_table(materials) -> TextureTable:
     """The textures of ``materials`` (``wrt.scene.Material``s, in device order), each texture object
-    once however many parameters share it."""
+    once however many parameters share it (a mesh attribute's corner values are the geometry's:
+    ``TextureData.corners``, uploaded by ``wrt.device``)."""
     index: dict[int, int] = {}
     textures: list[Texture] = []
     slot = np.full((max(len(materials), 1), len(SLOTS)), -1, dtype=np.int32)
@@ -219,7 +258,7 @@ def texture_table(materials) -> TextureTable:
             slot[m, SLOTS.index(name)] = index[id(texture)]
         if material.roughness_v is None:  # isotropic: alpha_v is alpha_u, its texture too (one lookup)
             slot[m, SLOTS.index("roughness_v")] = slot[m, SLOTS.index("roughness")]
-    return _pack(textures, slot)
+    return _pack(textures, slot, attribute_names(materials))
 
 
 def light_texture_table(textures: list[Texture]) -> TextureTable:
@@ -228,8 +267,9 @@ def light_texture_table(textures: list[Texture]) -> TextureTable:
     return _pack(textures, np.full((1, len(SLOTS)), -1, dtype=np.int32))
 
 
-def _pack(textures: list[Texture], slot: np.ndarray) -> TextureTable:
-    """``textures`` (their index their position) in ``TextureData``'s flat arrays."""
+def _pack(textures: list[Texture], slot: np.ndarray, attributes: tuple[str, ...] = ()) -> TextureTable:
+    """``textures`` (their index their position) in ``TextureData``'s flat arrays; a mesh
+    attribute's ``offset`` its place in ``attributes``, ``width`` their count, ``color0`` its scale."""
     bitmaps = [t.texels for t in textures if isinstance(t, Bitmap)]
     sizes = [b.shape[0] * b.shape[1] for b in bitmaps]
     offsets = iter(np.cumsum([0, *sizes[:-1]]))
@@ -238,6 +278,9 @@ def _pack(textures: list[Texture], slot: np.ndarray) -> TextureTable:
         if isinstance(t, Bitmap):
             h, w = t.texels.shape[:2]
             rows.append((BITMAP, (0.0,) * 3, (0.0,) * 3, next(offsets), w, h, FILTERS[t.filter], WRAPS[t.wrap]))
+        elif isinstance(t, MeshAttribute):
+            scale = (t.scale,) * 3
+            rows.append((MESH_ATTRIBUTE, scale, scale, attributes.index(t.name), len(attributes), 0, NEAREST, REPEAT))
         else:
             colours = (t.value, t.value) if isinstance(t, Constant) else (t.color0, t.color1)
             rows.append((CHECKERBOARD, *colours, 0, 0, 0, NEAREST, REPEAT))

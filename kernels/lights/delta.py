@@ -21,7 +21,7 @@ import warp as wp
 
 from ..materials import MaterialData
 from ..sampling import Sampler
-from ..textures import texture_rgb
+from ..textures import texture_rgb, uv_context
 from ..traverse import GeometryData
 from .data import LightData, LightSample
 from .interface import Family, Functions, Options
@@ -74,7 +74,9 @@ def light_incident(lights: LightData, i: wp.int32, p: wp.vec3):
         falloff = spot_falloff(lights, i, -wi)
         e = e * falloff
         if t >= 0 and falloff > 0.0:
-            e = wp.cw_mul(e, texture_rgb(lights.textures, t, frustum_uv(lights, i, lights.frame[i] * (-wi))))
+            e = wp.cw_mul(
+                e, texture_rgb(lights.textures, t, uv_context(frustum_uv(lights, i, lights.frame[i] * (-wi))))
+            )
     elif light_type == PROJECTOR:
         local = lights.frame[i] * (-to_light)
         z = local[2]
@@ -82,7 +84,7 @@ def light_incident(lights: LightData, i: wp.int32, p: wp.vec3):
         if z > 0.0:
             uv = frustum_uv(lights, i, local)
             if uv[0] >= 0.0 and uv[0] <= 1.0 and uv[1] >= 0.0 and uv[1] <= 1.0:
-                radiance = wp.cw_mul(lights.power[i], texture_rgb(lights.textures, t, uv))
+                radiance = wp.cw_mul(lights.power[i], texture_rgb(lights.textures, t, uv_context(uv)))
                 e = radiance * (wp.pi * dist / (z * z * z))
     return wi, dist, e
 

@@ -32,15 +32,15 @@ pdf / flags``): integrators ask these functions and never test a material's type
   ``eval`` sees, so light sampling (next-event estimation) pays there.
 - ``make_bsdf(families, textures, inline, beckmann, anisotropic)``: the dispatch over the families a
   scene uses, a ``BSDF`` of
-  - ``eval(materials, m, n, wo, wi, eta, uv, front, tangent)``: f (1/sr) of the non-specular lobes, 0 for
+  - ``eval(materials, m, n, wo, wi, eta, ctx, front, tangent)``: f (1/sr) of the non-specular lobes, 0 for
     delta lobes; ``wi`` on ``n``'s side, or across the surface where the BSDF has glossy
     transmission (a rough dielectric: the only one that needs ``eta``, 1 by default);
   - ``pdf(...)``: the solid-angle density with which ``sample`` draws ``wi`` from the non-specular lobes;
-  - ``sample(materials, m, n, wo, eta, uc, u, uv, front, tangent)``: one direction, as a ``BSDFSample``
+  - ``sample(materials, m, n, wo, eta, uc, u, ctx, front, tangent)``: one direction, as a ``BSDFSample``
     with ``weight = f |cos| / pdf`` (for a delta lobe: its reflectance or transmittance over the
     discrete probability of choosing it) and the flags of the lobe chosen; ``pdf == 0`` when the
     sample is lost;
-  - ``specular_lobes(materials, m, n, wo, eta, uv)``: every delta lobe at once, for integrators
+  - ``specular_lobes(materials, m, n, wo, eta, ctx)``: every delta lobe at once, for integrators
     that split the ray tree deterministically (Whitted): ``SpecularLobes`` with the reflected and
     transmitted directions and weights.
 
@@ -49,7 +49,7 @@ Conventions: world space; ``n`` is the unit shading normal on ``wo``'s side (``d
 the viewer) and ``wi`` (toward the light, or the sampled direction) are unit vectors pointing away
 from the surface; ``eta = n1 / n2`` is the ratio of the indices of refraction on ``wo``'s side and
 across the surface (``wrt.kernels.media``; 1 for opaque materials). ``uc`` chooses a lobe, ``u``
-(2D) samples a direction within it; both uniform in [0, 1). ``uv`` is the hit's texture coordinate
+(2D) samples a direction within it; both uniform in [0, 1). ``ctx`` is the hit's texture coordinate
 (textured parameters), ``front`` (``Hit.front``, default true) the side it arrived on: only a mask
 reads it, as its inner material scatters nothing on the back of a one-sided one while its null lobe
 lets the ray through on both sides. ``tangent`` (``Hit.tangent``) is the shading frame's unit
@@ -70,6 +70,7 @@ from typing import NamedTuple
 import warp as wp
 
 from .. import hinted_func
+from ..textures import TextureEvalContext
 from . import blend, conductor, dielectric, diffuse, mask, null, phong, plastic, rough_dielectric, thin_dielectric
 from .blend import BLEND, blend_flags
 from .conductor import CONDUCTOR, GLOSSY, MIRROR
@@ -237,7 +238,7 @@ def make_bsdf(
     anisotropic: bool = True,
 ) -> BSDF:
     """The BSDF interface over ``families`` (names of ``FAMILIES``; ``families_for``), with texture
-    lookups of the parameters (``wrt.kernels.textures``, at the hit's ``uv``) only where
+    lookups of the parameters (``wrt.kernels.textures``, at the hit's ``ctx``) only where
     ``textures``, Beckmann microfacets only where ``beckmann`` (``wrt.kernels.microfacet``) and a
     second alpha only where ``anisotropic`` (``wrt.kernels.materials.data.parameters``), its
     four functions with Warp's inline hint ``inline`` (None: the compiler's choice, the CPU's;
@@ -279,13 +280,13 @@ def _dispatch(functions: list, inline: bool | None = None) -> BSDF:
         wo: wp.vec3,
         wi: wp.vec3,
         eta: float = 1.0,
-        uv: wp.vec2 = wp.vec2(0.0, 0.0),
+        ctx: TextureEvalContext = TextureEvalContext(),
         front: bool = True,
         tangent: wp.vec3 = wp.vec3(0.0, 0.0, 0.0),
     ) -> wp.vec3:
         """f(wo, wi) (1/sr) of the non-specular lobes for ``wi`` on the side of ``n`` (or across the
         surface, for glossy transmission); 0 for delta lobes."""
-        return eval_case(materials, m, materials.type[m], n, wo, wi, eta, uv, tangent)
+        return eval_case(materials, m, materials.type[m], n, wo, wi, eta, ctx, tangent)
 
     @hinted
     def bsdf_pdf(
@@ -295,19 +296,24 @@ def _dispatch(functions: list, inline: bool | None = None) -> BSDF:
         wo: wp.vec3,
         wi: wp.vec3,
         eta: float = 1.0,
-        uv: wp.vec2 = wp.vec2(0.0, 0.0),
+        ctx: TextureEvalContext = TextureEvalContext(),
         front: bool = True,
         tangent: wp.vec3 = wp.vec3(0.0, 0.0, 0.0),
     ) -> float:
         """Solid-angle density (1/sr) with which ``bsdf_sample`` draws ``wi``; 0 for delta lobes."""
-        return pdf_case(materials, m, materials.type[m], n, wo, wi, eta, uv, tangent)
+        return pdf_case(materials, m, materials.type[m], n, wo, wi, eta, ctx, tangent)
 
     @hinted
     def specular_lobes(
-        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uv: wp.vec2 = wp.vec2(0.0, 0.0)
+        materials: MaterialData,
+        m: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        eta: float,
+        ctx: TextureEvalContext = TextureEvalContext(),
     ) -> SpecularLobes:
         """The delta lobes of material ``m`` (none for a family without them)."""
-        return lobes_case(materials, m, materials.type[m], n, wo, eta, uv)
+        return lobes_case(materials, m, materials.type[m], n, wo, eta, ctx)
 
     @hinted
     def bsdf_sample(
@@ -318,12 +324,12 @@ def _dispatch(functions: list, inline: bool | None = None) -> BSDF:
         eta: float,
         uc: float,
         u: wp.vec2,
-        uv: wp.vec2 = wp.vec2(0.0, 0.0),
+        ctx: TextureEvalContext = TextureEvalContext(),
         front: bool = True,
         tangent: wp.vec3 = wp.vec3(0.0, 0.0, 0.0),
     ) -> BSDFSample:
         """A direction drawn from material ``m``'s BSDF (lost for a family without lobes)."""
-        return sample_case(materials, m, materials.type[m], n, wo, eta, uc, u, uv, tangent)
+        return sample_case(materials, m, materials.type[m], n, wo, eta, uc, u, ctx, tangent)
 
     return BSDF(bsdf_eval, bsdf_pdf, bsdf_sample, specular_lobes)
 
@@ -337,7 +343,7 @@ def no_eval(
     wo: wp.vec3,
     wi: wp.vec3,
     eta: float,
-    uv: wp.vec2,
+    ctx: TextureEvalContext,
     tangent: wp.vec3,
 ) -> wp.vec3:
     return wp.vec3(0.0)
@@ -352,7 +358,7 @@ def no_pdf(
     wo: wp.vec3,
     wi: wp.vec3,
     eta: float,
-    uv: wp.vec2,
+    ctx: TextureEvalContext,
     tangent: wp.vec3,
 ) -> float:
     return 0.0
@@ -376,12 +382,12 @@ def _eval_cases(cases: list, otherwise: wp.Function) -> wp.Function:
         wo: wp.vec3,
         wi: wp.vec3,
         eta: float,
-        uv: wp.vec2,
+        ctx: TextureEvalContext,
         tangent: wp.vec3,
     ):
         if owns(material_type):
-            return family_function(materials, m, n, wo, wi, eta, uv, tangent)
-        return rest(materials, m, material_type, n, wo, wi, eta, uv, tangent)
+            return family_function(materials, m, n, wo, wi, eta, ctx, tangent)
+        return rest(materials, m, material_type, n, wo, wi, eta, ctx, tangent)
 
     return eval_case
 
@@ -400,7 +406,7 @@ def _sample_cases(cases: list) -> wp.Function:
             eta: float,
             uc: float,
             u: wp.vec2,
-            uv: wp.vec2,
+            ctx: TextureEvalContext,
             tangent: wp.vec3,
         ) -> BSDFSample:
             return lost_sample()
@@ -419,12 +425,12 @@ def _sample_cases(cases: list) -> wp.Function:
         eta: float,
         uc: float,
         u: wp.vec2,
-        uv: wp.vec2,
+        ctx: TextureEvalContext,
         tangent: wp.vec3,
     ) -> BSDFSample:
         if owns(material_type):
-            return family_sample(materials, m, n, wo, eta, uc, u, uv, tangent)
-        return rest(materials, m, material_type, n, wo, eta, uc, u, uv, tangent)
+            return family_sample(materials, m, n, wo, eta, uc, u, ctx, tangent)
+        return rest(materials, m, material_type, n, wo, eta, uc, u, ctx, tangent)
 
     return sample_case
 
@@ -441,7 +447,7 @@ def _lobes_cases(cases: list) -> wp.Function:
             n: wp.vec3,
             wo: wp.vec3,
             eta: float,
-            uv: wp.vec2,
+            ctx: TextureEvalContext,
         ) -> SpecularLobes:
             return no_lobes(n, wo)
 
@@ -451,10 +457,16 @@ def _lobes_cases(cases: list) -> wp.Function:
 
     @wp.func
     def lobes_case(
-        materials: MaterialData, m: wp.int32, material_type: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uv: wp.vec2
+        materials: MaterialData,
+        m: wp.int32,
+        material_type: wp.int32,
+        n: wp.vec3,
+        wo: wp.vec3,
+        eta: float,
+        ctx: TextureEvalContext,
     ) -> SpecularLobes:
         if owns(material_type):
-            return family_lobes(materials, m, n, wo, eta, uv)
-        return rest(materials, m, material_type, n, wo, eta, uv)
+            return family_lobes(materials, m, n, wo, eta, ctx)
+        return rest(materials, m, material_type, n, wo, eta, ctx)
 
     return lobes_case

@@ -17,7 +17,7 @@ Whitted integrator cannot render one (its choice is random).
 import numpy as np
 import warp as wp
 
-from ..textures import WEIGHT, material_float
+from ..textures import WEIGHT, TextureEvalContext, material_float
 from .interface import BSDF_SPECULAR, BSDFSample, Family, Functions, MaterialType, lost_sample
 
 BLEND = wp.constant(13)
@@ -47,62 +47,46 @@ def make(at, bsdf) -> Functions:
         return material_type == BLEND
 
     @wp.func
-    def weight_at(materials: MaterialData, m: wp.int32, uv: wp.vec2) -> float:
-        """The weight of blend ``m``'s material ``b`` at ``uv``: its texture's, clamped to [0, 1], or its ``weight``."""
+    def weight_at(materials: MaterialData, m: wp.int32, ctx: TextureEvalContext) -> float:
+        """The weight of blend ``m``'s material ``b`` at ``ctx``: its texture's, clamped to [0, 1],
+        or its ``weight``."""
         if wp.static(at.textures):
-            w = material_float(materials.textures, m, WEIGHT, uv, materials.blend.weight[m])
+            w = material_float(materials.textures, m, WEIGHT, ctx, materials.blend.weight[m])
             return wp.clamp(w, 0.0, 1.0)
         return materials.blend.weight[m]
 
-    @wp.func
-    def blended_eval(
-        materials: MaterialData,
-        m: wp.int32,
-        n: wp.vec3,
-        wo: wp.vec3,
-        wi: wp.vec3,
-        eta: float = 1.0,
-        uv: wp.vec2 = wp.vec2(0.0, 0.0),
-        front: bool = True,
-        tangent: wp.vec3 = wp.vec3(0.0, 0.0, 0.0),
-    ) -> wp.vec3:
-        """``bsdf_eval``, and a blend's: its materials' f, weighted."""
-        if materials.type[m] != BLEND:
-            return bsdf.eval(materials, m, n, wo, wi, eta, uv, front, tangent)
-        w = weight_at(materials, m, uv)
-        a = materials.blend.a[m]
-        b = materials.blend.b[m]
-        f = wp.vec3(0.0)
-        if w < 1.0 and nested_scatters(materials, a, n, wi, front):
-            f = (1.0 - w) * bsdf.eval(materials, a, n, wo, wi, eta, uv, True, tangent)
-        if w > 0.0 and nested_scatters(materials, b, n, wi, front):
-            f = f + w * bsdf.eval(materials, b, n, wo, wi, eta, uv, True, tangent)
-        return f
+    def blended(nested, value_type):
+        """``nested`` (the dispatch's ``eval`` or ``pdf``, of type ``value_type``), and a blend's:
+        its materials' values, weighted."""
 
-    @wp.func
-    def blended_pdf(
-        materials: MaterialData,
-        m: wp.int32,
-        n: wp.vec3,
-        wo: wp.vec3,
-        wi: wp.vec3,
-        eta: float = 1.0,
-        uv: wp.vec2 = wp.vec2(0.0, 0.0),
-        front: bool = True,
-        tangent: wp.vec3 = wp.vec3(0.0, 0.0, 0.0),
-    ) -> float:
-        """``bsdf_pdf``, and a blend's: its materials' densities, weighted."""
-        if materials.type[m] != BLEND:
-            return bsdf.pdf(materials, m, n, wo, wi, eta, uv, front, tangent)
-        w = weight_at(materials, m, uv)
-        a = materials.blend.a[m]
-        b = materials.blend.b[m]
-        pdf = 0.0
-        if w < 1.0 and nested_scatters(materials, a, n, wi, front):
-            pdf = (1.0 - w) * bsdf.pdf(materials, a, n, wo, wi, eta, uv, True, tangent)
-        if w > 0.0 and nested_scatters(materials, b, n, wi, front):
-            pdf = pdf + w * bsdf.pdf(materials, b, n, wo, wi, eta, uv, True, tangent)
-        return pdf
+        @wp.func
+        def blended_value(
+            materials: MaterialData,
+            m: wp.int32,
+            n: wp.vec3,
+            wo: wp.vec3,
+            wi: wp.vec3,
+            eta: float = 1.0,
+            ctx: TextureEvalContext = TextureEvalContext(),
+            front: bool = True,
+            tangent: wp.vec3 = wp.vec3(0.0, 0.0, 0.0),
+        ) -> value_type:
+            if materials.type[m] != BLEND:
+                return nested(materials, m, n, wo, wi, eta, ctx, front, tangent)
+            w = weight_at(materials, m, ctx)
+            a = materials.blend.a[m]
+            b = materials.blend.b[m]
+            value = value_type(0.0)
+            if w < 1.0 and nested_scatters(materials, a, n, wi, front):
+                value = (1.0 - w) * nested(materials, a, n, wo, wi, eta, ctx, True, tangent)
+            if w > 0.0 and nested_scatters(materials, b, n, wi, front):
+                value = value + w * nested(materials, b, n, wo, wi, eta, ctx, True, tangent)
+            return value
+
+        return blended_value
+
+    blended_eval = blended(bsdf.eval, wp.vec3)  # bsdf_eval, and a blend's: its materials' f, weighted
+    blended_pdf = blended(bsdf.pdf, float)  # bsdf_pdf, and a blend's: its materials' densities, weighted
 
     @wp.func
     def blended_sample(
@@ -113,14 +97,14 @@ def make(at, bsdf) -> Functions:
         eta: float,
         uc: float,
         u: wp.vec2,
-        uv: wp.vec2 = wp.vec2(0.0, 0.0),
+        ctx: TextureEvalContext = TextureEvalContext(),
         front: bool = True,
         tangent: wp.vec3 = wp.vec3(0.0, 0.0, 0.0),
     ) -> BSDFSample:
         """``bsdf_sample``, and a blend's (see the module's docstring)."""
         if materials.type[m] != BLEND:
-            return bsdf.sample(materials, m, n, wo, eta, uc, u, uv, front, tangent)
-        w = weight_at(materials, m, uv)
+            return bsdf.sample(materials, m, n, wo, eta, uc, u, ctx, front, tangent)
+        w = weight_at(materials, m, ctx)
         chosen = materials.blend.a[m]
         p = 1.0 - w
         uc_chosen = (uc - w) / p
@@ -130,15 +114,15 @@ def make(at, bsdf) -> Functions:
             uc_chosen = uc / w
         if not front and materials.two_sided[chosen] == 0:
             return lost_sample()
-        s = bsdf.sample(materials, chosen, n, wo, eta, wp.min(uc_chosen, 0.99999994), u, uv, True, tangent)
+        s = bsdf.sample(materials, chosen, n, wo, eta, wp.min(uc_chosen, 0.99999994), u, ctx, True, tangent)
         if s.pdf <= 0.0:
             return s
         if (s.flags & BSDF_SPECULAR) != 0:
             s.pdf = s.pdf * p
             return s
-        s.pdf = blended_pdf(materials, m, n, wo, s.wi, eta, uv, front, tangent)
+        s.pdf = blended_pdf(materials, m, n, wo, s.wi, eta, ctx, front, tangent)
         if s.pdf > 0.0:
-            f = blended_eval(materials, m, n, wo, s.wi, eta, uv, front, tangent)
+            f = blended_eval(materials, m, n, wo, s.wi, eta, ctx, front, tangent)
             s.weight = f * (wp.abs(wp.dot(n, s.wi)) / s.pdf)
         else:
             s.weight = wp.vec3(0.0)

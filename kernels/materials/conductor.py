@@ -12,7 +12,7 @@ import warp as wp
 
 from ..optics import fresnel_conductor
 from ..sample_warps import shading_frame
-from ..textures import REFLECTANCE
+from ..textures import REFLECTANCE, TextureEvalContext
 from .data import MaterialData, Parameters
 from .interface import (
     BSDF_GLOSSY,
@@ -76,16 +76,16 @@ def make(at: Parameters) -> Functions:
         wo: wp.vec3,
         wi: wp.vec3,
         eta: float,
-        uv: wp.vec2,
+        ctx: TextureEvalContext,
         tangent: wp.vec3,
     ) -> wp.vec3:
         """Microfacet reflection of the facet reflectance at the half vector; 0 for a mirror or a smooth conductor."""
         if materials.type[m] == MIRROR or materials.roughness[m] == 0.0:
             return wp.vec3(0.0)
-        alpha = at.alpha(materials, m, uv)
+        alpha = at.alpha(materials, m, ctx)
         to_local = wp.transpose(shading_frame(n, tangent))
         cos_h = wp.abs(wp.dot(wo, wp.normalize(wo + wi)))
-        reflectance = at.rgb(materials, m, REFLECTANCE, uv, materials.reflectance[m])
+        reflectance = at.rgb(materials, m, REFLECTANCE, ctx, materials.reflectance[m])
         distribution = at.distribution(materials, m)
         return specular_reflectance(materials, m, reflectance, cos_h) * mf.eval(
             to_local * wo, to_local * wi, alpha, distribution
@@ -99,24 +99,24 @@ def make(at: Parameters) -> Functions:
         wo: wp.vec3,
         wi: wp.vec3,
         eta: float,
-        uv: wp.vec2,
+        ctx: TextureEvalContext,
         tangent: wp.vec3,
     ) -> float:
         """Visible microfacet normals; 0 for a mirror or a smooth conductor."""
         if materials.type[m] == MIRROR or materials.roughness[m] == 0.0:
             return 0.0
         to_local = wp.transpose(shading_frame(n, tangent))
-        return mf.pdf(to_local * wo, to_local * wi, at.alpha(materials, m, uv), at.distribution(materials, m))
+        return mf.pdf(to_local * wo, to_local * wi, at.alpha(materials, m, ctx), at.distribution(materials, m))
 
     @wp.func
     def specular_lobes(
-        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uv: wp.vec2
+        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, ctx: TextureEvalContext
     ) -> SpecularLobes:
         """A mirror's reflection (``reflectance``), a conductor's (``reflectance`` times its Fresnel
         term); none for a glossy material."""
         lobes = no_lobes(n, wo)
         if materials.type[m] != GLOSSY:
-            reflectance = at.rgb(materials, m, REFLECTANCE, uv, materials.reflectance[m])
+            reflectance = at.rgb(materials, m, REFLECTANCE, ctx, materials.reflectance[m])
             lobes.reflectance = specular_reflectance(materials, m, reflectance, wp.dot(wo, n))
         return lobes
 
@@ -129,14 +129,14 @@ def make(at: Parameters) -> Functions:
         eta: float,
         uc: float,
         u: wp.vec2,
-        uv: wp.vec2,
+        ctx: TextureEvalContext,
         tangent: wp.vec3,
     ) -> BSDFSample:
         """A mirror's or a smooth conductor's reflection; glossy and rough conductors by visible normals."""
         s = lost_sample()
         material_type = materials.type[m]
         if material_type == MIRROR or (material_type == CONDUCTOR and materials.roughness[m] == 0.0):
-            lobes = specular_lobes(materials, m, n, wo, eta, uv)
+            lobes = specular_lobes(materials, m, n, wo, eta, ctx)
             s.wi = lobes.wr
             s.flags = BSDF_REFLECTION | BSDF_SPECULAR
             s.weight = lobes.reflectance
@@ -145,7 +145,7 @@ def make(at: Parameters) -> Functions:
         to_world = shading_frame(n, tangent)
         to_local = wp.transpose(to_world)
         wo_local = to_local * wo
-        alpha = at.alpha(materials, m, uv)
+        alpha = at.alpha(materials, m, ctx)
         distribution = at.distribution(materials, m)
         h = mf.sample_visible_normal(wo_local, alpha, distribution, u[0], u[1])
         cos_h = wp.dot(wo_local, h)
@@ -153,7 +153,7 @@ def make(at: Parameters) -> Functions:
         s.wi = to_world * wi_local
         s.flags = BSDF_REFLECTION | BSDF_GLOSSY
         if wi_local[2] > 0.0:
-            reflectance = at.rgb(materials, m, REFLECTANCE, uv, materials.reflectance[m])
+            reflectance = at.rgb(materials, m, REFLECTANCE, ctx, materials.reflectance[m])
             s.weight = specular_reflectance(materials, m, reflectance, cos_h) * mf.g1(wi_local, alpha, distribution)
             s.pdf = mf.pdf(wo_local, wi_local, alpha, distribution)
         return s

@@ -12,7 +12,7 @@ from typing import NamedTuple
 import warp as wp
 
 from ..microfacet import GGX, Microfacet, microfacet
-from ..textures import ROUGHNESS, ROUGHNESS_V, TextureData, material_rgb, texture_float
+from ..textures import ROUGHNESS, ROUGHNESS_V, TextureData, TextureEvalContext, material_rgb, texture_float
 from ..volumes import MediumData
 from .blend import BlendData
 from .interface import BSDF_TRANSMISSION, MIN_ALPHA
@@ -72,12 +72,12 @@ def nested_scatters(materials: MaterialData, nested: wp.int32, n: wp.vec3, wi: w
 
 class Parameters(NamedTuple):
     """The parameter lookups of a scene's materials at a hit, as ``@wp.func``s:
-        ``rgb(materials, m, slot, uv, constant)``, colour parameter ``slot`` (``wrt.kernels.textures``)
-        of material ``m``; ``alpha(materials, m, uv)``, its microfacet alpha; ``distribution(materials,
+        ``rgb(materials, m, slot, ctx, constant)``, colour parameter ``slot`` (``wrt.kernels.textures``)
+        of material ``m``; ``alpha(materials, m, ctx)``, its microfacet alpha; ``distribution(materials,
         m)``, its microfacet distribution's code; and ``microfacet``, the microfacet functions
         (``wrt.kernels.microfacet``: Beckmann compiled in only where some material has it, else every
         one is GGX and the column is not read). ``textures``: the scene has textures (without them
-        every parameter is its constant and ``uv`` is unused); ``anisotropic``: some material is
+        every parameter is its constant and ``ctx`` is unused); ``anisotropic``: some material is
     (its BSDF then takes the hit's tangent frame, ``wrt.kernels.sample_warps.shading_frame``)."""
 
     rgb: wp.Function
@@ -94,30 +94,34 @@ def parameters(textures: bool, beckmann: bool = True, anisotropic: bool = True) 
     ``beckmann``, a second alpha only where ``anisotropic``."""
 
     @wp.func
-    def rgb_at(materials: MaterialData, m: wp.int32, slot: wp.int32, uv: wp.vec2, constant: wp.vec3) -> wp.vec3:
-        """Colour parameter ``slot`` of material ``m`` at ``uv``: its texture's, or ``constant``."""
+    def rgb_at(
+        materials: MaterialData, m: wp.int32, slot: wp.int32, ctx: TextureEvalContext, constant: wp.vec3
+    ) -> wp.vec3:
+        """Colour parameter ``slot`` of material ``m`` at ``ctx``: its texture's, or ``constant``."""
         if wp.static(textures):
-            return material_rgb(materials.textures, m, slot, uv, constant)
+            return material_rgb(materials.textures, m, slot, ctx, constant)
         return constant
 
     @wp.func
-    def roughness_at(materials: MaterialData, m: wp.int32, slot: wp.int32, uv: wp.vec2, constant: float) -> float:
-        """Roughness parameter ``slot`` (``ROUGHNESS``, ``ROUGHNESS_V``) of material ``m`` at ``uv``:
+    def roughness_at(
+        materials: MaterialData, m: wp.int32, slot: wp.int32, ctx: TextureEvalContext, constant: float
+    ) -> float:
+        """Roughness parameter ``slot`` (``ROUGHNESS``, ``ROUGHNESS_V``) of material ``m`` at ``ctx``:
         its texture's (at least ``MIN_ALPHA``), or ``constant``."""
         if wp.static(textures):
             t = materials.textures.slot[m, slot]
             if t >= 0:
-                return wp.max(MIN_ALPHA, texture_float(materials.textures, t, uv))
+                return wp.max(MIN_ALPHA, texture_float(materials.textures, t, ctx))
         return constant
 
     @wp.func
-    def alpha_at(materials: MaterialData, m: wp.int32, uv: wp.vec2) -> wp.vec2:
-        """Microfacet alpha ``(a_u, a_v)`` of material ``m`` at ``uv``: ``roughness`` and
+    def alpha_at(materials: MaterialData, m: wp.int32, ctx: TextureEvalContext) -> wp.vec2:
+        """Microfacet alpha ``(a_u, a_v)`` of material ``m`` at ``ctx``: ``roughness`` and
         ``roughness_v``, each its texture's where textured (one lookup where both are the same)."""
-        a_u = roughness_at(materials, m, ROUGHNESS, uv, materials.roughness[m])
+        a_u = roughness_at(materials, m, ROUGHNESS, ctx, materials.roughness[m])
         if wp.static(anisotropic):
             if anisotropic_material(materials, m):
-                return wp.vec2(a_u, roughness_at(materials, m, ROUGHNESS_V, uv, materials.roughness_v[m]))
+                return wp.vec2(a_u, roughness_at(materials, m, ROUGHNESS_V, ctx, materials.roughness_v[m]))
         return wp.vec2(a_u, a_u)
 
     @wp.func

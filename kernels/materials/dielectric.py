@@ -7,6 +7,7 @@ reflected and 1 - F refracted by Snell's law, all reflected past the critical an
 import warp as wp
 
 from ..optics import fresnel_dielectric, refract
+from ..textures import TextureEvalContext
 from .data import MaterialData, Parameters
 from .interface import (
     BSDF_REFLECTION,
@@ -32,7 +33,7 @@ def make(at: Parameters) -> Functions:
 
     @wp.func
     def specular_lobes(
-        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uv: wp.vec2
+        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, ctx: TextureEvalContext
     ) -> SpecularLobes:
         """F reflected, 1 - F refracted (``wt``), all reflected past the critical angle.
 
@@ -62,12 +63,12 @@ def make(at: Parameters) -> Functions:
         eta: float,
         uc: float,
         u: wp.vec2,
-        uv: wp.vec2,
+        ctx: TextureEvalContext,
         tangent: wp.vec3,
     ) -> BSDFSample:
         """The reflection with probability F (weight F / F = 1), else the refraction (weight ``eta^2``)."""
         s = lost_sample()
-        lobes = specular_lobes(materials, m, n, wo, eta, uv)
+        lobes = specular_lobes(materials, m, n, wo, eta, ctx)
         s.wi = lobes.wr
         s.flags = BSDF_REFLECTION | BSDF_SPECULAR
         if uc < lobes.reflectance[0]:

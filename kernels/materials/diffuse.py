@@ -4,7 +4,7 @@ cosine-weighted sampling other families with a diffuse lobe share (``cosine_samp
 import warp as wp
 
 from ..sample_warps import cosine_hemisphere, frame
-from ..textures import ALBEDO
+from ..textures import ALBEDO, TextureEvalContext
 from .data import MaterialData, Parameters
 from .interface import BSDF_DIFFUSE, BSDF_REFLECTION, BSDFSample, Family, Functions, MaterialType, lost_sample
 
@@ -24,7 +24,7 @@ def cosine_sample(eval: wp.Function) -> wp.Function:
         eta: float,
         uc: float,
         u: wp.vec2,
-        uv: wp.vec2,
+        ctx: TextureEvalContext,
         tangent: wp.vec3,
     ) -> BSDFSample:
         s = lost_sample()
@@ -33,7 +33,7 @@ def cosine_sample(eval: wp.Function) -> wp.Function:
         cos_theta = wp.dot(n, s.wi)
         if cos_theta > 0.0:
             s.pdf = cos_theta / wp.pi
-            s.weight = eval(materials, m, n, wo, s.wi, 1.0, uv, tangent) * (cos_theta / s.pdf)
+            s.weight = eval(materials, m, n, wo, s.wi, 1.0, ctx, tangent) * (cos_theta / s.pdf)
         return s
 
     return sample
@@ -47,7 +47,7 @@ def cosine_pdf(
     wo: wp.vec3,
     wi: wp.vec3,
     eta: float,
-    uv: wp.vec2,
+    ctx: TextureEvalContext,
     tangent: wp.vec3,
 ) -> float:
     """The density of ``cosine_sample``: cos / pi above the surface."""
@@ -67,10 +67,10 @@ def make(at: Parameters) -> Functions:
         wo: wp.vec3,
         wi: wp.vec3,
         eta: float,
-        uv: wp.vec2,
+        ctx: TextureEvalContext,
         tangent: wp.vec3,
     ) -> wp.vec3:
-        return at.rgb(materials, m, ALBEDO, uv, materials.albedo[m]) / wp.pi
+        return at.rgb(materials, m, ALBEDO, ctx, materials.albedo[m]) / wp.pi
 
     return Functions(owns, eval, cosine_pdf, cosine_sample(eval))
 

@@ -10,10 +10,10 @@ bakes into its own table). ``make(at)`` takes the parameter lookups of a scene (
 ``wrt.kernels.materials.data``) and returns ``Functions``:
 
 - ``owns(material_type)``: the code ``material_type`` (``MaterialData.type``) is one of the family's;
-- ``eval(materials, m, n, wo, wi, eta, uv)``: f (1/sr) of its non-specular lobes;
-- ``pdf(materials, m, n, wo, wi, eta, uv)``: the solid-angle density of ``sample``'s non-specular lobes;
-- ``sample(materials, m, n, wo, eta, uc, u, uv)``: one ``BSDFSample``;
-- ``specular_lobes(materials, m, n, wo, eta, uv)``: its delta lobes at once (``SpecularLobes``);
+- ``eval(materials, m, n, wo, wi, eta, ctx)``: f (1/sr) of its non-specular lobes;
+- ``pdf(materials, m, n, wo, wi, eta, ctx)``: the solid-angle density of ``sample``'s non-specular lobes;
+- ``sample(materials, m, n, wo, eta, uc, u, ctx)``: one ``BSDFSample``;
+- ``specular_lobes(materials, m, n, wo, eta, ctx)``: its delta lobes at once (``SpecularLobes``);
 
 each None where the family has no such lobes (the dispatch then answers 0, or no lobes). The
 conventions (world space, ``n`` on ``wo``'s side, ``eta = n1 / n2``) are the package's.

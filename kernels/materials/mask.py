@@ -9,7 +9,7 @@ choice is random), ``wrt.loader`` says so.
 
 import warp as wp
 
-from ..textures import OPACITY, material_float
+from ..textures import OPACITY, TextureEvalContext, material_float
 from .data import MaterialData, Parameters, nested_scatters
 from .interface import NULL_LOBE, BSDFSample, Family, Functions, MaterialType
 
@@ -31,51 +31,39 @@ def make(at: Parameters, bsdf) -> Functions:
         return material_type == MASK
 
     @wp.func
-    def opacity_at(materials: MaterialData, m: wp.int32, uv: wp.vec2) -> float:
-        """The opacity of mask ``m`` at ``uv``: its texture's ``texture_float``, or its ``opacity``."""
+    def opacity_at(materials: MaterialData, m: wp.int32, ctx: TextureEvalContext) -> float:
+        """The opacity of mask ``m`` at ``ctx``: its texture's ``texture_float``, or its ``opacity``."""
         if wp.static(at.textures):
-            return material_float(materials.textures, m, OPACITY, uv, materials.opacity[m])
+            return material_float(materials.textures, m, OPACITY, ctx, materials.opacity[m])
         return materials.opacity[m]
 
-    @wp.func
-    def masked_eval(
-        materials: MaterialData,
-        m: wp.int32,
-        n: wp.vec3,
-        wo: wp.vec3,
-        wi: wp.vec3,
-        eta: float = 1.0,
-        uv: wp.vec2 = wp.vec2(0.0, 0.0),
-        front: bool = True,
-        tangent: wp.vec3 = wp.vec3(0.0, 0.0, 0.0),
-    ) -> wp.vec3:
-        """``bsdf_eval``, and a mask's: ``opacity`` times its inner material's f (the null lobe is a delta)."""
-        if materials.type[m] != MASK:
-            return bsdf.eval(materials, m, n, wo, wi, eta, uv, front, tangent)
-        inner = materials.inner[m]
-        if not nested_scatters(materials, inner, n, wi, front):
-            return wp.vec3(0.0)
-        return opacity_at(materials, m, uv) * bsdf.eval(materials, inner, n, wo, wi, eta, uv, front, tangent)
+    def masked(nested, value_type):
+        """``nested`` (the dispatch's ``eval`` or ``pdf``, of type ``value_type``), and a mask's:
+        ``opacity`` times its inner material's value (the null lobe is a delta)."""
 
-    @wp.func
-    def masked_pdf(
-        materials: MaterialData,
-        m: wp.int32,
-        n: wp.vec3,
-        wo: wp.vec3,
-        wi: wp.vec3,
-        eta: float = 1.0,
-        uv: wp.vec2 = wp.vec2(0.0, 0.0),
-        front: bool = True,
-        tangent: wp.vec3 = wp.vec3(0.0, 0.0, 0.0),
-    ) -> float:
-        """``bsdf_pdf``, and a mask's: ``opacity`` times its inner material's density."""
-        if materials.type[m] != MASK:
-            return bsdf.pdf(materials, m, n, wo, wi, eta, uv, front, tangent)
-        inner = materials.inner[m]
-        if not nested_scatters(materials, inner, n, wi, front):
-            return 0.0
-        return opacity_at(materials, m, uv) * bsdf.pdf(materials, inner, n, wo, wi, eta, uv, front, tangent)
+        @wp.func
+        def masked_value(
+            materials: MaterialData,
+            m: wp.int32,
+            n: wp.vec3,
+            wo: wp.vec3,
+            wi: wp.vec3,
+            eta: float = 1.0,
+            ctx: TextureEvalContext = TextureEvalContext(),
+            front: bool = True,
+            tangent: wp.vec3 = wp.vec3(0.0, 0.0, 0.0),
+        ) -> value_type:
+            if materials.type[m] != MASK:
+                return nested(materials, m, n, wo, wi, eta, ctx, front, tangent)
+            inner = materials.inner[m]
+            if not nested_scatters(materials, inner, n, wi, front):
+                return value_type(0.0)
+            return opacity_at(materials, m, ctx) * nested(materials, inner, n, wo, wi, eta, ctx, front, tangent)
+
+        return masked_value
+
+    masked_eval = masked(bsdf.eval, wp.vec3)  # bsdf_eval, and a mask's
+    masked_pdf = masked(bsdf.pdf, float)  # bsdf_pdf, and a mask's
 
     @wp.func
     def masked_sample(
@@ -86,7 +74,7 @@ def make(at: Parameters, bsdf) -> Functions:
         eta: float,
         uc: float,
         u: wp.vec2,
-        uv: wp.vec2 = wp.vec2(0.0, 0.0),
+        ctx: TextureEvalContext = TextureEvalContext(),
         front: bool = True,
         tangent: wp.vec3 = wp.vec3(0.0, 0.0, 0.0),
     ) -> BSDFSample:
@@ -95,11 +83,11 @@ def make(at: Parameters, bsdf) -> Functions:
         on the back of a one-sided inner material), else the null lobe: ``wi = -wo``, weight 1,
         probability ``1 - opacity``."""
         if materials.type[m] != MASK:
-            return bsdf.sample(materials, m, n, wo, eta, uc, u, uv, front, tangent)
-        opacity = opacity_at(materials, m, uv)
+            return bsdf.sample(materials, m, n, wo, eta, uc, u, ctx, front, tangent)
+        opacity = opacity_at(materials, m, ctx)
         inner = materials.inner[m]
         if uc < opacity and (front or materials.two_sided[inner] != 0):
-            nested = bsdf.sample(materials, inner, n, wo, eta, uc / opacity, u, uv, front, tangent)
+            nested = bsdf.sample(materials, inner, n, wo, eta, uc / opacity, u, ctx, front, tangent)
             nested.pdf = nested.pdf * opacity
             return nested
         s = BSDFSample()

@@ -7,6 +7,7 @@ its own (Mitsuba 3's ``volpath``). Compiled in only where a scene has one (``Fea
 
 import warp as wp
 
+from ..textures import TextureEvalContext
 from .data import MaterialData, Parameters
 from .interface import NULL_LOBE, BSDFSample, Family, Functions, MaterialType
 
@@ -29,7 +30,7 @@ def make(at: Parameters) -> Functions:
         eta: float,
         uc: float,
         u: wp.vec2,
-        uv: wp.vec2,
+        ctx: TextureEvalContext,
         tangent: wp.vec3,
     ) -> BSDFSample:
         s = BSDFSample()

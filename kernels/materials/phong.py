@@ -11,7 +11,7 @@ Rendering", KU Leuven CW 197, 1994 (the (n + 2) / (2 pi) normalisation).
 import warp as wp
 
 from ..optics import reflect
-from ..textures import ALBEDO, SPECULAR
+from ..textures import ALBEDO, SPECULAR, TextureEvalContext
 from .data import MaterialData, Parameters
 from .diffuse import cosine_pdf, cosine_sample
 from .interface import BSDF_DIFFUSE, BSDF_GLOSSY, BSDF_REFLECTION, Family, Functions, MaterialType
@@ -32,13 +32,13 @@ def make(at: Parameters) -> Functions:
         wo: wp.vec3,
         wi: wp.vec3,
         eta: float,
-        uv: wp.vec2,
+        ctx: TextureEvalContext,
         tangent: wp.vec3,
     ) -> wp.vec3:
         cos_alpha = wp.max(0.0, wp.dot(reflect(-wi, n), wo))
         e = materials.exponent[m]
-        return at.rgb(materials, m, ALBEDO, uv, materials.albedo[m]) / wp.pi + at.rgb(
-            materials, m, SPECULAR, uv, materials.specular[m]
+        return at.rgb(materials, m, ALBEDO, ctx, materials.albedo[m]) / wp.pi + at.rgb(
+            materials, m, SPECULAR, ctx, materials.specular[m]
         ) * ((e + 2.0) / (2.0 * wp.pi) * wp.pow(cos_alpha, e))
 
     return Functions(owns, eval, cosine_pdf, cosine_sample(eval))

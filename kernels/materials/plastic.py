@@ -35,7 +35,7 @@ import warp as wp
 from ..microfacet import smith_g1, visible_normals
 from ..optics import fresnel_dielectric, reflect
 from ..sample_warps import cosine_hemisphere, frame
-from ..textures import ALBEDO, REFLECTANCE
+from ..textures import ALBEDO, REFLECTANCE, TextureEvalContext
 from .interface import (
     BSDF_DIFFUSE,
     BSDF_GLOSSY,
@@ -161,12 +161,12 @@ def make(at) -> Functions:
         wo: wp.vec3,
         wi: wp.vec3,
         eta: float,
-        uv: wp.vec2,
+        ctx: TextureEvalContext,
         tangent: wp.vec3,
     ) -> wp.vec3:
-        albedo = at.rgb(materials, m, ALBEDO, uv, materials.albedo[m])
-        reflectance = at.rgb(materials, m, REFLECTANCE, uv, materials.reflectance[m])
-        alpha = at.alpha(materials, m, uv)
+        albedo = at.rgb(materials, m, ALBEDO, ctx, materials.albedo[m])
+        reflectance = at.rgb(materials, m, REFLECTANCE, ctx, materials.reflectance[m])
+        alpha = at.alpha(materials, m, ctx)
         return plastic_eval(materials, m, albedo, reflectance, alpha, at.distribution(materials, m), n, wo, wi)
 
     @wp.func
@@ -177,19 +177,19 @@ def make(at) -> Functions:
         wo: wp.vec3,
         wi: wp.vec3,
         eta: float,
-        uv: wp.vec2,
+        ctx: TextureEvalContext,
         tangent: wp.vec3,
     ) -> float:
-        return plastic_pdf(materials, m, at.alpha(materials, m, uv), at.distribution(materials, m), n, wo, wi)
+        return plastic_pdf(materials, m, at.alpha(materials, m, ctx), at.distribution(materials, m), n, wo, wi)
 
     @wp.func
     def specular_lobes(
-        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uv: wp.vec2
+        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, ctx: TextureEvalContext
     ) -> SpecularLobes:
         """A smooth coating's reflection, ``reflectance`` times its Fresnel term (the base is ``eval``'s)."""
         lobes = no_lobes(n, wo)
         if materials.type[m] == PLASTIC:
-            reflectance = at.rgb(materials, m, REFLECTANCE, uv, materials.reflectance[m])
+            reflectance = at.rgb(materials, m, REFLECTANCE, ctx, materials.reflectance[m])
             lobes.reflectance = reflectance * fresnel_dielectric(wp.dot(wo, n), 1.0 / materials.ior[m])
         return lobes
 
@@ -202,16 +202,16 @@ def make(at) -> Functions:
         eta: float,
         uc: float,
         u: wp.vec2,
-        uv: wp.vec2,
+        ctx: TextureEvalContext,
         tangent: wp.vec3,
     ) -> BSDFSample:
         """The coating's reflection with probability ``coating_probability`` (a smooth coating's mirror
         direction, weight ``reflectance F`` over that probability; a rough one's visible normals),
         else the base's cosine-weighted direction; non-specular samples weigh ``f cos / pdf`` of both
         lobes together, as Mitsuba 3's ``roughplastic``."""
-        albedo = at.rgb(materials, m, ALBEDO, uv, materials.albedo[m])
-        reflectance = at.rgb(materials, m, REFLECTANCE, uv, materials.reflectance[m])
-        alpha = at.alpha(materials, m, uv)
+        albedo = at.rgb(materials, m, ALBEDO, ctx, materials.albedo[m])
+        reflectance = at.rgb(materials, m, REFLECTANCE, ctx, materials.reflectance[m])
+        alpha = at.alpha(materials, m, ctx)
         distribution = at.distribution(materials, m)
         s = lost_sample()
         to_world = frame(n)

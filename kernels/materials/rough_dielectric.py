@@ -11,6 +11,7 @@ import warp as wp
 
 from ..optics import fresnel_dielectric, refract
 from ..sample_warps import shading_frame
+from ..textures import TextureEvalContext
 from .data import MaterialData, Parameters
 from .interface import (
     BSDF_GLOSSY,
@@ -83,11 +84,11 @@ def make(at: Parameters) -> Functions:
         wo: wp.vec3,
         wi: wp.vec3,
         eta: float,
-        uv: wp.vec2,
+        ctx: TextureEvalContext,
         tangent: wp.vec3,
     ) -> wp.vec3:
         to_local = wp.transpose(shading_frame(n, tangent))
-        alpha = at.alpha(materials, m, uv)
+        alpha = at.alpha(materials, m, ctx)
         distribution = at.distribution(materials, m)
         return wp.vec3(mf.dielectric_eval(to_local * wo, to_local * wi, alpha, distribution, eta))
 
@@ -99,11 +100,11 @@ def make(at: Parameters) -> Functions:
         wo: wp.vec3,
         wi: wp.vec3,
         eta: float,
-        uv: wp.vec2,
+        ctx: TextureEvalContext,
         tangent: wp.vec3,
     ) -> float:
         to_local = wp.transpose(shading_frame(n, tangent))
-        alpha = at.alpha(materials, m, uv)
+        alpha = at.alpha(materials, m, ctx)
         distribution = at.distribution(materials, m)
         return mf.dielectric_pdf(to_local * wo, to_local * wi, alpha, distribution, eta)
 
@@ -116,10 +117,10 @@ def make(at: Parameters) -> Functions:
         eta: float,
         uc: float,
         u: wp.vec2,
-        uv: wp.vec2,
+        ctx: TextureEvalContext,
         tangent: wp.vec3,
     ) -> BSDFSample:
-        alpha = at.alpha(materials, m, uv)
+        alpha = at.alpha(materials, m, ctx)
         return rough_dielectric_sample(alpha, at.distribution(materials, m), n, tangent, wo, eta, uc, u)
 
     return Functions(owns, eval, pdf, sample)

@@ -7,7 +7,7 @@ bounds no medium (``BSDF_THIN``). Mitsuba 3's ``thindielectric``.
 import warp as wp
 
 from ..optics import fresnel_thin_dielectric, reflect
-from ..textures import REFLECTANCE, TRANSMITTANCE
+from ..textures import REFLECTANCE, TRANSMITTANCE, TextureEvalContext
 from .data import MaterialData, Parameters
 from .interface import (
     BSDF_REFLECTION,
@@ -73,15 +73,15 @@ def make(at: Parameters) -> Functions:
 
     @wp.func
     def specular_lobes(
-        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, uv: wp.vec2
+        materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, eta: float, ctx: TextureEvalContext
     ) -> SpecularLobes:
         """``reflectance`` R' reflected, ``transmittance`` (1 - R') straight on (``wt = -wo``; ``eta``
         is 1 here, as it bounds no medium)."""
         lobes = no_lobes(n, wo)
         cos_theta = wp.dot(wo, n)
-        reflectance = at.rgb(materials, m, REFLECTANCE, uv, materials.reflectance[m])
+        reflectance = at.rgb(materials, m, REFLECTANCE, ctx, materials.reflectance[m])
         lobes.reflectance = reflectance * thin_reflectance(materials, m, cos_theta)
-        transmittance = at.rgb(materials, m, TRANSMITTANCE, uv, materials.transmittance[m])
+        transmittance = at.rgb(materials, m, TRANSMITTANCE, ctx, materials.transmittance[m])
         lobes.transmittance = transmittance * (1.0 - thin_reflectance(materials, m, cos_theta))
         lobes.refracts = True
         return lobes
@@ -95,11 +95,11 @@ def make(at: Parameters) -> Functions:
         eta: float,
         uc: float,
         u: wp.vec2,
-        uv: wp.vec2,
+        ctx: TextureEvalContext,
         tangent: wp.vec3,
     ) -> BSDFSample:
-        reflectance = at.rgb(materials, m, REFLECTANCE, uv, materials.reflectance[m])
-        transmittance = at.rgb(materials, m, TRANSMITTANCE, uv, materials.transmittance[m])
+        reflectance = at.rgb(materials, m, REFLECTANCE, ctx, materials.reflectance[m])
+        transmittance = at.rgb(materials, m, TRANSMITTANCE, ctx, materials.transmittance[m])
         return thin_dielectric_sample(materials, m, reflectance, transmittance, n, wo, uc)
 
     return Functions(owns, sample=sample, specular_lobes=specular_lobes)

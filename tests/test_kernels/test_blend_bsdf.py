@@ -18,6 +18,7 @@ from wrt.kernels.materials import (
     make_bsdf,
 )
 from wrt.kernels.sampling import independent_1d as sample_1d
+from wrt.kernels.textures import uv_context
 from wrt_harness.mitsuba_peer import mitsuba_available, variant
 
 import wrt
@@ -62,8 +63,8 @@ def evaluate(
 ):
     k = wp.tid()
     n = wp.vec3(0.0, 0.0, 1.0)
-    f[k] = BSDF.eval(materials, m, n, wo[k], wi[k], 1.0, UV, front)
-    pdf[k] = BSDF.pdf(materials, m, n, wo[k], wi[k], 1.0, UV, front)
+    f[k] = BSDF.eval(materials, m, n, wo[k], wi[k], 1.0, uv_context(UV), front)
+    pdf[k] = BSDF.pdf(materials, m, n, wo[k], wi[k], 1.0, uv_context(UV), front)
 
 
 def eval_pdf(materials, name, wo, wi, front=True):
@@ -96,7 +97,7 @@ def draw(
     u = wp.vec2(sample_1d(5, k, 0, 0), sample_1d(5, k, 0, 1))
     uc_drawn[k] = sample_1d(5, k, 0, 2)
     uc = (uc_drawn[k] - uc_offset) * uc_scale
-    s = BSDF.sample(materials, m, n, wo, 1.0, wp.clamp(uc, 0.0, 0.99999994), u, UV, front)
+    s = BSDF.sample(materials, m, n, wo, 1.0, wp.clamp(uc, 0.0, 0.99999994), u, uv_context(UV), front)
     wi[k] = s.wi
     weight[k] = s.weight
     pdf[k] = s.pdf

@@ -8,6 +8,7 @@ import warp as wp
 import wrt.kernels  # noqa: F401
 from wrt.kernels.materials import BSDF_DIFFUSE, BSDF_REFLECTION, BSDF_SPECULAR, NULL_LOBE, MaterialData, make_bsdf
 from wrt.kernels.sampling import independent_1d as sample_1d
+from wrt.kernels.textures import uv_context
 
 import wrt
 from wrt.device import upload_materials
@@ -63,8 +64,8 @@ def evaluate(
 ):
     k = wp.tid()
     n = wp.vec3(0.0, 0.0, 1.0)
-    f[k] = bsdf_eval(materials, m, n, wo[k], wi[k], 1.0, UV, front)
-    pdf[k] = bsdf_pdf(materials, m, n, wo[k], wi[k], 1.0, UV, front)
+    f[k] = bsdf_eval(materials, m, n, wo[k], wi[k], 1.0, uv_context(UV), front)
+    pdf[k] = bsdf_pdf(materials, m, n, wo[k], wi[k], 1.0, uv_context(UV), front)
 
 
 def eval_pdf(materials, name, wo, wi, front=True):
@@ -91,7 +92,7 @@ def draw(
     k = wp.tid()
     n = wp.vec3(0.0, 0.0, 1.0)
     u = wp.vec2(sample_1d(5, k, 0, 0), sample_1d(5, k, 0, 1))
-    s = bsdf_sample(materials, m, n, wo, 1.0, sample_1d(5, k, 0, 2) * uc_scale, u, UV, front)
+    s = bsdf_sample(materials, m, n, wo, 1.0, sample_1d(5, k, 0, 2) * uc_scale, u, uv_context(UV), front)
     wi[k] = s.wi
     weight[k] = s.weight
     pdf[k] = s.pdf

@@ -9,7 +9,7 @@ import warp as wp
 from conftest import EXAMPLES, make_scene
 from test_mitsuba_xml import convert, sensor
 from wrt.kernels.hit import bumped_normal
-from wrt.kernels.textures import TextureData, texture_float_grad
+from wrt.kernels.textures import TextureData, texture_float_grad, uv_context
 
 import wrt
 from wrt.device import _texture_data
@@ -24,7 +24,7 @@ GRID = str(EXAMPLES / "textures" / "grid.png")
 @wp.kernel
 def gradients(textures: TextureData, uvs: wp.array(dtype=wp.vec2), out: wp.array(dtype=wp.vec2)):
     k = wp.tid()
-    out[k] = texture_float_grad(textures, 0, uvs[k])
+    out[k] = texture_float_grad(textures, 0, uv_context(uvs[k]))
 
 
 @pytest.mark.parametrize(

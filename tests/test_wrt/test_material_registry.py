@@ -21,6 +21,7 @@ from wrt.kernels.materials import (
     make_bsdf,
 )
 from wrt.kernels.materials.interface import Functions
+from wrt.kernels.textures import TextureEvalContext
 from wrt.kernels.variants import RELEVANT
 
 from wrt.device import upload_materials
@@ -184,7 +185,13 @@ def diffuse_like(halved: bool) -> Functions:
 
         @wp.func
         def eval(
-            materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float, uv: wp.vec2
+            materials: MaterialData,
+            m: wp.int32,
+            n: wp.vec3,
+            wo: wp.vec3,
+            wi: wp.vec3,
+            eta: float,
+            ctx: TextureEvalContext,
         ) -> wp.vec3:
             return materials.albedo[m] / (2.0 * wp.pi)
 
@@ -192,7 +199,13 @@ def diffuse_like(halved: bool) -> Functions:
 
         @wp.func
         def eval(
-            materials: MaterialData, m: wp.int32, n: wp.vec3, wo: wp.vec3, wi: wp.vec3, eta: float, uv: wp.vec2
+            materials: MaterialData,
+            m: wp.int32,
+            n: wp.vec3,
+            wo: wp.vec3,
+            wi: wp.vec3,
+            eta: float,
+            ctx: TextureEvalContext,
         ) -> wp.vec3:
             return materials.albedo[m] / wp.pi
 

@@ -11,7 +11,7 @@ import pytest
 import warp as wp
 from conftest import EXAMPLES
 from wrt.kernels.materials import MaterialData
-from wrt.kernels.textures import ALBEDO, TextureData, material_rgb, texture_float, texture_rgb
+from wrt.kernels.textures import ALBEDO, TextureData, material_rgb, texture_float, texture_rgb, uv_context
 from wrt.kernels.traverse import NO_HIT, GeometryData, closest_hit, hit_point, prim_shape, ray_hit, surface_uv
 from wrt_harness.mitsuba_peer import mitsuba_available
 
@@ -52,8 +52,8 @@ def lookup(
     out_float: wp.array(dtype=float),
 ):
     i = wp.tid()
-    out_rgb[i] = texture_rgb(textures, t, uvs[i])
-    out_float[i] = texture_float(textures, t, uvs[i])
+    out_rgb[i] = texture_rgb(textures, t, uv_context(uvs[i]))
+    out_float[i] = texture_float(textures, t, uv_context(uvs[i]))
 
 
 def wrt_uv(scene, origins, directions):
@@ -313,7 +313,7 @@ def albedo_at_hits(
         p, _n, _err = hit_point(geometry, ray_hit(o, d, 0.0, t, prim, inst))
         m = materials.shape_material[prim_shape(geometry, prim)]
         uv = surface_uv(geometry, prim, inst, p, 0.0)
-        out_albedo[i] = material_rgb(textures, m, ALBEDO, uv, materials.albedo[m])
+        out_albedo[i] = material_rgb(textures, m, ALBEDO, uv_context(uv), materials.albedo[m])
 
 
 @needs_mitsuba

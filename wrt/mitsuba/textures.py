@@ -1,6 +1,6 @@
 """Converting Mitsuba's textures into wrt texture tables: ``rawconstant`` (wrt's ``constant``),
-``checkerboard`` (constant colours) and ``bitmap``, nested in a BSDF parameter or referenced by
-``<ref>``, with their ``to_uv`` (docs/mitsuba.md)."""
+``checkerboard`` (constant colours), ``bitmap`` and ``mesh_attribute``, nested in a BSDF parameter
+or referenced by ``<ref>``, with their ``to_uv`` (docs/mitsuba.md)."""
 
 from __future__ import annotations
 
@@ -53,9 +53,22 @@ def texture(doc: Document, element: Element) -> dict:
         if p.boolean("raw", False):
             table["raw"] = True
         _storage(doc, p, os.path.join(os.path.dirname(doc.path) or ".", table["file"]))
+    elif p.type == "mesh_attribute":  # the mesh's values: the loader checks the mesh has them
+        name = p.string("name", None)
+        if name is None:
+            raise doc.error(element, "a mesh_attribute texture needs a 'name' (Mitsuba rejects it)")
+        if not name.startswith(("vertex_", "face_")):
+            raise doc.error(
+                p.params["name"], f"'name' = {token(name)} must start with vertex_ or face_ (Mitsuba rejects it)"
+            )
+        table = {"texture": "mesh_attribute", "name": name, "scale": p.number("scale", 1.0)}
+        p.finish()
+        return table
     else:
         raise doc.error(
-            element, f"texture type {token(p.type)} is not supported (wrt has rawconstant, checkerboard and bitmap)"
+            element,
+            f"texture type {token(p.type)} is not supported"
+            " (wrt has rawconstant, checkerboard, bitmap and mesh_attribute)",
         )
     matrix, _ = p.transform("to_uv")
     if not np.array_equal(matrix, np.eye(4)):
