@@ -29,6 +29,7 @@ render settings of the feature applied), with what each integrator runs:
 from __future__ import annotations
 
 import dataclasses
+import re
 import textwrap
 
 import numpy as np
@@ -90,10 +91,10 @@ def kinds() -> list[tuple[str, str]]:
 
 def kind_name(cls: type) -> str:
     """The name the scene file gives an object of the scene model's class ``cls``: the class
-    name in lower case (``Sphere``: ``sphere``, ``Checkerboard``: ``checkerboard``), as
+    name in snake case (``Sphere``: ``sphere``, ``MeshAttribute``: ``mesh_attribute``), as
     ``wrt.loader.SHAPE_TYPES`` names the ``wrt.scene.Shape`` classes and ``wrt.textures.KINDS``
     the ``wrt.textures.Texture`` ones."""
-    return cls.__name__.lower()
+    return re.sub(r"(?<=[a-z])(?=[A-Z])", "_", cls.__name__).lower()
 
 
 def transform_kinds(matrix: np.ndarray) -> set[str]:

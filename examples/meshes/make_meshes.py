@@ -10,6 +10,8 @@ Run ``python examples/meshes/make_meshes.py`` to rewrite:
   poles, no normals (smooth shading computes them), ASCII OBJ.
 - ``coarse_torus.ply``: a torus of radii 1 and 0.4, 12 x 8 quads split into triangles, with its
   exact (analytic) vertex normals ``nx ny nz``, binary little-endian PLY.
+- ``painted_torus.ply``: the same torus at 36 x 12 quads with mesh attributes: a colour per
+  vertex (``r g b``, a hue wheel) and a weight per face (``weight_x``, rings of 0.9 and 0.1).
 
 Every mesh is a closed surface whose triangles wind counter-clockwise seen from outside
 (normals point outward by the right-hand rule).
@@ -153,26 +155,57 @@ def write_coarse_sphere(path, segments=8, rings=6):
     path.write_text("\n".join(lines) + "\n")
 
 
-def write_coarse_torus(path, segments=12, sides=8, major=1.0, minor=0.4):
-    """Write a torus around the z axis with its analytic unit vertex normals as a binary PLY file
-    of triangles (``x y z nx ny nz`` floats)."""
+def torus(segments, sides, major, minor):
+    """A torus around the z axis: vertices (V, 3), analytic unit normals (V, 3), outward
+    triangles (F, 3) and each vertex's angle around the axis (V,), radians."""
     u = 2.0 * np.pi * np.arange(segments) / segments
     v = 2.0 * np.pi * np.arange(sides) / sides
     uu, vv = np.meshgrid(u, v, indexing="ij")
     normals = np.stack([np.cos(uu) * np.cos(vv), np.sin(uu) * np.cos(vv), np.sin(vv)], axis=-1).reshape(-1, 3)
     centres = np.stack([major * np.cos(uu), major * np.sin(uu), np.zeros_like(uu)], axis=-1).reshape(-1, 3)
-    vertices = centres + minor * normals
     faces = torus_grid_faces(segments, sides)[:, [0, 2, 1]]  # outward for this parametrisation
-    rows = np.zeros(len(vertices), dtype=[("p", "<f4", 3), ("n", "<f4", 3)])
-    rows["p"], rows["n"] = vertices, normals
-    tris = np.zeros(len(faces), dtype=[("count", "u1"), ("ids", "<i4", 3)])
+    return centres + minor * normals, normals, faces, uu.reshape(-1)
+
+
+def write_binary_ply(path, vertex_columns, faces, face_columns=None):
+    """Write a binary little-endian PLY file of triangles ``faces`` (F, 3) and float properties:
+    ``vertex_columns`` / ``face_columns`` map a property name to its (V,) / (F,) values."""
+    face_columns = face_columns or {}
+    rows = np.zeros(len(next(iter(vertex_columns.values()))), dtype=[(name, "<f4") for name in vertex_columns])
+    for name, values in vertex_columns.items():
+        rows[name] = values
+    tris = np.zeros(len(faces), dtype=[("count", "u1"), ("ids", "<i4", 3)] + [(n, "<f4") for n in face_columns])
     tris["count"], tris["ids"] = 3, faces
+    for name, values in face_columns.items():
+        tris[name] = values
     header = (
-        f"ply\nformat binary_little_endian 1.0\nelement vertex {len(vertices)}\n"
-        + "".join(f"property float {name}\n" for name in ("x", "y", "z", "nx", "ny", "nz"))
-        + f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n"
+        f"ply\nformat binary_little_endian 1.0\nelement vertex {len(rows)}\n"
+        + "".join(f"property float {name}\n" for name in vertex_columns)
+        + f"element face {len(faces)}\nproperty list uchar int vertex_indices\n"
+        + "".join(f"property float {name}\n" for name in face_columns)
+        + "end_header\n"
     )
     path.write_bytes(header.encode() + rows.tobytes() + tris.tobytes())
+
+
+def write_coarse_torus(path, segments=12, sides=8, major=1.0, minor=0.4):
+    """Write a torus around the z axis with its analytic unit vertex normals as a binary PLY file
+    of triangles (``x y z nx ny nz`` floats)."""
+    vertices, normals, faces, _ = torus(segments, sides, major, minor)
+    write_binary_ply(path, dict(zip(("x", "y", "z", "nx", "ny", "nz"), [*vertices.T, *normals.T])), faces)
+
+
+def write_painted_torus(path, segments=36, sides=12, major=1.0, minor=0.4):
+    """Write a torus as `write_coarse_torus` does, with mesh attributes (Mitsuba 3's PLY naming):
+    a colour per vertex (``r g b``: a hue wheel around the axis, ``vertex_color``) and a weight
+    per face (``weight_x``: 0.9 on every third ring of faces, else 0.1, ``face_weight``)."""
+    vertices, normals, faces, angle = torus(segments, sides, major, minor)
+    hue = angle[:, None] + np.array([0.0, 2.0, 4.0]) * np.pi / 3
+    colour = 0.15 + 0.7 * (0.5 + 0.5 * np.cos(hue))
+    ring = faces[:, 0] // sides  # the segment a face lies in
+    weight = np.where(ring % 3 == 0, 0.9, 0.1)
+    columns = dict(zip(("x", "y", "z", "nx", "ny", "nz", "r", "g", "b"), [*vertices.T, *normals.T, *colour.T]))
+    write_binary_ply(path, columns, faces, {"weight_x": weight})
 
 
 def main():
@@ -182,6 +215,7 @@ def main():
     write_cube(HERE / "cube.stl")
     write_coarse_sphere(HERE / "coarse_sphere.obj")
     write_coarse_torus(HERE / "coarse_torus.ply")
+    write_painted_torus(HERE / "painted_torus.ply")
 
 
 if __name__ == "__main__":
