@@ -104,6 +104,9 @@ SUITES = {
                 "orthographic_direct",
                 "spectra_path",
                 "test_projector_constant_direct",
+                "test_mesh_attributes_1_face_direct",
+                "test_mesh_attributes_3_face_direct",
+                "test_mesh_attributes_3_vertex_direct",
             ),
         ),
         Suite(
@@ -211,6 +214,7 @@ CROSSCHECKS = {
         Crosscheck("blend", 64, 48, 512),
         Crosscheck("projector", 64, 48, 512),
         Crosscheck("bumpmap", 64, 48, 512),
+        Crosscheck("mesh_attributes", 64, 48, 512),
         Crosscheck("fog_area_light", 48, 36, 512, folder="media"),
         Crosscheck("milk_in_glass", 48, 36, 512, folder="media"),
         Crosscheck("camera_in_fog", 48, 36, 512, folder="media"),

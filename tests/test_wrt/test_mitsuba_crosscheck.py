@@ -22,7 +22,8 @@ CASES = [name for name, check in CROSSCHECKS.items() if not check.folder]
 # (means within 0.11%, SSIM 0.984); plastics (means within 0.01%, SSIM 0.996); textures;
 # textured_roughness (a checkerboard alpha, its colours not swapped for eval_1: means -5%);
 # normal_map (shaded unmirrored: means -1.5 to -2.4%); mask (checkerboard unswapped: SSIM 0.64);
-# blend (a blendbsdf of each kind: means within 0.36%, SSIM 0.994; constant weights swapped: green -3.9%).
+# blend (a blendbsdf of each kind: means within 0.36%, SSIM 0.994; constant weights swapped: green -3.9%);
+# mesh_attributes (vertex colours and a blend by face weights of a PLY: means within 0.07%, SSIM 0.999).
 
 
 @pytest.mark.parametrize("name", CASES)
