@@ -11,7 +11,8 @@ Run ``python examples/meshes/make_meshes.py`` to rewrite:
 - ``coarse_torus.ply``: a torus of radii 1 and 0.4, 12 x 8 quads split into triangles, with its
   exact (analytic) vertex normals ``nx ny nz``, binary little-endian PLY.
 - ``painted_torus.ply``: the same torus at 36 x 12 quads with mesh attributes: a colour per
-  vertex (``r g b``, a hue wheel) and a weight per face (``weight_x``, rings of 0.9 and 0.1).
+  vertex (``r g b``, a hue wheel, every other vertex darker) and a weight per face
+  (``weight_x``, rings of 0.9 and 0.1).
 
 Every mesh is a closed surface whose triangles wind counter-clockwise seen from outside
 (normals point outward by the right-hand rule).
@@ -197,11 +198,14 @@ def write_coarse_torus(path, segments=12, sides=8, major=1.0, minor=0.4):
 
 def write_painted_torus(path, segments=36, sides=12, major=1.0, minor=0.4):
     """Write a torus as `write_coarse_torus` does, with mesh attributes (Mitsuba 3's PLY naming):
-    a colour per vertex (``r g b``: a hue wheel around the axis, ``vertex_color``) and a weight
-    per face (``weight_x``: 0.9 on every third ring of faces, else 0.1, ``face_weight``)."""
+    a colour per vertex (``r g b``, ``vertex_color``: a hue wheel around the axis, every other
+    vertex of the grid at 40%, so that each triangle blends a light and a dark corner) and a
+    weight per face (``weight_x``: 0.9 on every third ring of faces, else 0.1, ``face_weight``)."""
     vertices, normals, faces, angle = torus(segments, sides, major, minor)
     hue = angle[:, None] + np.array([0.0, 2.0, 4.0]) * np.pi / 3
-    colour = 0.15 + 0.7 * (0.5 + 0.5 * np.cos(hue))
+    grid = np.arange(len(vertices))
+    dark = (grid // sides + grid % sides) % 2 == 1
+    colour = (0.15 + 0.7 * (0.5 + 0.5 * np.cos(hue))) * np.where(dark, 0.4, 1.0)[:, None]
     ring = faces[:, 0] // sides  # the segment a face lies in
     weight = np.where(ring % 3 == 0, 0.9, 0.1)
     columns = dict(zip(("x", "y", "z", "nx", "ny", "nz", "r", "g", "b"), [*vertices.T, *normals.T, *colour.T]))
