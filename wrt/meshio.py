@@ -75,8 +75,8 @@ def load_mesh(path, *, return_normals=False, return_uvs=False, shape_index=0):
         ``vn`` lines, an STL file, a VTK dataset without point normals.
     uvs : numpy.ndarray of float64, shape (V, 2), or None
         Only with `return_uvs`: the file's texture coordinates (u, v) in Mitsuba 3's convention,
-        where v = 0 is the top row of an image: a PLY file's ``u, v`` (or ``s, t``, ``texture_u,
-        texture_v``, ``texture_s, texture_t``) vertex properties as written, an OBJ file's ``vt``
+        where v = 0 is the top row of an image: a PLY file's ``u, v`` (or else ``texture_u,
+        texture_v``, ``s, t``, ``texture_s, texture_t``) vertex properties as written, an OBJ file's ``vt``
         as ``(u, 1 - v)`` (OBJ's v = 0 is the bottom row; Mitsuba flips it so; (0, 0) where a face
         corner names none), a ``.serialized`` file's as written, a VTK dataset's active texture
         coordinates; None where the file has none (an STL file).
@@ -600,8 +600,9 @@ _PLY_ENDIAN = {"binary_little_endian": "<", "binary_big_endian": ">"}
 _PLY_ENCODINGS = ("ascii", *_PLY_ENDIAN)
 _PLY_FACE_LISTS = ("vertex_indices", "vertex_index")
 _PLY_NORMALS = ("nx", "ny", "nz")
-_PLY_UVS = (("u", "v"), ("s", "t"), ("texture_u", "texture_v"), ("texture_s", "texture_t"))
-"""Vertex property pairs a PLY file's texture coordinates are read from (the first present), as Mitsuba 3's."""
+_PLY_UVS = (("u", "v"), ("texture_u", "texture_v"), ("s", "t"), ("texture_s", "texture_t"))
+"""Vertex property pairs a PLY file's texture coordinates are read from (the first present): Mitsuba 3.9.1's
+three in its order, then ``texture_s, texture_t``, which Mitsuba does not read."""
 _PLY_MAX_LIST = 2**31
 """Lists are at most this long (a longer one is a corrupt length field)."""
 

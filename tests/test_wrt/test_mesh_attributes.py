@@ -385,3 +385,25 @@ def test_values_at_instanced_hits_are_mitsubas(coloured, tmp_path, rng):
         weight = si.shape.eval_attribute_1("face_weight", si)
         np.testing.assert_allclose(out_weight.numpy()[k], weight, atol=2e-6, err_msg=f"ray {k}")
     assert hits > 0.9 * n
+
+
+@needs_mitsuba
+def test_texture_coordinates_are_read_from_the_pair_mitsuba_reads(tmp_path):
+    """A PLY with several pairs of texture-coordinate properties: ``u, v`` first, then
+    ``texture_u, texture_v``, then ``s, t`` (Mitsuba 3.9.1's order, its ``vertex_texcoords``)."""
+    import mitsuba as mi
+
+    from wrt.meshio import load_mesh
+
+    mi.set_variant("scalar_rgb")
+    vertices, faces = grid_mesh(1)
+    v = np.arange(len(vertices), dtype=float) / 10
+    pairs = {"uv": ("u", "v"), "texture": ("texture_u", "texture_v"), "st": ("s", "t")}
+    for present in (("uv", "texture", "st"), ("texture", "st"), ("st", "texture"), ("st",)):
+        props = [
+            (name, "float", (k + 1) * v + 0.5 * j) for k, p in enumerate(present) for j, name in enumerate(pairs[p])
+        ]
+        path = tmp_path / f"{'_'.join(present)}.ply"
+        write_ply(path, vertices, faces, props)
+        theirs = np.array(mi.traverse(mi.load_dict({"type": "ply", "filename": str(path)}))["vertex_texcoords"])
+        np.testing.assert_allclose(load_mesh(path, return_uvs=True)[2].ravel(), theirs, rtol=1e-6, err_msg=str(present))
