@@ -736,10 +736,19 @@ def _mesh_attributes(t: _Table, name: str, path: str, uses: tuple) -> dict[str, 
         scaled = values * texture.scale
         lo, hi = _slot_range(key)
         if scaled.min() < lo or scaled.max() > hi:
+            eight_bit = (
+                values.max() > 1 and values.max() <= 255 and np.all(values == np.round(values)) and values.min() >= 0
+            )
             raise t.error(
                 "file",
                 f"mesh attribute '{texture.name}' times its scale {texture.scale:g} ranges over"
-                f" [{scaled.min():.4g}, {scaled.max():.4g}]: {key} must stay in [{lo:g}, {hi:g}]",
+                f" [{scaled.min():.4g}, {scaled.max():.4g}]: {key} must stay in [{lo:g}, {hi:g}]"
+                + (
+                    " (8-bit values, read as written, as Mitsuba reads them: scale = 0.003921569, 1/255, takes"
+                    " them to [0, 1])"
+                    if eight_bit
+                    else ""
+                ),
                 name,
             )
     return attributes

@@ -407,3 +407,20 @@ def test_texture_coordinates_are_read_from_the_pair_mitsuba_reads(tmp_path):
         write_ply(path, vertices, faces, props)
         theirs = np.array(mi.traverse(mi.load_dict({"type": "ply", "filename": str(path)}))["vertex_texcoords"])
         np.testing.assert_allclose(load_mesh(path, return_uvs=True)[2].ravel(), theirs, rtol=1e-6, err_msg=str(present))
+
+
+def test_eight_bit_colours_are_refused_as_albedo_with_the_scale_that_reads_them(tmp_path):
+    """A PLY's uchar colours are read as written (0-255, as Mitsuba reads them): as an albedo they
+    are out of range, and the message names the scale that takes them to [0, 1], which then loads."""
+    vertices, faces = grid_mesh(2)
+    rng = np.random.default_rng(3)
+    rgb = rng.integers(0, 256, (len(vertices), 3))
+    write_ply(tmp_path / "grid.ply", vertices, faces, [(c, "uchar", rgb[:, k]) for k, c in enumerate("rgb")])
+    text = open(attribute_scene(tmp_path, tmp_path / "grid.ply", "vertex_color")).read()
+    text = text.replace('weight = { texture = "mesh_attribute", name = "face_weight" }', "weight = 0.5")
+    (tmp_path / "bytes.toml").write_text(text.replace("scale = 0.9", "scale = 1.0"))
+    with pytest.raises(WrtError, match=r"ranges over \[\d+, \d+\]: albedo .*8-bit values.*scale = 0\.003921569, 1/255"):
+        load_scene(str(tmp_path / "bytes.toml"))
+    (tmp_path / "scaled.toml").write_text(text.replace("scale = 0.9", "scale = 0.003921569"))
+    scene = load_scene(str(tmp_path / "scaled.toml"))
+    np.testing.assert_allclose(scene.materials[0].albedo, rgb.mean(axis=0) * 0.003921569, rtol=1e-9)
