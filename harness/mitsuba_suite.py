@@ -130,7 +130,7 @@ SUITES = {
                 " needed): pooled, the fog sphere's side facing the emitter is 4-10% bright (up to 9 standard"
                 " errors), already in single scattering (max_depth 2: 4.6%, 1.8% with the emitter cube"
                 " flat-shaded in both renderers), where an independent float64 estimate sides with wrt (within"
-                " 0.2-0.8%) and puts Mitsuba 2.6-3.1% dark (docs/mitsuba.md); the broad 4% excess of the floor"
+                " 0.1-0.7%) and puts Mitsuba 2.3-3.1% dark (docs/mitsuba.md); the broad 4% excess of the floor"
                 " in the fog sphere's shadow was the smooth-shaded emitter cube's light-sampling cosine, now Mitsuba's"
                 " (wrt.kernels.lights.emitting)",
             },

@@ -5,12 +5,11 @@ scattering of a thin slab lit from behind; the scene format's media keys and the
 Mitsuba importer's media. Renders take the all-features kernel (shipped compiled)."""
 
 import math
-from importlib import resources
-from pathlib import Path
 
 import numpy as np
 import pytest
 from test_bad_input import GOOD, run_bad
+from wrt_benchmarks import null_boundary_scattering as scattering
 from wrt_harness.mitsuba_suite import CROSSCHECKS
 from wrt_harness.score import ssim
 
@@ -19,7 +18,6 @@ from wrt.errors import WrtError
 from wrt.loader import override_render, parse_scene
 from wrt.mitsuba import load_mitsuba
 
-MESHES = Path(str(resources.files("wrt.examples"))) / "mitsuba" / "participating_media" / "meshes"
 ORTHOGRAPHIC = {"type": "orthographic", "origin": [0.0, 0.0, 5.0], "look_at": [0.0, 0.0, 0.0], "width": 1.0}
 NULL = {"name": "boundary", "type": "null"}
 
@@ -233,71 +231,33 @@ def test_media_agree_with_mitsuba(name):
     assert ssim(ours.astype(np.float32), theirs.astype(np.float32)) > MITSUBA_MEDIA[name]
 
 
-def single_scattering_toward_a_mesh_emitter(sigma_t, albedo, emission, to_light, samples, rng):
-    """An independent float64 estimate (numpy) of what an orthographic camera of width 0.4 looking
-    down -z sees of a null sphere of radius 0.5 at the origin holding an isotropic homogeneous
-    medium, by single scattering of the light of ``examples/.../angled_cube.obj`` moved by
-    ``to_light`` (flat faces, emitting ``emission`` on their outward side): a uniform point on the
-    image, a scattering distance along the chord by its truncated exponential, a uniform point on
-    the emitter's area, the transmittance to the sphere's surface in closed form."""
-    vertices, faces = [], []
-    with open(MESHES / "angled_cube.obj") as f:
-        for line in f:
-            p = line.split()
-            if p and p[0] == "v":
-                vertices.append([float(x) for x in p[1:4]])
-            elif p and p[0] == "f":
-                faces.append([int(x.split("/")[0]) - 1 for x in p[1:]])
-    corners = (np.array(vertices) + to_light)[np.array(faces)]
-    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    areas = 0.5 * np.linalg.norm(cross, axis=1)
-    normals = cross / (2.0 * areas[:, None])
-    total = 0.0
-    for _ in range(samples // 500_000):
-        n = 500_000
-        xy = rng.uniform(-0.2, 0.2, (n, 2))
-        half_chord = np.sqrt(0.25 - np.sum(xy * xy, axis=1))  # the rays (x, y, .) along -z
-        scattered = 1.0 - np.exp(-sigma_t * 2.0 * half_chord)
-        z = half_chord + np.log(1.0 - rng.random(n) * scattered) / sigma_t
-        point = np.column_stack([xy, z])
-        tri = np.minimum(np.searchsorted(np.cumsum(areas) / areas.sum(), rng.random(n)), len(areas) - 1)
-        r1, r2 = np.sqrt(rng.random(n)), rng.random(n)
-        c = corners[tri]
-        on_light = c[:, 0] * (1 - r1)[:, None] + c[:, 1] * (r1 * (1 - r2))[:, None] + c[:, 2] * (r1 * r2)[:, None]
-        to = on_light - point
-        dist = np.linalg.norm(to, axis=1)
-        wi = to / dist[:, None]
-        cos_light = -np.sum(normals[tri] * wi, axis=1)
-        b = np.sum(point * wi, axis=1)
-        inside = -b + np.sqrt(b * b - np.sum(point * point, axis=1) + 0.25)  # to the sphere's surface
-        radiance = emission / (4.0 * math.pi) * np.exp(-sigma_t * inside) * cos_light / dist**2 * areas.sum()
-        total += np.sum(scattered * albedo * np.where(cos_light > 0.0, radiance, 0.0))
-    return total / (samples // 500_000 * 500_000)
-
-
 def test_single_scattering_toward_a_mesh_emitter_matches_an_independent_estimate(rng):
     """A null sphere of fog lit from the side by a flat-shaded emitting mesh (a cube), max_depth 2:
-    wrt's image mean is the independent single-scattering estimate above within 0.6% (measured
-    over 4 seeds: -0.16%, seed spread 0.1%). Mitsuba 3.9.1's volpath renders this scene 1.2%
-    darker (4 seeds of 16384 spp, spread 0.03%), and test_homo_area_light's perspective view of a
-    polygonal fog sphere 3% darker, volpathmis alike (docs/mitsuba.md): this holds wrt to the
-    physics where the two renderers part."""
-    sigma_t, albedo, emission = 2.5, 0.9, 10.0
+    wrt's image mean is the independent float64 single-scattering estimate of
+    ``wrt_benchmarks.null_boundary_scattering`` within 0.6% (measured over 4 seeds: -0.16%, seed
+    spread 0.1%). Mitsuba 3.9.1's volpath renders this scene 1.2% darker, and test_homo_area_light's
+    perspective view of a polygonal fog sphere 2-3% darker (benchmarks/results/
+    null_boundary_scattering.json; docs/mitsuba.md): this holds wrt to the physics where the two
+    renderers part."""
+    sigma_t, albedo = 2.5, 0.9
     doc = {
         "render": {"width": 16, "height": 16, "integrator": "path", "max_depth": 2},
         "camera": {**ORTHOGRAPHIC, "width": 0.4},
         "medium": [{"name": "fog", "sigma_t": sigma_t, "albedo": albedo}],
-        "material": [NULL, {"name": "lamp", "albedo": [0.0, 0.0, 0.0], "emission": [emission] * 3}],
+        "material": [NULL, {"name": "lamp", "albedo": [0.0, 0.0, 0.0], "emission": [scattering.EMISSION] * 3}],
         "shape": [
             {"type": "sphere", "center": [0.0, 0.0, 0.0], "radius": 0.5, "material": "boundary", "interior": "fog"},
             {
                 "type": "mesh",
-                "file": str(MESHES / "angled_cube.obj"),
+                "file": str(scattering.MESHES / "angled_cube.obj"),
                 "material": "lamp",
-                "transform": {"translate": [0.8, 0.0, 0.0]},
+                "transform": {"translate": list(scattering.CUBE_OFFSET)},
             },
         ],
     }
     _, mean = render_mean(doc, 1024)
-    expected = single_scattering_toward_a_mesh_emitter(sigma_t, albedo, emission, [0.8, 0.0, 0.0], 4_000_000, rng)
+    rays = scattering.orthographic_rays(ORTHOGRAPHIC["origin"][2], 0.2)
+    expected = scattering.single_scattering(
+        rays, sigma_t, albedo, scattering.cube_triangles(), scattering.EMISSION, 4_000_000, rng, radius=0.5
+    )
     np.testing.assert_allclose(mean, expected, rtol=0.006)
