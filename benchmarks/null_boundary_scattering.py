@@ -13,7 +13,8 @@ The means compared are over the fog's pixels (wrt's ``object_id``: the first hit
 boundary; all pixels where there is none). Cases: the fog of test_homo_area_light (its polygonal
 sphere, radius 0.5; the estimate takes the analytic sphere, a little larger) seen through its
 perspective camera, at two extinctions, with its emitting cube flat-shaded; an analytic sphere
-seen by an orthographic camera; and the cube in an unbounded fog (no boundary).
+seen by an orthographic camera from outside and from inside (its rays start in the fog: only the
+light's paths cross the boundary); and the cube in an unbounded fog (no boundary).
 """
 
 from __future__ import annotations
@@ -66,7 +67,8 @@ def single_scattering(rays, sigma_t, albedo, triangles, emission, samples, rng, 
             disc = b * b - np.sum(o * o, axis=1) + radius * radius
             hit = disc > 0.0
             root = np.sqrt(np.maximum(disc, 0.0))
-            t0, length = np.maximum(-b - root, 0.0), 2.0 * root
+            t0 = np.maximum(-b - root, 0.0)  # 0 for a ray starting inside
+            length = np.maximum(-b + root - t0, 0.0)
             scattered = 1.0 - np.exp(-sigma_t * length)
             weight = scattered * albedo
             point = o + d * (t0 - np.log(1.0 - u * scattered) / sigma_t)[:, None]
@@ -125,8 +127,9 @@ SENSORS = {
         <rfilter type="box"/></film><sampler type="independent"><integer name="sample_count" value="{spp}"/>
         </sampler></sensor>""",
     "orthographic": """<sensor type="orthographic"><float name="near_clip" value="0.0001"/>
-        <transform name="to_world"><scale x="0.2" y="0.2"/><lookat origin="0, 0, {z}" target="0, 0, 0" up="0, 1, 0"/>
-        </transform>{medium}<film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="16"/>
+        <transform name="to_world"><scale x="{half}" y="{half}"/>
+        <lookat origin="0, 0, {z}" target="0, 0, 0" up="0, 1, 0"/></transform>
+        {medium}<film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="16"/>
         <rfilter type="box"/></film><sampler type="independent"><integer name="sample_count" value="{spp}"/>
         </sampler></sensor>""",
 }
@@ -139,15 +142,26 @@ FOG = {
 }
 
 
-def scene_xml(sensor: str, fog: str, sigma_t: float, albedo: float, spp: int) -> str:
-    """The Mitsuba XML of one case: ``sensor`` and ``fog`` keys of ``SENSORS`` and ``FOG``."""
+def orthographic_frame(fog: str, inside: bool) -> tuple[float, float]:
+    """The orthographic camera's ``(z, half_width)``: 5 and 0.2 outside the fog's sphere, 2 in the
+    unbounded fog, 0.45 and 0.1 inside the sphere (every ray starts in it)."""
+    if inside:
+        return 0.45, 0.1
+    return (2.0 if fog == "unbounded" else 5.0), 0.2
+
+
+def scene_xml(sensor: str, fog: str, sigma_t: float, albedo: float, spp: int, inside: bool = False) -> str:
+    """The Mitsuba XML of one case: ``sensor`` and ``fog`` keys of ``SENSORS`` and ``FOG``; the
+    camera in the fog where ``inside`` (or the fog is unbounded)."""
+    in_fog = inside or fog == "unbounded"
     unbounded = fog == "unbounded"
-    camera_medium = '<ref id="fog" name="medium"/>' if unbounded else ""
+    camera_medium = '<ref id="fog" name="medium"/>' if in_fog else ""
+    z, half = orthographic_frame(fog, inside)
     return f"""<scene version="3.0.0">
     <integrator type="volpath"><integer name="max_depth" value="2"/></integrator>
     <medium id="fog" type="homogeneous"><float name="sigma_t" value="{sigma_t}"/>
         <rgb name="albedo" value="{albedo}"/></medium>
-    {SENSORS[sensor].format(spp=spp, z=2.0 if unbounded else 5.0, medium=camera_medium)}
+    {SENSORS[sensor].format(spp=spp, z=z, half=half, medium=camera_medium)}
     {FOG[fog].format(meshes=MESHES)}
     <shape type="obj"><string name="filename" value="{MESHES}/angled_cube.obj"/>
         <boolean name="face_normals" value="true"/><transform name="to_world"><translate x="0.8"/></transform>
@@ -157,11 +171,12 @@ def scene_xml(sensor: str, fog: str, sigma_t: float, albedo: float, spp: int) ->
 </scene>"""
 
 
-CASES = (  # name, sensor, fog, sigma_t, albedo
-    ("perspective, polygonal sphere, sigma_t 2.5", "perspective", "mesh sphere", 2.5, 0.9),
-    ("perspective, polygonal sphere, sigma_t 0.5", "perspective", "mesh sphere", 0.5, 0.9),
-    ("orthographic, analytic sphere, sigma_t 2.5", "orthographic", "sphere", 2.5, 0.9),
-    ("orthographic, unbounded fog, sigma_t 0.5", "orthographic", "unbounded", 0.5, 0.9),
+CASES = (  # name, sensor, fog, sigma_t, albedo, camera inside the fog's sphere
+    ("perspective, polygonal sphere, sigma_t 2.5", "perspective", "mesh sphere", 2.5, 0.9, False),
+    ("perspective, polygonal sphere, sigma_t 0.5", "perspective", "mesh sphere", 0.5, 0.9, False),
+    ("orthographic, analytic sphere, sigma_t 2.5", "orthographic", "sphere", 2.5, 0.9, False),
+    ("orthographic, camera inside the analytic sphere, sigma_t 2.5", "orthographic", "sphere", 2.5, 0.9, True),
+    ("orthographic, unbounded fog, sigma_t 0.5", "orthographic", "unbounded", 0.5, 0.9, False),
 )
 
 
@@ -175,12 +190,13 @@ def measure(spp_wrt: int = 2048, spp_mitsuba: int = 4096, samples: int = 4_000_0
     rng = np.random.default_rng(7)
     out = []
     with tempfile.TemporaryDirectory() as folder:
-        for name, sensor, fog, sigma_t, albedo in CASES:
+        for name, sensor, fog, sigma_t, albedo, inside in CASES:
             path = Path(folder) / "scene.xml"
-            path.write_text(scene_xml(sensor, fog, sigma_t, albedo, spp_mitsuba))
+            path.write_text(scene_xml(sensor, fog, sigma_t, albedo, spp_mitsuba, inside))
             scene = wrt.load_scene(str(path))
             renders = [wrt.render(scene, spp=spp_wrt, seed=seed) for seed in (1, 2)]
-            mask = renders[0].aovs["object_id"] == 0 if fog != "unbounded" else np.ones(renders[0].rgb.shape[:2], bool)
+            everywhere = fog == "unbounded" or inside
+            mask = np.ones(renders[0].rgb.shape[:2], bool) if everywhere else renders[0].aovs["object_id"] == 0
             ours = float(np.mean([r.rgb[..., 0][mask].mean() for r in renders]))
             theirs = float(
                 np.mean([np.array(mi.render(mi.load_file(str(path)), seed=s))[..., 0][mask].mean() for s in (1, 2)])
@@ -188,7 +204,7 @@ def measure(spp_wrt: int = 2048, spp_mitsuba: int = 4096, samples: int = 4_000_0
             if sensor == "perspective":
                 rays = perspective_rays(np.argwhere(mask), mask.shape[0])
             else:
-                rays = orthographic_rays(2.0 if fog == "unbounded" else 5.0, 0.2)
+                rays = orthographic_rays(*orthographic_frame(fog, inside))
             radius = None if fog == "unbounded" else 0.5
             estimate = single_scattering(rays, sigma_t, albedo, cube_triangles(), EMISSION, samples, rng, radius)
             out.append(
