@@ -25,20 +25,15 @@ import warp as wp
 
 from .materials import BSDF_ANISOTROPIC, MaterialData
 from .sample_warps import frame
-from .textures import BUMP_MAP, NORMAL_MAP, TextureEvalContext, texture_float_grad, texture_rgb
+from .textures import BUMP_MAP, NORMAL_MAP, TextureEvalContext, texture_float_grad, texture_rgb, uv_context
 from .traverse import (
-    KIND_BITS,
-    KIND_MASK,
-    TRIANGLE,
     GeometryData,
     RayHit,
-    barycentric,
     hit_point,
     hit_shape,
     make_surface_derivatives,
     make_surface_point,
-    make_surface_uv,
-    object_point,
+    make_texture_context,
     prim_shape,
     shading_normal,
 )
@@ -55,8 +50,8 @@ class Hit:
     material: wp.int32
     entering: bool  # the ray hits the geometric front side (dot(d, n) < 0): media, dielectric interfaces
     front: bool  # the ray hits the shading front side (dot(d, shading normal) < 0): the BSDF's side, emission
-    tex: TextureEvalContext  # where its textures are looked up: uv (surface_uv; (0, 0) where the scene has no
-    # textures) and, where the scene has mesh attributes, the triangle and its barycentric coordinates
+    tex: TextureEvalContext  # where its textures are looked up (texture_context): uv ((0, 0) where the scene
+    # has no textures) and, on a triangle, its index and barycentric coordinates
     n_unmapped: wp.vec3  # the shading normal before its normal map, flipped as n_facing (n_facing without one)
     tangent: wp.vec3  # the shading frame's unit tangent s (shading_tangent); zero at isotropic materials
 
@@ -140,7 +135,7 @@ def make_surface_hit(
     disk or cylinder) neither is their surface point nor uv (compiled in, each costs a path tracer a fifth
     to a quarter of its time on the CPU, even when not taken)."""
     surface_point = make_surface_point(quadrics)
-    surface_uv = make_surface_uv(quadrics)
+    texture_context = make_texture_context(quadrics)
     surface_derivatives = make_surface_derivatives(quadrics)
 
     @wp.func
@@ -167,16 +162,10 @@ def make_surface_hit(
         hit.entering = wp.dot(d, n) < 0.0
         hit.material = materials.shape_material[prim_shape(geometry, prim)]
         hit.shape = hit_shape(geometry, prim, inst)
-        tex = TextureEvalContext()
-        tex.prim = -1
+        hit.tex = uv_context(wp.vec2(0.0))
         if wp.static(textures):
             if materials.textures.kind.shape[0] > 0:  # the uv arrays are empty in a scene without textures
-                tex.uv = surface_uv(geometry, prim, inst, p, time)
-                if materials.textures.corners.shape[0] > 0 and (prim & KIND_MASK) == TRIANGLE:  # mesh attributes
-                    tex.prim = prim >> KIND_BITS
-                    b1, b2 = barycentric(geometry, tex.prim, object_point(geometry, prim, inst, p, time))
-                    tex.bary = wp.vec2(b1, b2)
-        hit.tex = tex
+                hit.tex = texture_context(geometry, prim, inst, p, time)
         ns = n
         if wp.static(smooth):
             ns = shading_normal(geometry, prim, inst, p, n, time)

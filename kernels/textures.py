@@ -89,9 +89,9 @@ class TextureData:
 
 @wp.struct
 class TextureEvalContext:
-    """Where a texture is evaluated: the surface's texture coordinates ``uv`` (``surface_uv``) and,
-    at a triangle (where the scene has mesh attributes), its index ``prim`` in ``tri_verts`` and
-    the barycentric coordinates ``bary`` = (b1, b2) of its second and third corners."""
+    """Where a texture is evaluated (``wrt.kernels.traverse.texture_context``): the surface's
+    texture coordinates ``uv`` and, at a triangle, its index ``prim`` in ``tri_verts`` (-1
+    elsewhere) and the barycentric coordinates ``bary`` = (b1, b2) of its second and third corners."""
 
     uv: wp.vec2
     prim: wp.int32

@@ -46,6 +46,7 @@ from .intersect import (
     safe_inverse,
 )
 from .spawn import max_abs, point_error
+from .textures import TextureEvalContext, uv_context
 
 KIND_BITS = wp.constant(3)  # low bits of a packed id that hold its kind
 KIND_MASK = wp.constant(7)
@@ -756,14 +757,18 @@ def sphere_world_axes(geometry: GeometryData, i: wp.int32, v: wp.vec3) -> wp.vec
 
 
 @functools.cache
-def make_surface_uv(quadrics: bool):
-    """``surface_uv``, with the disk and cylinder case compiled in only with ``quadrics``."""
+def make_texture_context(quadrics: bool):
+    """``texture_context``, with the disk and cylinder case compiled in only with ``quadrics``."""
 
     @wp.func
-    def surface_uv(geometry: GeometryData, prim: wp.int32, inst: wp.int32, p: wp.vec3, time: float) -> wp.vec2:
-        """Texture coordinates (u, v) of the hit point ``p`` (world space) of ``(prim, inst)`` from
-        ``closest_hit`` at ray time ``time``, computed in the primitive's object space (a group's for
-        a hit through an instance), as Mitsuba 3's shapes of the same kind:
+    def texture_context(
+        geometry: GeometryData, prim: wp.int32, inst: wp.int32, p: wp.vec3, time: float
+    ) -> TextureEvalContext:
+        """Where textures are looked up at the hit point ``p`` (world space) of ``(prim, inst)`` from
+        ``closest_hit`` at ray time ``time``: on a triangle its index and barycentric coordinates
+        (mesh attributes; ``prim`` -1 elsewhere), and the texture coordinates (u, v), computed in
+        the primitive's object space (a group's for a hit through an instance), as Mitsuba 3's
+        shapes of the same kind:
 
         - triangles: the corners' ``tri_uvs`` interpolated (a mesh without texture coordinates, or a
           ``triangle`` shape: ``(b1, b2)``, the barycentric coordinates of the second and third corners);
@@ -778,32 +783,36 @@ def make_surface_uv(quadrics: bool):
         i = prim >> KIND_BITS
         if kind == TRIANGLE:
             b1, b2 = barycentric(geometry, i, q)
-            return (
+            ctx = TextureEvalContext()
+            ctx.uv = (
                 (1.0 - b1 - b2) * geometry.tri_uvs[3 * i]
                 + b1 * geometry.tri_uvs[3 * i + 1]
                 + b2 * geometry.tri_uvs[3 * i + 2]
             )
+            ctx.prim = i
+            ctx.bary = wp.vec2(b1, b2)
+            return ctx
         if kind == SPHERE:
             local = wp.normalize(sphere_axes(geometry, i, q - geometry.sphere_center[i]))
-            return wp.vec2(turns(local[1], local[0]), unit_angle_z(local) / wp.pi)
+            return uv_context(wp.vec2(turns(local[1], local[0]), unit_angle_z(local) / wp.pi))
         if wp.static(quadrics):
             if kind == DISK or kind == CYLINDER:
                 local = wp.transform_point(geometry.quadric_to_object[i], q)
                 phi = turns(local[1], local[0])
                 if kind == DISK:
-                    return wp.vec2(wp.sqrt(local[0] * local[0] + local[1] * local[1]), phi)
-                return wp.vec2(phi, local[2])
+                    return uv_context(wp.vec2(wp.sqrt(local[0] * local[0] + local[1] * local[1]), phi))
+                return uv_context(wp.vec2(phi, local[2]))
         m = mat24()
         if kind == POLYGON:
             m = geometry.poly_uv[i]
         else:
             m = geometry.plane_uv[i]
-        return m * wp.vec4(q[0], q[1], q[2], 1.0)
+        return uv_context(m * wp.vec4(q[0], q[1], q[2], 1.0))
 
-    return surface_uv
+    return texture_context
 
 
-surface_uv = make_surface_uv(True)
+texture_context = make_texture_context(True)
 
 
 @functools.cache
@@ -813,7 +822,7 @@ def make_surface_derivatives(quadrics: bool):
     @wp.func
     def surface_derivatives(geometry: GeometryData, prim: wp.int32, inst: wp.int32, p: wp.vec3, time: float):
         """``(dpdu, dpdv)``: the derivatives (world space, scene units per unit u and v) of the
-        surface point along the texture coordinates of ``surface_uv``, at the hit point ``p`` of
+        surface point along the texture coordinates of ``texture_context``, at the hit point ``p`` of
         ``(prim, inst)`` from ``closest_hit``: Mitsuba 3's ``si.dp_du`` and ``si.dp_dv`` on the same
         shapes (a normal map's tangent, a bump map's surface). Triangles: solved per triangle from
         its corners and their ``tri_uvs`` (barycentric for a mesh without texture coordinates: its

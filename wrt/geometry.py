@@ -65,7 +65,7 @@ class Primitives:
     quadric_kind: np.ndarray  # (Q,) DISK or CYLINDER
     quadric_flip: np.ndarray  # (Q,) bool: normals inward
     quadric_shape: np.ndarray
-    # texture coordinates (wrt.kernels.traverse.surface_uv), empty in scenes without textures:
+    # texture coordinates (wrt.kernels.traverse.texture_context), empty in scenes without textures:
     tri_uvs: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 2), np.float32))  # (T, 3, 2) per corner
     # mesh attributes (wrt.textures.attribute_names' order) at each triangle corner, 1-channel ones in all three
     # channels, zero on a triangle without them; (0, 3, 0, 3) in a scene whose textures read none:

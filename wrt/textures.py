@@ -3,7 +3,7 @@ textures into the flat arrays of ``wrt.kernels.textures.TextureData``.
 
 A texture gives a material parameter (``SLOTS``: ``albedo``, ``specular``, ``reflectance``,
 ``roughness``, ...) a value that varies with the surface's (u, v) coordinates
-(``wrt.kernels.traverse.surface_uv``). Three kinds, as Mitsuba 3's plugins: ``Constant`` (one
+(``wrt.kernels.traverse.texture_context``). Three kinds, as Mitsuba 3's plugins: ``Constant`` (one
 value everywhere, Mitsuba's ``rawconstant``: what a constant normal map is; on the device a
 checkerboard of two equal colours), ``Checkerboard`` (two colours in squares of side 1/2 in uv)
 and ``Bitmap`` (an image file read

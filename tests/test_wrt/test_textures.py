@@ -12,7 +12,7 @@ import warp as wp
 from conftest import EXAMPLES
 from wrt.kernels.materials import MaterialData
 from wrt.kernels.textures import ALBEDO, TextureData, material_rgb, texture_float, texture_rgb, uv_context
-from wrt.kernels.traverse import NO_HIT, GeometryData, closest_hit, hit_point, prim_shape, ray_hit, surface_uv
+from wrt.kernels.traverse import NO_HIT, GeometryData, closest_hit, hit_point, prim_shape, ray_hit, texture_context
 from wrt_harness.mitsuba_peer import mitsuba_available
 
 import wrt
@@ -40,7 +40,7 @@ def trace_uv(
     out_hit[i] = wp.where(prim == NO_HIT, 0, 1)
     if prim != NO_HIT:
         p, _n, _err = hit_point(geometry, ray_hit(o, d, 0.0, t, prim, inst))
-        out_uv[i] = surface_uv(geometry, prim, inst, p, 0.0)
+        out_uv[i] = texture_context(geometry, prim, inst, p, 0.0).uv
 
 
 @wp.kernel
@@ -312,7 +312,7 @@ def albedo_at_hits(
     if prim != NO_HIT:
         p, _n, _err = hit_point(geometry, ray_hit(o, d, 0.0, t, prim, inst))
         m = materials.shape_material[prim_shape(geometry, prim)]
-        uv = surface_uv(geometry, prim, inst, p, 0.0)
+        uv = texture_context(geometry, prim, inst, p, 0.0).uv
         out_albedo[i] = material_rgb(textures, m, ALBEDO, uv_context(uv), materials.albedo[m])
 
 
