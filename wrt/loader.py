@@ -730,7 +730,7 @@ def _mesh_attributes(t: _Table, name: str, path: str, uses: tuple) -> dict[str, 
         channels = values.shape[1]
         if not np.all(np.isfinite(values)):
             raise t.error("file", f"mesh attribute '{texture.name}' has NaN or infinite values", name)
-        if channels != (1 if key in NUMBER_SLOTS else 3) and channels != 1:
+        if channels not in ((1,) if key in NUMBER_SLOTS else (1, 3)):
             need = "1 channel (a number)" if key in NUMBER_SLOTS else "1 or 3 channels (a colour)"
             raise t.error("file", f"mesh attribute '{texture.name}' has {channels} channels: {key} needs {need}", name)
         scaled = values * texture.scale
