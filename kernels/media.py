@@ -18,7 +18,7 @@ C. Schmidt, B. Budge, "Simple Nested Dielectrics in Ray Traced Images", JGT 7(2)
 
 import warp as wp
 
-from .materials import BSDF_THIN, BSDF_TRANSMISSION, MaterialData
+from .materials import BSDF_MEDIUM, MaterialData
 
 MEDIA = 8  # nested dielectrics a ray can be inside at once
 MEDIA_OVERFLOW = wp.constant(MEDIA + 1)  # n_media of a ray that entered one dielectric too many
@@ -163,10 +163,10 @@ def cross_interface(
     entering: bool,
 ) -> Interface:
     """What a surface of BSDF ``flags`` on ``shape`` separates for a ray with media stack ``media``:
-    a dielectric that bounds a medium (transmission, not thin) its ``dielectric_interface``, any
-    other surface ``no_interface``."""
+    a dielectric that bounds a medium (``BSDF_MEDIUM``) its ``dielectric_interface``, any other
+    surface (a thin dielectric, a principled material's transmission) ``no_interface``."""
     interface = no_interface(media, n_media)
-    if (flags & (BSDF_TRANSMISSION | BSDF_THIN)) == BSDF_TRANSMISSION:  # a thin dielectric bounds none
+    if (flags & BSDF_MEDIUM) != 0:
         real, eta, media_t, n_media_t = dielectric_interface(materials, exterior_ior, media, n_media, shape, entering)
         interface.real = real
         interface.eta = eta

@@ -511,8 +511,10 @@ def make_path_radiance(record: bool, features: Features = ALL, inline: bool | No
             else:
                 uc = float(0.0)
                 u = wp.vec2(0.0)
-                if wp.static(features.specular or features.blend):  # a choice of lobe, or of a blend's material
-                    if (flags & BSDF_TRANSMISSION) != 0 or wp.static(features.plastic or features.blend):
+                if wp.static(features.specular or features.blend or features.principled):  # a lobe, a blend's material
+                    if (flags & BSDF_TRANSMISSION) != 0 or wp.static(
+                        features.plastic or features.blend or features.principled
+                    ):
                         uc = sample_1d(sampler, ray.pixel, ray.sample, bounce_dim(vertex, 2))
                 if non_specular(flags):
                     u = sample_2d(sampler, ray.pixel, ray.sample, bounce_dim(vertex, 0))

@@ -50,6 +50,15 @@ TRANSMITTANCE = wp.constant(6)
 ROUGHNESS_V = wp.constant(7)
 WEIGHT = wp.constant(8)
 BUMP_MAP = wp.constant(9)
+METALLIC = wp.constant(10)
+SPEC_TRANS = wp.constant(11)
+SPEC_TINT = wp.constant(12)
+SHEEN = wp.constant(13)
+SHEEN_TINT = wp.constant(14)
+FLATNESS = wp.constant(15)
+CLEARCOAT = wp.constant(16)
+CLEARCOAT_GLOSS = wp.constant(17)
+ANISOTROPY = wp.constant(18)
 SLOTS = (
     "albedo",
     "specular",
@@ -61,6 +70,15 @@ SLOTS = (
     "roughness_v",
     "weight",
     "bump_map",
+    "metallic",
+    "spec_trans",
+    "spec_tint",
+    "sheen",
+    "sheen_tint",
+    "flatness",
+    "clearcoat",
+    "clearcoat_gloss",
+    "anisotropy",
 )
 """The material parameters a texture can give, in slot order (``slot[m, s]``); ``normal_map`` is
 a raw bitmap of tangent-space normals (``wrt.kernels.hit.perturbed_normal``), not a BSDF parameter;
@@ -68,7 +86,8 @@ a raw bitmap of tangent-space normals (``wrt.kernels.hit.perturbed_normal``), no
 property of its volume; whitted's filtered shadow rays, which compute no uv, take its mean);
 ``roughness_v`` an anisotropic material's alpha along the bitangent (``roughness`` the one along the
 tangent); ``weight`` a blend's (its second material's share); ``bump_map`` a height field, whose
-gradient (``texture_float_grad``) tilts the shading normal (``wrt.kernels.hit.bumped_normal``)."""
+gradient (``texture_float_grad``) tilts the shading normal (``wrt.kernels.hit.bumped_normal``);
+``metallic`` to ``anisotropy`` a principled material's numbers (``wrt.kernels.materials.principled``)."""
 
 
 @wp.struct

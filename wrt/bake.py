@@ -21,7 +21,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from wrt.kernels.lights import light_row
-from wrt.kernels.materials import BSDF_ANISOTROPIC, FAMILIES, FAMILY_OF, TYPES, blend_flags, lobe_flags, mask_flags
+from wrt.kernels.materials import (
+    BSDF_ANISOTROPIC,
+    BSDF_MEDIUM,
+    FAMILIES,
+    FAMILY_OF,
+    TYPES,
+    blend_flags,
+    lobe_flags,
+    mask_flags,
+)
 from wrt.kernels.volumes import GRID, HOMOGENEOUS, UNSET
 
 from .emitting import EmittingPrimitives, emitting_primitives
@@ -95,12 +104,14 @@ def _base_color(material: Material, by_name: dict[str, Material]) -> np.ndarray:
 def _flags(material: Material, by_name: dict[str, Material]) -> int:
     """The lobes of a material (``lobe_flags``; a mask's ``mask_flags`` of its material's, a blend's
     ``blend_flags`` of its two materials'), with ``BSDF_ANISOTROPIC`` where its lobes, or those of a
-    material it masks or blends, need the hit's tangent."""
+    material it masks or blends, need the hit's tangent, and ``BSDF_MEDIUM`` where it bounds a
+    medium (``Family.medium``)."""
     if material.type == "mask":
         return mask_flags(_flags(by_name[material.material], by_name), _opaque(material))
     if material.type == "blend":
         return blend_flags(*(_flags(by_name[name], by_name) for name in material.materials))
-    return lobe_flags(material) | (BSDF_ANISOTROPIC if _anisotropic(material) else 0)
+    medium = BSDF_MEDIUM if FAMILY_OF[material.type].medium else 0
+    return lobe_flags(material) | (BSDF_ANISOTROPIC if _anisotropic(material) else 0) | medium
 
 
 def _anisotropic(material: Material) -> bool:
@@ -108,7 +119,7 @@ def _anisotropic(material: Material) -> bool:
     textured, or their float32 values unequal): its lobes need the hit's tangent. An isotropic
     material given ``roughness_v`` equal to ``roughness`` takes none, and renders as without it."""
     if material.roughness_v is None:
-        return False
+        return material.anisotropic  # a principled one's anisotropy
     textured = any(key in ("roughness", "roughness_v") for key, _ in material.textures)
     return textured or np.float32(material.roughness_v) != np.float32(material.roughness)
 

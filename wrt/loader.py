@@ -22,6 +22,9 @@ from .errors import MeshFileError, SceneError, listed
 from .files import TomlError, read_toml
 from .kernels.lights import LIGHT_TYPES
 from .kernels.materials import TYPES
+from .kernels.materials.principled import NUMBERS as PRINCIPLED_NUMBERS
+from .kernels.materials.principled import RATES as PRINCIPLED_RATES
+from .kernels.materials.principled import transmits
 from .kernels.microfacet import DISTRIBUTIONS
 from .kernels.volumes import MEDIUM_TYPES as MEDIUM_REGISTRY
 from .kernels.volumes import PHASE_TYPES as PHASE_REGISTRY
@@ -336,7 +339,7 @@ TEXTURED = ", ".join(slot for slot in SLOTS if slot != "transmittance") + " and 
 """What a texture can give (a dielectric's ``transmittance`` is an absorption per unit length: its volume's)."""
 
 
-NUMBER_SLOTS = ("roughness", "roughness_v", "opacity", "weight")
+NUMBER_SLOTS = ("roughness", "roughness_v", "opacity", "weight", *PRINCIPLED_NUMBERS, "anisotropy")
 """The textured parameters read as one number (``texture_float``)."""
 
 
@@ -429,7 +432,14 @@ def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
         "material": lambda: t.string("material"),
         "materials": lambda: _names(t, "materials", 2),
         "weight": lambda: t.number("weight", Material.weight, lo=0.0, hi=1.0),
+        **{
+            key: (lambda key=key: t.number(key, getattr(Material, key), lo=0.0, hi=1.0))
+            for key in (*PRINCIPLED_NUMBERS, "anisotropy")
+        },
+        **{key: (lambda key=key: t.number(key, getattr(Material, key), lo=0.0, hi=1e3)) for key in PRINCIPLED_RATES},
     }
+    if kind == "principled":  # Burley's roughness, 0 allowed (its alpha is at least 0.001)
+        readers["roughness"] = lambda: t.number("roughness", Material.roughness, lo=0.0, hi=1.0)
     textures = []
     for key in TYPES[kind].keys:
         if isinstance(t.data.get(key), Mapping):
@@ -455,11 +465,14 @@ def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
     elif "bump_scale" in t.data:
         raise t.error("bump_scale", "scales a bump_map: it applies to a material with one only", t.data["bump_scale"])
     if "two_sided" in t.data and "two_sided" not in values:
-        raise t.error(
-            "two_sided", f"does not apply to a {kind}: it reflects and refracts on both sides", t.data["two_sided"]
+        sides = (
+            "its sides are Mitsuba's principled's" if kind == "principled" else "it reflects and refracts on both sides"
         )
+        raise t.error("two_sided", f"does not apply to a {kind}: {sides}", t.data["two_sided"])
     t.finish()
     material = Material(**values, textures=tuple(textures))
+    if kind == "principled" and material.ior == 1.0 and transmits(material):
+        material = dataclasses.replace(material, ior=1.001)  # index-matched transmission, as Mitsuba 3 moves it
     if kind == "phong" and any(a + s > 1.0 for a, s in zip(material.albedo, material.specular)):
         raise t.error(
             "specular",
@@ -1186,7 +1199,7 @@ def _check_whitted(source: str, lights, materials, media) -> None:
                 light.type,
             )
     for i, material in enumerate(materials):
-        if material.type in ("rough_dielectric", "mask", "blend", "null"):
+        if material.type in ("rough_dielectric", "mask", "blend", "null", "principled"):
             raise SceneError(
                 source,
                 f"material[{i}]",

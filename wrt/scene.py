@@ -125,6 +125,11 @@ class Material:
     anisotropic, of alpha ``roughness`` along the shading frame's tangent (the surface's dp/du made
     perpendicular to its shading normal, Mitsuba 3's ``alpha_u``) and ``roughness_v`` along the
     bitangent (``alpha_v``);
+    a principled material (Mitsuba 3's ``principled``, Burley's Disney BSDF) of base colour ``albedo``,
+    ``roughness`` (Burley's: its GGX alpha is ``roughness^2``), ``anisotropy``, ``metallic``, ``spec_trans``,
+    ``spec_tint``, ``sheen``, ``sheen_tint``, ``flatness``, ``clearcoat`` and ``clearcoat_gloss`` (each in
+    [0, 1]) over a dielectric interface of ``ior`` (the inside's over the outside's, Mitsuba's ``eta``),
+    sampling its lobes by the three ``*_sampling_rate`` weights (``wrt.kernels.materials.principled``);
     ``emission``: radiance in W/(m^2 sr) leaving the front side;
     ``two_sided``: both sides reflect (diffuse, phong, mirror, glossy, conductor; a dielectric always does), else
     the back side (facing away from the surface's normal) reflects nothing, as Mitsuba 3's one-sided BSDFs;
@@ -153,11 +158,26 @@ class Material:
     materials: tuple[str, ...] = ()  # blend: the names of its two materials
     weight: float = 0.5  # blend: the share of its second material
     bump_scale: float = 1.0  # bump-mapped: the height field's scale (Mitsuba's bumpmap scale)
+    metallic: float = 0.0  # principled (Mitsuba 3's): the metal's share
+    spec_trans: float = 0.0  # principled: the share of the dielectric lobe that transmits
+    spec_tint: float = 0.0  # principled: the share of the dielectric reflection tinted by albedo
+    sheen: float = 0.0  # principled: the sheen's strength
+    sheen_tint: float = 0.0  # principled: the sheen's tint toward albedo
+    flatness: float = 0.0  # principled: the diffuse lobe's blend toward fake subsurface scattering
+    clearcoat: float = 0.0  # principled: the clearcoat's strength
+    clearcoat_gloss: float = 0.0  # principled: the clearcoat's gloss (GTR1 alpha 0.1 at 0, 0.001 at 1)
+    anisotropy: float = 0.0  # principled: its main lobe's anisotropy (Mitsuba's anisotropic)
+    diffuse_reflectance_sampling_rate: float = 1.0  # principled: the lobes' sampling weights (noise, not image)
+    main_specular_sampling_rate: float = 1.0
+    clearcoat_sampling_rate: float = 1.0
     textures: tuple = ()  # (parameter, wrt.textures texture) pairs; the parameter's own value is its mean
 
     @property
     def anisotropic(self) -> bool:
-        """Its microfacets have two alphas (``roughness_v`` given)."""
+        """Its microfacets have two alphas (``roughness_v`` given; a principled one's ``anisotropy``
+        not 0 or textured): its lobes lie along the surface's tangent."""
+        if self.type == "principled":
+            return self.anisotropy != 0.0 or any(key == "anisotropy" for key, _ in self.textures)
         return self.roughness_v is not None
 
     @property

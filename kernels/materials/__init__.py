@@ -12,8 +12,9 @@ new module here, listed in ``FAMILIES``, with its tests and docs.
 
 Families: ``diffuse`` (Lambert), ``phong``, ``conductor`` (``mirror``, ``glossy``, ``conductor``),
 ``dielectric``, ``thin_dielectric``, ``rough_dielectric``, ``plastic`` (``plastic``,
-``rough_plastic``), ``blend``, ``mask``, ``null`` (no surface: a medium's boundary), and ``emitter``
-(``EMITTER``, the surface of an area or sphere light: it reflects nothing). Any type may emit
+``rough_plastic``), ``principled`` (Mitsuba 3's), ``blend``, ``mask``, ``null`` (no surface: a
+medium's boundary), and ``emitter`` (``EMITTER``, the surface of an area or sphere light: it
+reflects nothing). Any type may emit
 ``emission`` (W/(m^2 sr)) from its front side. ``base_color`` is what the raycast integrator
 shows. A material that is not ``two_sided`` (one-sided, as Mitsuba 3's diffuse and conductors)
 reflects nothing on its back side, the side its surface's shading normal points away from
@@ -50,13 +51,15 @@ the viewer) and ``wi`` (toward the light, or the sampled direction) are unit vec
 from the surface; ``eta = n1 / n2`` is the ratio of the indices of refraction on ``wo``'s side and
 across the surface (``wrt.kernels.media``; 1 for opaque materials). ``uc`` chooses a lobe, ``u``
 (2D) samples a direction within it; both uniform in [0, 1). ``ctx`` is the hit's texture coordinate
-(textured parameters), ``front`` (``Hit.front``, default true) the side it arrived on: only a mask
-reads it, as its inner material scatters nothing on the back of a one-sided one while its null lobe
-lets the ray through on both sides. ``tangent`` (``Hit.tangent``) is the shading frame's unit
-tangent ``s``, perpendicular to ``n`` (Mitsuba 3's ``sh_frame.s``: ``dp/du`` made orthogonal to the
-shading normal), along which an anisotropic material's ``roughness`` lies (``roughness_v`` along
-``n x s``); zero (the default, and in every scene without an anisotropic material) the BSDFs take
-the frame ``wrt.kernels.sample_warps.frame(n)``, in which isotropic lobes are the same.
+(textured parameters), ``front`` (``Hit.front``, default true) the side it arrived on: every
+family's functions take it; a mask and a blend read it (their materials scatter nothing on the back
+of a one-sided one, while a mask's null lobe lets the ray through on both sides), and a principled
+material's lobes are its side's (Mitsuba's sign of ``cos theta_i``). ``tangent`` (``Hit.tangent``)
+is the shading frame's unit tangent ``s``, perpendicular to ``n`` (Mitsuba 3's ``sh_frame.s``:
+``dp/du`` made orthogonal to the shading normal), along which an anisotropic material's
+``roughness`` lies (``roughness_v`` along ``n x s``); zero (the default, and in every scene without
+an anisotropic material) the BSDFs take the frame ``wrt.kernels.sample_warps.frame(n)``, in which
+isotropic lobes are the same.
 
 References
 ----------
@@ -71,7 +74,19 @@ import warp as wp
 
 from .. import hinted_func
 from ..textures import TextureEvalContext
-from . import blend, conductor, dielectric, diffuse, mask, null, phong, plastic, rough_dielectric, thin_dielectric
+from . import (
+    blend,
+    conductor,
+    dielectric,
+    diffuse,
+    mask,
+    null,
+    phong,
+    plastic,
+    principled,
+    rough_dielectric,
+    thin_dielectric,
+)
 from .blend import BLEND, blend_flags
 from .conductor import CONDUCTOR, GLOSSY, MIRROR
 from .data import MaterialData, parameters
@@ -81,6 +96,7 @@ from .interface import (
     BSDF_ANISOTROPIC,
     BSDF_DIFFUSE,
     BSDF_GLOSSY,
+    BSDF_MEDIUM,
     BSDF_REFLECTION,
     BSDF_SPECULAR,
     BSDF_THIN,
@@ -99,6 +115,7 @@ from .mask import MASK, mask_flags
 from .null import NULL
 from .phong import PHONG
 from .plastic import COATING_RES, PLASTIC, ROUGH_PLASTIC
+from .principled import PRINCIPLED
 from .rough_dielectric import ROUGH_DIELECTRIC
 from .thin_dielectric import THIN_DIELECTRIC, thin_transmittance
 
@@ -112,6 +129,7 @@ FAMILIES: tuple[Family, ...] = (
     thin_dielectric.FAMILY,
     rough_dielectric.FAMILY,
     plastic.FAMILY,
+    principled.FAMILY,
     blend.FAMILY,
     mask.FAMILY,
     null.FAMILY,
@@ -138,6 +156,7 @@ __all__ = [
     "BSDF_ANISOTROPIC",
     "BSDF_DIFFUSE",
     "BSDF_GLOSSY",
+    "BSDF_MEDIUM",
     "BSDF_REFLECTION",
     "BSDF_SPECULAR",
     "BSDF_THIN",
@@ -159,6 +178,7 @@ __all__ = [
     "NULL_LOBE",
     "PHONG",
     "PLASTIC",
+    "PRINCIPLED",
     "ROUGH_DIELECTRIC",
     "ROUGH_PLASTIC",
     "THIN_DIELECTRIC",
@@ -286,7 +306,7 @@ def _dispatch(functions: list, inline: bool | None = None) -> BSDF:
     ) -> wp.vec3:
         """f(wo, wi) (1/sr) of the non-specular lobes for ``wi`` on the side of ``n`` (or across the
         surface, for glossy transmission); 0 for delta lobes."""
-        return eval_case(materials, m, materials.type[m], n, wo, wi, eta, ctx, tangent)
+        return eval_case(materials, m, materials.type[m], n, wo, wi, eta, ctx, front, tangent)
 
     @hinted
     def bsdf_pdf(
@@ -301,7 +321,7 @@ def _dispatch(functions: list, inline: bool | None = None) -> BSDF:
         tangent: wp.vec3 = wp.vec3(0.0, 0.0, 0.0),
     ) -> float:
         """Solid-angle density (1/sr) with which ``bsdf_sample`` draws ``wi``; 0 for delta lobes."""
-        return pdf_case(materials, m, materials.type[m], n, wo, wi, eta, ctx, tangent)
+        return pdf_case(materials, m, materials.type[m], n, wo, wi, eta, ctx, front, tangent)
 
     @hinted
     def specular_lobes(
@@ -329,7 +349,7 @@ def _dispatch(functions: list, inline: bool | None = None) -> BSDF:
         tangent: wp.vec3 = wp.vec3(0.0, 0.0, 0.0),
     ) -> BSDFSample:
         """A direction drawn from material ``m``'s BSDF (lost for a family without lobes)."""
-        return sample_case(materials, m, materials.type[m], n, wo, eta, uc, u, ctx, tangent)
+        return sample_case(materials, m, materials.type[m], n, wo, eta, uc, u, ctx, front, tangent)
 
     return BSDF(bsdf_eval, bsdf_pdf, bsdf_sample, specular_lobes)
 
@@ -344,6 +364,7 @@ def no_eval(
     wi: wp.vec3,
     eta: float,
     ctx: TextureEvalContext,
+    front: bool,
     tangent: wp.vec3,
 ) -> wp.vec3:
     return wp.vec3(0.0)
@@ -359,6 +380,7 @@ def no_pdf(
     wi: wp.vec3,
     eta: float,
     ctx: TextureEvalContext,
+    front: bool,
     tangent: wp.vec3,
 ) -> float:
     return 0.0
@@ -383,11 +405,12 @@ def _eval_cases(cases: list, otherwise: wp.Function) -> wp.Function:
         wi: wp.vec3,
         eta: float,
         ctx: TextureEvalContext,
+        front: bool,
         tangent: wp.vec3,
     ):
         if owns(material_type):
-            return family_function(materials, m, n, wo, wi, eta, ctx, tangent)
-        return rest(materials, m, material_type, n, wo, wi, eta, ctx, tangent)
+            return family_function(materials, m, n, wo, wi, eta, ctx, front, tangent)
+        return rest(materials, m, material_type, n, wo, wi, eta, ctx, front, tangent)
 
     return eval_case
 
@@ -407,6 +430,7 @@ def _sample_cases(cases: list) -> wp.Function:
             uc: float,
             u: wp.vec2,
             ctx: TextureEvalContext,
+            front: bool,
             tangent: wp.vec3,
         ) -> BSDFSample:
             return lost_sample()
@@ -426,11 +450,12 @@ def _sample_cases(cases: list) -> wp.Function:
         uc: float,
         u: wp.vec2,
         ctx: TextureEvalContext,
+        front: bool,
         tangent: wp.vec3,
     ) -> BSDFSample:
         if owns(material_type):
-            return family_sample(materials, m, n, wo, eta, uc, u, ctx, tangent)
-        return rest(materials, m, material_type, n, wo, eta, uc, u, ctx, tangent)
+            return family_sample(materials, m, n, wo, eta, uc, u, ctx, front, tangent)
+        return rest(materials, m, material_type, n, wo, eta, uc, u, ctx, front, tangent)
 
     return sample_case
 

@@ -77,6 +77,7 @@ def make(at: Parameters) -> Functions:
         wi: wp.vec3,
         eta: float,
         ctx: TextureEvalContext,
+        front: bool,
         tangent: wp.vec3,
     ) -> wp.vec3:
         """Microfacet reflection of the facet reflectance at the half vector; 0 for a mirror or a smooth conductor."""
@@ -100,6 +101,7 @@ def make(at: Parameters) -> Functions:
         wi: wp.vec3,
         eta: float,
         ctx: TextureEvalContext,
+        front: bool,
         tangent: wp.vec3,
     ) -> float:
         """Visible microfacet normals; 0 for a mirror or a smooth conductor."""
@@ -130,6 +132,7 @@ def make(at: Parameters) -> Functions:
         uc: float,
         u: wp.vec2,
         ctx: TextureEvalContext,
+        front: bool,
         tangent: wp.vec3,
     ) -> BSDFSample:
         """A mirror's or a smooth conductor's reflection; glossy and rough conductors by visible normals."""

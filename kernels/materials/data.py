@@ -17,6 +17,7 @@ from ..volumes import MediumData
 from .blend import BlendData
 from .interface import BSDF_TRANSMISSION, MIN_ALPHA
 from .plastic import PlasticData
+from .principled import PrincipledData
 
 
 @wp.struct
@@ -48,6 +49,7 @@ class MaterialData:
     opacity: wp.array(dtype=float)  # mask: the probability of its inner material (textured: slot OPACITY)
     plastic: PlasticData  # the plastics' own table (wrt.kernels.materials.plastic)
     blend: BlendData  # the blends' own table (wrt.kernels.materials.blend)
+    principled: PrincipledData  # the principled materials' own table (wrt.kernels.materials.principled)
     media: MediumData  # the participating media and the surfaces that bound them (wrt.kernels.volumes)
 
 

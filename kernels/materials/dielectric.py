@@ -64,6 +64,7 @@ def make(at: Parameters) -> Functions:
         uc: float,
         u: wp.vec2,
         ctx: TextureEvalContext,
+        front: bool,
         tangent: wp.vec3,
     ) -> BSDFSample:
         """The reflection with probability F (weight F / F = 1), else the refraction (weight ``eta^2``)."""

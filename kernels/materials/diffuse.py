@@ -25,6 +25,7 @@ def cosine_sample(eval: wp.Function) -> wp.Function:
         uc: float,
         u: wp.vec2,
         ctx: TextureEvalContext,
+        front: bool,
         tangent: wp.vec3,
     ) -> BSDFSample:
         s = lost_sample()
@@ -33,7 +34,7 @@ def cosine_sample(eval: wp.Function) -> wp.Function:
         cos_theta = wp.dot(n, s.wi)
         if cos_theta > 0.0:
             s.pdf = cos_theta / wp.pi
-            s.weight = eval(materials, m, n, wo, s.wi, 1.0, ctx, tangent) * (cos_theta / s.pdf)
+            s.weight = eval(materials, m, n, wo, s.wi, 1.0, ctx, front, tangent) * (cos_theta / s.pdf)
         return s
 
     return sample
@@ -48,6 +49,7 @@ def cosine_pdf(
     wi: wp.vec3,
     eta: float,
     ctx: TextureEvalContext,
+    front: bool,
     tangent: wp.vec3,
 ) -> float:
     """The density of ``cosine_sample``: cos / pi above the surface."""
@@ -68,6 +70,7 @@ def make(at: Parameters) -> Functions:
         wi: wp.vec3,
         eta: float,
         ctx: TextureEvalContext,
+        front: bool,
         tangent: wp.vec3,
     ) -> wp.vec3:
         return at.rgb(materials, m, ALBEDO, ctx, materials.albedo[m]) / wp.pi

@@ -10,9 +10,10 @@ bakes into its own table). ``make(at)`` takes the parameter lookups of a scene (
 ``wrt.kernels.materials.data``) and returns ``Functions``:
 
 - ``owns(material_type)``: the code ``material_type`` (``MaterialData.type``) is one of the family's;
-- ``eval(materials, m, n, wo, wi, eta, ctx)``: f (1/sr) of its non-specular lobes;
-- ``pdf(materials, m, n, wo, wi, eta, ctx)``: the solid-angle density of ``sample``'s non-specular lobes;
-- ``sample(materials, m, n, wo, eta, uc, u, ctx)``: one ``BSDFSample``;
+- ``eval(materials, m, n, wo, wi, eta, ctx, front, tangent)``: f (1/sr) of its non-specular lobes;
+- ``pdf(materials, m, n, wo, wi, eta, ctx, front, tangent)``: the solid-angle density of ``sample``'s
+  non-specular lobes;
+- ``sample(materials, m, n, wo, eta, uc, u, ctx, front, tangent)``: one ``BSDFSample``;
 - ``specular_lobes(materials, m, n, wo, eta, ctx)``: its delta lobes at once (``SpecularLobes``);
 
 each None where the family has no such lobes (the dispatch then answers 0, or no lobes). The
@@ -35,6 +36,9 @@ BSDF_SPECULAR = wp.constant(16)
 BSDF_TOTAL_INTERNAL = wp.constant(32)  # a sampled lobe only: specular reflection because refraction is impossible
 BSDF_THIN = wp.constant(64)  # transmission goes straight on through a surface that bounds no medium (thin dielectric)
 BSDF_ANISOTROPIC = wp.constant(128)  # MaterialData.flags only: its lobes need the hit's tangent (Mitsuba's Anisotropic)
+BSDF_MEDIUM = wp.constant(
+    256
+)  # MaterialData.flags only: it bounds a medium (Family.medium): the media stack changes across it
 NULL_LOBE = wp.constant(BSDF_TRANSMISSION | BSDF_SPECULAR | BSDF_THIN)  # a mask's: straight on, weight 1
 
 MIN_ALPHA = 1e-4  # the least GGX alpha a roughness texture gives (0 would be a mirror: another lobe)

@@ -31,6 +31,7 @@ def make(at: Parameters) -> Functions:
         uc: float,
         u: wp.vec2,
         ctx: TextureEvalContext,
+        front: bool,
         tangent: wp.vec3,
     ) -> BSDFSample:
         s = BSDFSample()

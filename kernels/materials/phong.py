@@ -33,6 +33,7 @@ def make(at: Parameters) -> Functions:
         wi: wp.vec3,
         eta: float,
         ctx: TextureEvalContext,
+        front: bool,
         tangent: wp.vec3,
     ) -> wp.vec3:
         cos_alpha = wp.max(0.0, wp.dot(reflect(-wi, n), wo))

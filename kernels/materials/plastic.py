@@ -162,6 +162,7 @@ def make(at) -> Functions:
         wi: wp.vec3,
         eta: float,
         ctx: TextureEvalContext,
+        front: bool,
         tangent: wp.vec3,
     ) -> wp.vec3:
         albedo = at.rgb(materials, m, ALBEDO, ctx, materials.albedo[m])
@@ -178,6 +179,7 @@ def make(at) -> Functions:
         wi: wp.vec3,
         eta: float,
         ctx: TextureEvalContext,
+        front: bool,
         tangent: wp.vec3,
     ) -> float:
         return plastic_pdf(materials, m, at.alpha(materials, m, ctx), at.distribution(materials, m), n, wo, wi)
@@ -203,6 +205,7 @@ def make(at) -> Functions:
         uc: float,
         u: wp.vec2,
         ctx: TextureEvalContext,
+        front: bool,
         tangent: wp.vec3,
     ) -> BSDFSample:
         """The coating's reflection with probability ``coating_probability`` (a smooth coating's mirror

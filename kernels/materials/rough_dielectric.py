@@ -85,6 +85,7 @@ def make(at: Parameters) -> Functions:
         wi: wp.vec3,
         eta: float,
         ctx: TextureEvalContext,
+        front: bool,
         tangent: wp.vec3,
     ) -> wp.vec3:
         to_local = wp.transpose(shading_frame(n, tangent))
@@ -101,6 +102,7 @@ def make(at: Parameters) -> Functions:
         wi: wp.vec3,
         eta: float,
         ctx: TextureEvalContext,
+        front: bool,
         tangent: wp.vec3,
     ) -> float:
         to_local = wp.transpose(shading_frame(n, tangent))
@@ -118,6 +120,7 @@ def make(at: Parameters) -> Functions:
         uc: float,
         u: wp.vec2,
         ctx: TextureEvalContext,
+        front: bool,
         tangent: wp.vec3,
     ) -> BSDFSample:
         alpha = at.alpha(materials, m, ctx)

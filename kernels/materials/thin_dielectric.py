@@ -96,6 +96,7 @@ def make(at: Parameters) -> Functions:
         uc: float,
         u: wp.vec2,
         ctx: TextureEvalContext,
+        front: bool,
         tangent: wp.vec3,
     ) -> BSDFSample:
         reflectance = at.rgb(materials, m, REFLECTANCE, ctx, materials.reflectance[m])

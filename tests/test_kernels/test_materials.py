@@ -10,6 +10,7 @@ from conftest import fresnel_dielectric64, make_scene
 from wrt.kernels.materials import (
     BSDF_DIFFUSE,
     BSDF_GLOSSY,
+    BSDF_MEDIUM,
     BSDF_REFLECTION,
     BSDF_SPECULAR,
     BSDF_TOTAL_INTERNAL,
@@ -104,7 +105,7 @@ def test_flags_describe_each_material(materials):
         "diffuse": BSDF_REFLECTION | BSDF_DIFFUSE,
         "phong": BSDF_REFLECTION | BSDF_DIFFUSE | BSDF_GLOSSY,
         "mirror": BSDF_REFLECTION | BSDF_SPECULAR,
-        "glass": BSDF_REFLECTION | BSDF_TRANSMISSION | BSDF_SPECULAR,
+        "glass": BSDF_REFLECTION | BSDF_TRANSMISSION | BSDF_SPECULAR | BSDF_MEDIUM,  # it bounds a medium
         "glossy": BSDF_REFLECTION | BSDF_GLOSSY,
     }
 

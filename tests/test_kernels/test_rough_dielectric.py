@@ -12,6 +12,7 @@ from conftest import fresnel_dielectric64
 from test_microfacet import d64, g1_64
 from wrt.kernels.materials import (
     BSDF_GLOSSY,
+    BSDF_MEDIUM,
     BSDF_REFLECTION,
     BSDF_SPECULAR,
     BSDF_TRANSMISSION,
@@ -152,7 +153,7 @@ def reference(wo, wi, alpha, eta, distribution="ggx"):
 def test_flags_are_glossy_reflection_and_transmission():
     out = wp.zeros(1, dtype=wp.int32)
     wp.launch(flags_of, dim=1, inputs=[glass(0.3), out])
-    assert out.numpy()[0] == BSDF_REFLECTION | BSDF_TRANSMISSION | BSDF_GLOSSY
+    assert out.numpy()[0] == BSDF_REFLECTION | BSDF_TRANSMISSION | BSDF_GLOSSY | BSDF_MEDIUM  # it bounds a medium
 
 
 @wp.kernel

@@ -45,6 +45,7 @@ PARAMETERS = {  # one [[material]] table per type, besides its name
     "rough_dielectric": {"roughness": 0.2},
     "plastic": {},
     "rough_plastic": {"roughness": 0.2},
+    "principled": {"metallic": 0.3},
     "mask": {"opacity": 0.5, "material": "inner"},
     "blend": {"weight": 0.5, "materials": ["inner", "inner"]},
     "null": {},
@@ -64,6 +65,7 @@ EXPECTED = {
     "rough_dielectric": (True, True, {"rough_dielectric"}),
     "plastic": (True, False, {"plastic"}),
     "rough_plastic": (False, False, {"plastic"}),
+    "principled": (False, False, {"principled"}),
     "mask": (False, False, {"mask"}),
     "blend": (False, False, {"blend"}),
     "null": (False, False, {"null"}),
@@ -84,10 +86,10 @@ def test_the_types_and_codes_are_each_familys_and_unique():
 
 def test_the_material_flags_are_features_and_relevant_to_path():
     fields = [f.name for f in dataclasses.fields(Features)]
-    assert MATERIAL_FLAGS == ("rough_dielectric", "plastic", "blend", "mask", "null")
+    assert MATERIAL_FLAGS == ("rough_dielectric", "plastic", "principled", "blend", "mask", "null")
     assert set(MATERIAL_FLAGS) <= set(fields) and set(MATERIAL_FLAGS) <= set(RELEVANT["path"])
     assert Features(plastic=False).plastic is False and ALL.plastic is True
-    assert families_for(Features(plastic=False, blend=False, mask=False, null=False)) == (
+    assert families_for(Features(plastic=False, principled=False, blend=False, mask=False, null=False)) == (
         "diffuse",
         "phong",
         "conductor",
@@ -129,6 +131,7 @@ MITSUBA_BODIES = {
     "thindielectric": "",
     "plastic": "",
     "roughplastic": '<string name="distribution" value="ggx"/>',
+    "principled": '<float name="metallic" value="0.3"/>',
     "mask": '<bsdf type="diffuse"/>',
     "blendbsdf": '<bsdf type="diffuse"/><bsdf type="diffuse"/>',
     "null": "",

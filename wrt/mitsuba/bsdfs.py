@@ -7,11 +7,14 @@ wrt mask over its nested BSDF's material (named after the mask's, with ``_materi
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from dataclasses import dataclass
 
 from ..conductors import METALS
 from ..errors import token
+from ..kernels.materials.principled import NUMBERS as PRINCIPLED_NUMBERS
+from ..kernels.materials.principled import RATES as PRINCIPLED_RATES
 from ..kernels.microfacet import DISTRIBUTIONS
 from ..loader import NESTED_RULES
 from .textures import texture, textured_color
@@ -154,6 +157,33 @@ def plastic(p: Plugin) -> dict:
     return table
 
 
+def principled(p: Plugin) -> dict:
+    """The ``[[material]]`` table of a ``principled``, exact: ``base_color`` is wrt's ``albedo``,
+    ``anisotropic`` its ``anisotropy``, the other parameters the same (numbers or textures), ``eta``
+    its ``ior``, or ``specular`` mapped to it as Mitsuba does (``2 / (1 - sqrt(0.08 specular)) - 1``,
+    ``specular`` 0 taken as 0.001 where it transmits)."""
+    table = {
+        "type": "principled",
+        "albedo": textured_color(p, "base_color", 0.5),
+        "roughness": textured_number(p, "roughness", 0.5),
+        "anisotropy": textured_number(p, "anisotropic", 0.0),
+        **{key: textured_number(p, key, 0.0) for key in PRINCIPLED_NUMBERS},
+        **{key: p.number(key, 1.0) for key in PRINCIPLED_RATES},
+    }
+    spec_trans = table["spec_trans"]
+    transmits = isinstance(spec_trans, dict) or spec_trans != 0.0
+    if p.has("eta") and p.has("specular"):
+        raise p.doc.error(p.element, "give either eta or specular, not both (Mitsuba rejects it)")
+    if p.has("eta"):
+        table["ior"] = p.number("eta", 1.5)
+    else:
+        specular = p.number("specular", 0.5)
+        if specular == 0.0 and transmits:
+            specular = 1e-3
+        table["ior"] = 2.0 / (1.0 - math.sqrt(0.08 * specular)) - 1.0
+    return table
+
+
 def textured_number(p: Plugin, name: str, default: float) -> float | dict:
     """Number parameter ``name`` of ``p``: a number, or the texture table of its ``<texture>``,
     whose ``texture_float`` is Mitsuba's ``eval_1`` (a checkerboard's colours swapped: Mitsuba's
@@ -254,6 +284,10 @@ class Materials:
             front = self._convert(inner[0])
             if front.params["type"] in (*TRANSMITTING, "mask"):
                 raise self.doc.error(inner[0], "a twosided BSDF cannot nest a BSDF that transmits (Mitsuba rejects it)")
+            if front.params["type"] == "principled":
+                self.doc.warn(
+                    element, "a twosided principled is not supported: its back side stays Mitsuba's one-sided"
+                )
             return Material(front.params, True, tuple(Material(n.params, True, n.nested) for n in front.nested))
         if p.type == "diffuse":
             material = Material({"type": "diffuse", "albedo": textured_color(p, "reflectance", 0.5)}, False)
@@ -286,6 +320,8 @@ class Materials:
                 },
                 True,
             )
+        elif p.type == "principled":
+            material = Material(principled(p), True)  # its sides are its own (the kernel's front)
         elif p.type == "null":
             material = Material({"type": "null"}, True)
         elif p.type == "mask":
@@ -399,7 +435,7 @@ class Materials:
 
     def _closest(self, p: Plugin) -> Material:
         """An unsupported BSDF: its nearest wrt material, with a warning saying which."""
-        if p.type == "principled":
+        if p.type == "principledthin":
             albedo = p.color("base_color", 0.5)
             self.doc.warn(p.element, f"not supported: converted as diffuse, albedo {albedo}")
             return Material({"type": "diffuse", "albedo": albedo}, False)

@@ -55,7 +55,8 @@ def shape(
     mirrored = mirrors(matrix[:3, :3]) != (front < 0)  # winding must be reversed to keep Mitsuba's front
     params = materials.of(bsdfs[0] if bsdfs else None).params
     textured = any(isinstance(v, dict) for v in params.values())
-    oriented = textured or "roughness_v" in params  # its uv parametrisation shows: textures, an anisotropic tangent
+    anisotropic = "roughness_v" in params or params.get("anisotropy", 0.0) != 0.0
+    oriented = textured or anisotropic  # its uv parametrisation shows: textures, an anisotropic tangent
 
     if p.type == "sphere":
         radius, center = p.number("radius", 1.0, above=0.0), p.vector("center", (0.0, 0.0, 0.0))
