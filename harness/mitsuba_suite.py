@@ -1,15 +1,16 @@
 """Scenes judged by Mitsuba 3's render-test criterion against stored Mitsuba references, as
 Mitsuba's own suite stores its references.
 
-Two suites (``SUITES``): ``suite`` (``examples/mitsuba/suite``: scenes written the way Mitsuba's
-render tests write theirs, 32 x 32) and ``participating_media`` (``examples/mitsuba/
+Three suites (``SUITES``): ``suite`` (``examples/mitsuba/suite``: scenes written the way Mitsuba's
+render tests write theirs, 32 x 32), ``participating_media`` (``examples/mitsuba/
 participating_media``: the scenes of Mitsuba 3's participating-media render tests, 48 x 48, their
-own resolution). Each scene is rendered by wrt at the suite's budget of 2e6 samples an image
-(``Suite.spp`` per pixel) and judged by `wrt_harness.mitsuba_peer.mitsuba_z_test` against
-Mitsuba's render of the same file through a ``moment`` integrator at ``Suite.reference_spp``
-(mean and per-sample variance in CIE XYZ), stored in ``reference_images/mitsuba/SUITE/NAME.npz``
-with the Mitsuba version, variant, seed and spp that made it. References are made only on
-purpose (scalar_rgb on 2 cores: about a minute a scene)::
+own resolution) and ``bsdf_spheres`` (``examples/mitsuba/bsdf_spheres``: its textured principled
+BSDF tests, 48 x 48, their films fixed at that size). Each scene is rendered by wrt at the suite's
+budget of 2e6 samples an image (``Suite.spp`` per pixel) and judged by
+`wrt_harness.mitsuba_peer.mitsuba_z_test` against Mitsuba's render of the same file through a
+``moment`` integrator at ``Suite.reference_spp`` (mean and per-sample variance in CIE XYZ), stored
+in ``reference_images/mitsuba/SUITE/NAME.npz`` with the Mitsuba version, variant, seed and spp that
+made it. References are made only on purpose (scalar_rgb on 2 cores: about a minute a scene)::
 
     python -m wrt_harness.mitsuba_suite regenerate SUITE [NAME ...]
 
@@ -50,6 +51,7 @@ class Suite:
     res: int
     scenes: tuple[str, ...]
     failing: dict[str, str] = field(default_factory=dict)
+    res_param: bool = True  # the scenes size their film by $res (Mitsuba's bsdf_spheres scenes: a fixed one)
 
     @property
     def spp(self) -> int:
@@ -75,7 +77,8 @@ class Suite:
         import mitsuba
 
         spp = spp or self.reference_spp
-        mean, var = render_mitsuba_moments(self.scene_path(name), spp, seed=SEED, res=self.res)
+        params = {"res": self.res} if self.res_param else {}
+        mean, var = render_mitsuba_moments(self.scene_path(name), spp, seed=SEED, **params)
         buffer = io.BytesIO()
         np.savez_compressed(
             buffer,
@@ -94,6 +97,7 @@ class Suite:
 SUITES = {
     suite.name: suite
     for suite in (
+        Suite("bsdf_spheres", 48, ("test_texturedprincipled1", "test_texturedprincipled2"), res_param=False),
         Suite(
             "suite",
             32,
@@ -217,6 +221,7 @@ CROSSCHECKS = {
         Crosscheck("projector", 64, 48, 512),
         Crosscheck("bumpmap", 64, 48, 512),
         Crosscheck("mesh_attributes", 64, 48, 512),
+        Crosscheck("principled", 64, 48, 512),
         Crosscheck("fog_area_light", 48, 36, 512, folder="media"),
         Crosscheck("milk_in_glass", 48, 36, 512, folder="media"),
         Crosscheck("camera_in_fog", 48, 36, 512, folder="media"),

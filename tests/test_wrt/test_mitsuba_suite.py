@@ -4,7 +4,8 @@ against the stored Mitsuba references of ``wrt_harness.mitsuba_suite``: ``exampl
 an orthographic sensor, the ``direct`` and ``moment`` integrators) and
 ``examples/mitsuba/participating_media`` (the scenes of Mitsuba 3's participating-media render
 tests: homogeneous and heterogeneous media, null, dielectric, thin dielectric and rough
-(Beckmann) boundaries, chromatic media, ``volpath``), each imported without ``approximate`` and rendered by wrt at the
+(Beckmann) boundaries, chromatic media, ``volpath``) and ``examples/mitsuba/bsdf_spheres`` (its
+textured principled BSDF tests), each imported without ``approximate`` and rendered by wrt at the
 suite's budget of 2e6 samples an image. Needs no Mitsuba: the references are in the repository."""
 
 import functools
@@ -17,7 +18,11 @@ from wrt_harness.mitsuba_suite import SUITES
 import wrt
 from wrt.loader import override_render
 
-REJECTED = {"suite": "include_path_direct", "participating_media": "test_homo_dielectric_envmap"}
+REJECTED = {
+    "suite": "include_path_direct",
+    "participating_media": "test_homo_dielectric_envmap",
+    "bsdf_spheres": "test_texturedprincipled2",
+}
 """The scene of each suite whose render test_the_z_test_rejects_a_brighter_image scales: both tests
 of it run on one xdist worker (one group), which renders it once (``render``'s cache)."""
 CASES = [
@@ -55,7 +60,7 @@ def test_scene_passes_mitsubas_z_test(suite, name):
     "suite, name, gain",
     [
         pytest.param(SUITES[s], REJECTED[s], gain, id=s, marks=pytest.mark.xdist_group(f"z_{s}"))
-        for s, gain in (("suite", 1.01), ("participating_media", 1.02))
+        for s, gain in (("suite", 1.01), ("participating_media", 1.02), ("bsdf_spheres", 1.01))
     ],
 )
 def test_the_z_test_rejects_a_brighter_image(suite, name, gain):
