@@ -97,7 +97,12 @@ class Suite:
 SUITES = {
     suite.name: suite
     for suite in (
-        Suite("bsdf_spheres", 48, ("test_texturedprincipled1", "test_texturedprincipled2"), res_param=False),
+        Suite(
+            "bsdf_spheres",
+            48,
+            ("test_texturedprincipled1", "test_texturedprincipled2", "test_texturedprincipledthin"),
+            res_param=False,
+        ),
         Suite(
             "suite",
             32,

@@ -59,6 +59,7 @@ FLATNESS = wp.constant(15)
 CLEARCOAT = wp.constant(16)
 CLEARCOAT_GLOSS = wp.constant(17)
 ANISOTROPY = wp.constant(18)
+DIFF_TRANS = wp.constant(19)
 SLOTS = (
     "albedo",
     "specular",
@@ -79,6 +80,7 @@ SLOTS = (
     "clearcoat",
     "clearcoat_gloss",
     "anisotropy",
+    "diff_trans",
 )
 """The material parameters a texture can give, in slot order (``slot[m, s]``); ``normal_map`` is
 a raw bitmap of tangent-space normals (``wrt.kernels.hit.perturbed_normal``), not a BSDF parameter;
@@ -87,7 +89,7 @@ property of its volume; whitted's filtered shadow rays, which compute no uv, tak
 ``roughness_v`` an anisotropic material's alpha along the bitangent (``roughness`` the one along the
 tangent); ``weight`` a blend's (its second material's share); ``bump_map`` a height field, whose
 gradient (``texture_float_grad``) tilts the shading normal (``wrt.kernels.hit.bumped_normal``);
-``metallic`` to ``anisotropy`` a principled material's numbers (``wrt.kernels.materials.principled``)."""
+``metallic`` to ``diff_trans`` a principled material's numbers (``wrt.kernels.materials.principled``)."""
 
 
 @wp.struct

@@ -24,7 +24,7 @@ from .kernels.lights import LIGHT_TYPES
 from .kernels.materials import TYPES
 from .kernels.materials.principled import NUMBERS as PRINCIPLED_NUMBERS
 from .kernels.materials.principled import RATES as PRINCIPLED_RATES
-from .kernels.materials.principled import transmits
+from .kernels.materials.principled import THIN_RATES, transmits
 from .kernels.microfacet import DISTRIBUTIONS
 from .kernels.volumes import MEDIUM_TYPES as MEDIUM_REGISTRY
 from .kernels.volumes import PHASE_TYPES as PHASE_REGISTRY
@@ -339,12 +339,14 @@ TEXTURED = ", ".join(slot for slot in SLOTS if slot != "transmittance") + " and 
 """What a texture can give (a dielectric's ``transmittance`` is an absorption per unit length: its volume's)."""
 
 
-NUMBER_SLOTS = ("roughness", "roughness_v", "opacity", "weight", *PRINCIPLED_NUMBERS, "anisotropy")
+NUMBER_SLOTS = ("roughness", "roughness_v", "opacity", "weight", *PRINCIPLED_NUMBERS, "anisotropy", "diff_trans")
 """The textured parameters read as one number (``texture_float``)."""
 
 
 def _slot_range(key: str) -> tuple[float, float]:
     """The range a textured parameter's values must stay in."""
+    if key == "diff_trans":
+        return (0.0, 2.0)
     return (1e-3, 1.0) if key in ("roughness", "roughness_v") else (0.0, 1.0)
 
 
@@ -436,9 +438,13 @@ def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
             key: (lambda key=key: t.number(key, getattr(Material, key), lo=0.0, hi=1.0))
             for key in (*PRINCIPLED_NUMBERS, "anisotropy")
         },
-        **{key: (lambda key=key: t.number(key, getattr(Material, key), lo=0.0, hi=1e3)) for key in PRINCIPLED_RATES},
+        "diff_trans": lambda: t.number("diff_trans", Material.diff_trans, lo=0.0, hi=2.0),
+        **{
+            key: (lambda key=key: t.number(key, getattr(Material, key), lo=0.0, hi=1e3))
+            for key in (*PRINCIPLED_RATES, *THIN_RATES)
+        },
     }
-    if kind == "principled":  # Burley's roughness, 0 allowed (its alpha is at least 0.001)
+    if kind in ("principled", "principled_thin"):  # Burley's roughness, 0 allowed (its alpha is at least 0.001)
         readers["roughness"] = lambda: t.number("roughness", Material.roughness, lo=0.0, hi=1.0)
     textures = []
     for key in TYPES[kind].keys:
@@ -1199,7 +1205,7 @@ def _check_whitted(source: str, lights, materials, media) -> None:
                 light.type,
             )
     for i, material in enumerate(materials):
-        if material.type in ("rough_dielectric", "mask", "blend", "null", "principled"):
+        if material.type in ("rough_dielectric", "mask", "blend", "null", "principled", "principled_thin"):
             raise SceneError(
                 source,
                 f"material[{i}]",

@@ -130,6 +130,8 @@ class Material:
     ``spec_tint``, ``sheen``, ``sheen_tint``, ``flatness``, ``clearcoat`` and ``clearcoat_gloss`` (each in
     [0, 1]) over a dielectric interface of ``ior`` (the inside's over the outside's, Mitsuba's ``eta``),
     sampling its lobes by the three ``*_sampling_rate`` weights (``wrt.kernels.materials.principled``);
+    a thin principled material (``principled_thin``, Mitsuba's ``principledthin``) is a sheet of the same
+    keys but ``metallic`` and the clearcoat, with ``diff_trans`` (in [0, 2]) and four sampling rates;
     ``emission``: radiance in W/(m^2 sr) leaving the front side;
     ``two_sided``: both sides reflect (diffuse, phong, mirror, glossy, conductor; a dielectric always does), else
     the back side (facing away from the surface's normal) reflects nothing, as Mitsuba 3's one-sided BSDFs;
@@ -170,13 +172,17 @@ class Material:
     diffuse_reflectance_sampling_rate: float = 1.0  # principled: the lobes' sampling weights (noise, not image)
     main_specular_sampling_rate: float = 1.0
     clearcoat_sampling_rate: float = 1.0
+    diff_trans: float = 0.0  # principled_thin: its diffuse transmission, in [0, 2] (Mitsuba's range)
+    specular_reflectance_sampling_rate: float = 1.0  # principled_thin: its lobes' sampling weights
+    specular_transmittance_sampling_rate: float = 1.0
+    diffuse_transmittance_sampling_rate: float = 1.0
     textures: tuple = ()  # (parameter, wrt.textures texture) pairs; the parameter's own value is its mean
 
     @property
     def anisotropic(self) -> bool:
         """Its microfacets have two alphas (``roughness_v`` given; a principled one's ``anisotropy``
         not 0 or textured): its lobes lie along the surface's tangent."""
-        if self.type == "principled":
+        if self.type in ("principled", "principled_thin"):
             return self.anisotropy != 0.0 or any(key == "anisotropy" for key, _ in self.textures)
         return self.roughness_v is not None
 

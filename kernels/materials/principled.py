@@ -43,6 +43,7 @@ from ..textures import (
     ANISOTROPY,
     CLEARCOAT,
     CLEARCOAT_GLOSS,
+    DIFF_TRANS,
     FLATNESS,
     LUMINANCE,
     METALLIC,
@@ -67,10 +68,19 @@ from .interface import (
 )
 
 PRINCIPLED = wp.constant(14)
+PRINCIPLED_THIN = wp.constant(15)
 NUMBERS = ("metallic", "spec_trans", "spec_tint", "sheen", "sheen_tint", "flatness", "clearcoat", "clearcoat_gloss")
 """The principled parameters in [0, 1] besides ``roughness`` and ``anisotropy``, each a column of
-``PrincipledData`` and a texture slot."""
+``PrincipledData`` and a texture slot (``diff_trans``, a thin one's, is in [0, 2])."""
 RATES = ("diffuse_reflectance_sampling_rate", "main_specular_sampling_rate", "clearcoat_sampling_rate")
+THIN_RATES = (
+    "specular_reflectance_sampling_rate",
+    "specular_transmittance_sampling_rate",
+    "diffuse_reflectance_sampling_rate",
+    "diffuse_transmittance_sampling_rate",
+)
+"""The sampling rates of each type, in ``PrincipledData.rates`` order."""
+THIN_KEYS = ("albedo", "roughness", "anisotropy", "spec_trans", "spec_tint", "sheen", "sheen_tint", "flatness")
 
 
 @wp.struct
@@ -86,7 +96,8 @@ class PrincipledData:
     clearcoat: wp.array(dtype=float)
     clearcoat_gloss: wp.array(dtype=float)
     anisotropy: wp.array(dtype=float)
-    rates: wp.array(dtype=wp.vec3)  # the sampling rates: diffuse, main specular, clearcoat
+    diff_trans: wp.array(dtype=float)  # a thin one's diffuse transmission, in [0, 2]
+    rates: wp.array(dtype=wp.vec4)  # the sampling rates: RATES (and 0), or a thin one's THIN_RATES
 
 
 @wp.struct
@@ -105,7 +116,9 @@ class PrincipledParameters:
     clearcoat: float
     clearcoat_gloss: float
     eta: float
-    rates: wp.vec3
+    rates: wp.vec4
+    diff_trans: float  # a thin one's, halved into [0, 1] (Mitsuba's)
+    alpha_transmitted: wp.vec2  # a thin one's transmission lobe: roughness scaled by 0.65 eta - 0.35
     transmits: bool  # it has a transmission lobe (``transmits``: Mitsuba's has_spec_trans)
 
 
@@ -255,6 +268,29 @@ def lobe_probabilities(p: PrincipledParameters, f_dielectric: float, front: bool
 
 
 @wp.func
+def burley_diffuse(p: PrincipledParameters, cos_o: float, cos_i: float, cos_d: float) -> float:
+    """Burley's diffuse and retro-reflection factor (times ``albedo / pi`` it is the lobe), blended
+    toward Hanrahan-Krueger's fake subsurface by ``flatness``; ``cos_d = wi.h``."""
+    fo = schlick_weight(wp.abs(cos_i))
+    fi = schlick_weight(wp.abs(cos_o))
+    rr = 2.0 * p.roughness * cos_d * cos_d
+    lobe = (1.0 - 0.5 * fi) * (1.0 - 0.5 * fo) + rr * (fo + fi + fo * fi * (rr - 1.0))
+    if p.flatness > 0.0:
+        fss90 = 0.5 * rr
+        fss = (1.0 + (fss90 - 1.0) * fo) * (1.0 + (fss90 - 1.0) * fi)
+        subsurface = 1.25 * (fss * (1.0 / (wp.abs(cos_i) + wp.abs(cos_o)) - 0.5) + 0.5)
+        lobe = lobe + (subsurface - lobe) * p.flatness
+    return lobe
+
+
+@wp.func
+def sheen_color(p: PrincipledParameters, cos_d: float) -> wp.vec3:
+    """The sheen, ``sheen F_schlick(cos_d) lerp(1, albedo / luminance, sheen_tint)`` (no ``1 / pi``)."""
+    tinted = wp.vec3(1.0) + (tint(p.albedo) - wp.vec3(1.0)) * p.sheen_tint
+    return tinted * (p.sheen * schlick_weight(wp.abs(cos_d)))
+
+
+@wp.func
 def principled_eval(p: PrincipledParameters, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
     """f (1/sr) in the local frame (``z`` the shading normal of the surface's front; ``wo.z < 0``:
     the back side)."""
@@ -287,21 +323,10 @@ def principled_eval(p: PrincipledParameters, wo: wp.vec3, wi: wp.vec3) -> wp.vec
                 g_cc = clearcoat_masking(wo, h) * clearcoat_masking(wi, h)
                 f += wp.vec3(0.25 * p.clearcoat * f_cc * d_cc * g_cc)
         if front and brdf > 0.0:
-            fo = schlick_weight(wp.abs(cos_i))
-            fi = schlick_weight(wp.abs(cos_o))
-            diffuse = (1.0 - 0.5 * fi) * (1.0 - 0.5 * fo)
             cos_d = wp.dot(h, wi)
-            rr = 2.0 * p.roughness * cos_d * cos_d
-            lobe = diffuse + rr * (fo + fi + fo * fi * (rr - 1.0))
-            if p.flatness > 0.0:
-                fss90 = 0.5 * rr
-                fss = (1.0 + (fss90 - 1.0) * fo) * (1.0 + (fss90 - 1.0) * fi)
-                subsurface = 1.25 * (fss * (1.0 / (wp.abs(cos_i) + wp.abs(cos_o)) - 0.5) + 0.5)
-                lobe = lobe + (subsurface - lobe) * p.flatness
-            f += p.albedo * (brdf * lobe / wp.pi)
+            f += p.albedo * (brdf * burley_diffuse(p, cos_o, cos_i, cos_d) / wp.pi)
             if p.sheen > 0.0 and p.metallic < 1.0:
-                sheen_color = wp.vec3(1.0) + (tint(p.albedo) - wp.vec3(1.0)) * p.sheen_tint
-                f += sheen_color * (p.sheen * (1.0 - p.metallic) * schlick_weight(wp.abs(cos_d)))
+                f += sheen_color(p, cos_d) * (1.0 - p.metallic)
     elif btdf > 0.0 and f_dielectric < 1.0 and compatible(h, wo, wi, False):
         denom = cos_oh + eta_path * cos_ih
         t = (1.0 - f_dielectric) * d * g * cos_oh * cos_ih / (cos_o * denom * denom)
@@ -387,12 +412,131 @@ def principled_sample(p: PrincipledParameters, wo: wp.vec3, uc: float, u: wp.vec
     return s
 
 
+@wp.func
+def thin_half_vector(wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+    """A thin sheet's microfacet normal: the half vector of ``wo`` (``z > 0``) and ``wi`` mirrored
+    to ``wo``'s side (its transmission is a reflection turned over, with no bending)."""
+    return wp.normalize(wo + wp.vec3(wi[0], wi[1], wp.abs(wi[2])))
+
+
+@wp.func
+def thin_probabilities(p: PrincipledParameters) -> wp.vec4:
+    """The probabilities (specular reflection, specular transmission, diffuse reflection, diffuse
+    transmission) with which a thin one's ``sample`` chooses a lobe."""
+    chance = wp.vec4(
+        0.5 * p.spec_trans * p.rates[0],
+        0.5 * p.spec_trans * p.rates[1],
+        (1.0 - p.spec_trans) * (1.0 - p.diff_trans) * p.rates[2],
+        (1.0 - p.spec_trans) * p.diff_trans * p.rates[3],
+    )
+    return chance / (chance[0] + chance[1] + chance[2] + chance[3])
+
+
+@wp.func
+def thin_eval(p: PrincipledParameters, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
+    """f (1/sr) of Mitsuba's ``principledthin`` in the local frame, the same from either side: its
+    specular reflection and transmission (``spec_trans`` times the thin Fresnel term's share, and
+    ``albedo (1 - F)`` through microfacets of the scaled roughness), Burley's diffuse and the sheen
+    (``(1 - spec_trans)(1 - diff_trans)``), and a Lambertian transmission (``(1 - spec_trans)
+    diff_trans``)."""
+    if wo[2] == 0.0 or wi[2] == 0.0:
+        return wp.vec3(0.0)
+    if wo[2] < 0.0:  # seen from the back: the same sheet, turned over
+        wo = -wo
+        wi = -wi
+    cos_o = wo[2]
+    cos_i = wi[2]
+    h = thin_half_vector(wo, wi)
+    f = wp.vec3(0.0)
+    if p.spec_trans > 0.0:
+        f_dielectric = dielectric_fresnel(wp.dot(wo, h), p.eta)
+        if cos_i > 0.0 and compatible(h, wo, wi, True):
+            r0 = (p.eta - 1.0) / (p.eta + 1.0)
+            tinted = schlick(tint(p.albedo) * (r0 * r0), wp.dot(wo, h), p.eta)
+            fresnel = wp.vec3(f_dielectric) + (tinted - wp.vec3(f_dielectric)) * p.spec_tint
+            g = masking(wo, h, p.alpha) * masking(wi, h, p.alpha)
+            f += fresnel * (p.spec_trans * ggx_d(h, p.alpha) * g / (4.0 * cos_o * cos_i))
+        if cos_i < 0.0 and compatible(h, wo, wi, False):
+            a = p.alpha_transmitted
+            g = masking(wo, h, a) * masking(wi, h, a)
+            f += p.albedo * (p.spec_trans * (1.0 - f_dielectric) * ggx_d(h, a) * g / (4.0 * cos_o * -cos_i))
+    if p.spec_trans < 1.0:
+        if cos_i > 0.0 and p.diff_trans < 1.0:
+            cos_d = wp.dot(h, wi)
+            weight = (1.0 - p.spec_trans) * (1.0 - p.diff_trans)
+            f += p.albedo * (weight * burley_diffuse(p, cos_o, cos_i, cos_d) / wp.pi)
+            if p.sheen > 0.0:
+                f += sheen_color(p, cos_d) * weight
+        if cos_i < 0.0 and p.diff_trans > 0.0:
+            f += p.albedo * ((1.0 - p.spec_trans) * p.diff_trans / wp.pi)
+    return f
+
+
+@wp.func
+def thin_pdf(p: PrincipledParameters, wo: wp.vec3, wi: wp.vec3) -> float:
+    """The density (1/sr) with which ``thin_sample`` draws ``wi``, local frame."""
+    if wo[2] == 0.0 or wi[2] == 0.0:
+        return 0.0
+    if wo[2] < 0.0:
+        wo = -wo
+        wi = -wi
+    chance = thin_probabilities(p)
+    h = thin_half_vector(wo, wi)
+    jacobian = wp.abs(1.0 / (4.0 * wp.dot(wp.vec3(wi[0], wi[1], wp.abs(wi[2])), h)))
+    if wi[2] > 0.0:
+        pdf = chance[2] * wi[2] / wp.pi
+        if chance[0] > 0.0 and compatible(h, wo, wi, True):
+            pdf += chance[0] * visible_pdf(wo, h, p.alpha) * jacobian
+        return pdf
+    pdf = chance[3] * -wi[2] / wp.pi
+    if chance[1] > 0.0 and compatible(h, wo, wi, False):
+        pdf += chance[1] * visible_pdf(wo, h, p.alpha_transmitted) * jacobian
+    return pdf
+
+
+@wp.func
+def thin_sample(p: PrincipledParameters, wo: wp.vec3, uc: float, u: wp.vec2) -> BSDFSample:
+    """A lobe chosen by ``uc`` (``thin_probabilities``), a direction from it by ``u``, local frame:
+    a transmission is the reflection about a visible normal turned over, or a cosine-weighted
+    direction below."""
+    s = lost_sample()
+    if wo[2] == 0.0:
+        return s
+    side = wp.where(wo[2] > 0.0, 1.0, -1.0)
+    wo_up = wo * side
+    chance = thin_probabilities(p)
+    if uc < chance[0] + chance[1]:
+        reflection = uc < chance[0]
+        alpha = wp.where(reflection, p.alpha, p.alpha_transmitted)
+        h = ggx_sample_visible_normal(wo_up, alpha, u[0], u[1])
+        wi = 2.0 * wp.dot(wo_up, h) * h - wo_up
+        s.flags = BSDF_REFLECTION | BSDF_GLOSSY
+        if not reflection:
+            wi = wp.vec3(wi[0], wi[1], -wi[2])
+            s.flags = BSDF_TRANSMISSION | BSDF_GLOSSY
+        if reflection != (wi[2] > 0.0) or not compatible(h, wo_up, wi, reflection):
+            return lost_sample()
+    else:
+        wi = cosine_hemisphere(u[0], u[1])
+        s.flags = BSDF_REFLECTION | BSDF_DIFFUSE
+        if uc >= chance[0] + chance[1] + chance[2]:
+            wi = -wi
+            s.flags = BSDF_TRANSMISSION | BSDF_DIFFUSE
+    s.wi = wi * side
+    s.pdf = thin_pdf(p, wo, s.wi)
+    if s.pdf > 0.0:
+        s.weight = thin_eval(p, wo, s.wi) * (wp.abs(s.wi[2]) / s.pdf)
+    else:
+        s.flags = 0
+    return s
+
+
 def make(at) -> Functions:
     from .data import MaterialData  # noqa: PLC0415 (MaterialData holds PrincipledData: an import cycle)
 
     @wp.func
     def owns(material_type: wp.int32) -> bool:
-        return material_type == PRINCIPLED
+        return material_type == PRINCIPLED or material_type == PRINCIPLED_THIN
 
     @wp.func
     def number(materials: MaterialData, m: wp.int32, slot: wp.int32, ctx: TextureEvalContext, constant: float) -> float:
@@ -417,11 +561,18 @@ def make(at) -> Functions:
         p.clearcoat_gloss = number(materials, m, CLEARCOAT_GLOSS, ctx, table.clearcoat_gloss[m])
         p.eta = materials.ior[m]
         p.rates = table.rates[m]
+        p.diff_trans = 0.5 * number(materials, m, DIFF_TRANS, ctx, table.diff_trans[m])
         p.transmits = (materials.flags[m] & BSDF_TRANSMISSION) != 0
         aspect = wp.sqrt(1.0 - 0.9 * number(materials, m, ANISOTROPY, ctx, table.anisotropy[m]))
-        r2 = p.roughness * p.roughness
-        p.alpha = wp.vec2(wp.max(0.001, r2 / aspect), wp.max(0.001, r2 * aspect))
+        p.alpha = alphas(p.roughness, aspect)
+        p.alpha_transmitted = alphas((0.65 * p.eta - 0.35) * p.roughness, aspect)
         return p
+
+    @wp.func
+    def alphas(roughness: float, aspect: float) -> wp.vec2:
+        """The GGX alphas of Burley's ``roughness`` (Mitsuba's ``calc_dist_params``)."""
+        r2 = roughness * roughness
+        return wp.vec2(wp.max(0.001, r2 / aspect), wp.max(0.001, r2 * aspect))
 
     @wp.func
     def local_frame(n: wp.vec3, front: bool, tangent: wp.vec3) -> wp.mat33:
@@ -441,7 +592,10 @@ def make(at) -> Functions:
         tangent: wp.vec3,
     ) -> wp.vec3:
         to_local = local_frame(n, front, tangent)
-        return principled_eval(parameters_at(materials, m, ctx), to_local * wo, to_local * wi)
+        p = parameters_at(materials, m, ctx)
+        if materials.type[m] == PRINCIPLED_THIN:
+            return thin_eval(p, to_local * wo, to_local * wi)
+        return principled_eval(p, to_local * wo, to_local * wi)
 
     @wp.func
     def pdf(
@@ -456,7 +610,10 @@ def make(at) -> Functions:
         tangent: wp.vec3,
     ) -> float:
         to_local = local_frame(n, front, tangent)
-        return principled_pdf(parameters_at(materials, m, ctx), to_local * wo, to_local * wi)
+        p = parameters_at(materials, m, ctx)
+        if materials.type[m] == PRINCIPLED_THIN:
+            return thin_pdf(p, to_local * wo, to_local * wi)
+        return principled_pdf(p, to_local * wo, to_local * wi)
 
     @wp.func
     def sample(
@@ -472,7 +629,12 @@ def make(at) -> Functions:
         tangent: wp.vec3,
     ) -> BSDFSample:
         to_local = local_frame(n, front, tangent)
-        s = principled_sample(parameters_at(materials, m, ctx), to_local * wo, uc, u)
+        p = parameters_at(materials, m, ctx)
+        s = lost_sample()
+        if materials.type[m] == PRINCIPLED_THIN:
+            s = thin_sample(p, to_local * wo, uc, u)
+        else:
+            s = principled_sample(p, to_local * wo, uc, u)
         s.wi = wp.transpose(to_local) * s.wi
         return s
 
@@ -480,24 +642,32 @@ def make(at) -> Functions:
 
 
 def transmits(material) -> bool:
-    """Its ``spec_trans`` is textured or not 0: it has a transmission lobe (Mitsuba's flag)."""
-    return material.spec_trans != 0.0 or any(key == "spec_trans" for key, _ in material.textures)
+    """It has a transmission lobe (Mitsuba's flags): its ``spec_trans`` (or a thin one's
+    ``diff_trans``) is textured or not 0."""
+    keys = ("spec_trans", "diff_trans") if material.type == "principled_thin" else ("spec_trans",)
+    return any(getattr(material, key) != 0.0 for key in keys) or any(key in keys for key, _ in material.textures)
 
 
 def lobes(material) -> int:
-    """Diffuse and glossy reflection, and glossy transmission where it ``transmits``."""
+    """Diffuse and glossy reflection, and transmission where it ``transmits``."""
     return BSDF_REFLECTION | BSDF_DIFFUSE | BSDF_GLOSSY | (BSDF_TRANSMISSION if transmits(material) else 0)
 
 
 def bake(materials: list, exterior_ior: float) -> dict[str, np.ndarray]:
     """``PrincipledData``'s columns for ``materials`` (``wrt.scene.Material``s, all families; 0 for
     the others')."""
-    ours = [material if material.type == "principled" else None for material in materials]
+    ours = [material if material.type in ("principled", "principled_thin") else None for material in materials]
     columns = {
         key: np.array([getattr(m, key) if m else 0.0 for m in ours], dtype=np.float64)
-        for key in (*NUMBERS, "anisotropy")
+        for key in (*NUMBERS, "anisotropy", "diff_trans")
     }
-    columns["rates"] = np.array([[getattr(m, r) for r in RATES] if m else [1.0] * 3 for m in ours], dtype=np.float64)
+    rates = [
+        [getattr(m, r) for r in (THIN_RATES if m.type == "principled_thin" else (*RATES, "clearcoat_sampling_rate"))]
+        if m
+        else [1.0] * 4
+        for m in ours
+    ]
+    columns["rates"] = np.array(rates, dtype=np.float64)
     return columns
 
 
@@ -510,12 +680,18 @@ FAMILY = Family(
             ("albedo", "roughness", "anisotropy", *NUMBERS, "ior", *RATES),
             BSDF_REFLECTION | BSDF_DIFFUSE | BSDF_GLOSSY,
         ),
+        MaterialType(
+            "principled_thin",
+            PRINCIPLED_THIN,
+            (*THIN_KEYS, "diff_trans", "ior", *THIN_RATES),
+            BSDF_REFLECTION | BSDF_DIFFUSE | BSDF_GLOSSY,
+        ),
     ),
     make=make,
     feature="principled",
     whitted=False,
     lobes=lobes,
-    mitsuba=("principled",),
+    mitsuba=("principled", "principledthin"),
     data=PrincipledData,
     bake=bake,
 )

@@ -645,14 +645,14 @@ def test_unsupported_input_is_refused_or_approximated(tmp_path):
     body = """
     <shape type="linearcurve"/>
     <shape type="sphere"><float name="foo" value="1"/></shape>
-    <bsdf type="principledthin" id="p"/>
+    <bsdf type="hair" id="p"/>
     <shape type="sphere"><ref id="p"/></shape>
     <shape type="sphere"><bsdf type="null"/><medium type="rayleigh" name="interior"/></shape>"""
     doc, warnings = convert(tmp_path, body)
     assert [w.split(": ", 2)[:2] for w in warnings] == [
         [f"{tmp_path / 'scene.xml'}:2", '<shape type="linearcurve">'],
         [f"{tmp_path / 'scene.xml'}:3", '<float name="foo">'],
-        [f"{tmp_path / 'scene.xml'}:4", '<bsdf type="principledthin" id="p">'],
+        [f"{tmp_path / 'scene.xml'}:4", '<bsdf type="hair" id="p">'],
         [f"{tmp_path / 'scene.xml'}:6", '<medium type="rayleigh" name="interior">'],
     ]
     assert len(doc["shape"]) == 3

@@ -144,3 +144,37 @@ def test_mitsuba_principleds_wrt_refuses(tmp_path):
     twosided = sensor() + '<shape type="sphere"><bsdf type="twosided"><bsdf type="principled"/></bsdf></shape>'
     with pytest.raises(WrtError, match="twosided principled"):
         convert(tmp_path, twosided, approximate=False)
+
+
+def test_a_thin_principled_material_reads_its_own_keys():
+    """``principled_thin`` (Mitsuba's ``principledthin``): ``diff_trans`` in [0, 2], its four
+    sampling rates, transmission where ``spec_trans`` or ``diff_trans`` is given; no metallic or
+    clearcoat (another type's keys are refused)."""
+    scene = parse([{"name": "leaf", "type": "principled_thin", "diff_trans": 1.4, "ior": 1.33}])
+    material = scene.materials[0]
+    assert material.diff_trans == 1.4 and bake_materials(scene).flags[0] & BSDF_TRANSMISSION
+    assert not bake_materials(parse([{"name": "leaf", "type": "principled_thin"}])).flags[0] & BSDF_TRANSMISSION
+    with pytest.raises(SceneError, match="diff_trans"):
+        parse([{"name": "leaf", "type": "principled_thin", "diff_trans": 2.5}])
+    with pytest.raises(SceneError, match="clearcoat"):
+        parse([{"name": "leaf", "type": "principled_thin", "clearcoat": 0.5}])
+    with pytest.raises(SceneError, match='principled thin needs integrator = "path"'):
+        parse([{"name": "leaf", "type": "principled_thin"}], integrator="whitted")
+
+
+def test_mitsuba_principledthin_converts_exactly(tmp_path):
+    checks = '<texture type="checkerboard" name="diff_trans"><float name="color0" value="0.4"/></texture>'
+    xml = sensor() + (
+        '<shape type="rectangle"><bsdf type="principledthin" id="t"><float name="eta" value="1.33"/>'
+        f'<float name="specular_transmittance_sampling_rate" value="2"/>{checks}</bsdf></shape>'
+    )
+    doc, warnings = convert(tmp_path, xml, approximate=False)
+    table = next(m for m in doc["material"] if m["name"] == "t")
+    assert warnings == [] and table["type"] == "principled_thin" and table["ior"] == 1.33
+    assert table["roughness"] == 0.5 and table["specular_transmittance_sampling_rate"] == 2.0
+    assert table["diff_trans"]["texture"] == "checkerboard" and table["diff_trans"]["color1"] == [0.4] * 3
+    textured_eta = '<texture type="checkerboard" name="eta"/>'
+    with pytest.raises(WrtError, match="textured eta"):
+        convert(
+            tmp_path, sensor() + f'<shape type="rectangle"><bsdf type="principledthin">{textured_eta}</bsdf></shape>'
+        )

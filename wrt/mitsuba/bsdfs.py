@@ -15,6 +15,7 @@ from ..conductors import METALS
 from ..errors import token
 from ..kernels.materials.principled import NUMBERS as PRINCIPLED_NUMBERS
 from ..kernels.materials.principled import RATES as PRINCIPLED_RATES
+from ..kernels.materials.principled import THIN_KEYS, THIN_RATES
 from ..kernels.microfacet import DISTRIBUTIONS
 from ..loader import NESTED_RULES
 from .textures import texture, textured_color
@@ -184,6 +185,25 @@ def principled(p: Plugin) -> dict:
     return table
 
 
+def principled_thin(p: Plugin) -> dict:
+    """The ``[[material]]`` table of a ``principledthin``, exact: as ``principled``'s keys it has
+    (``base_color`` is ``albedo``, ``anisotropic`` is ``anisotropy``), ``diff_trans`` (a number or a
+    texture), its four sampling rates, and ``eta`` its ``ior`` (a number: a textured ``eta`` is
+    refused)."""
+    if any(key == "eta" and child.tag == "texture" for key, child in p.nested):
+        raise p.doc.error(p.element, "a textured eta of a principledthin is not supported (wrt's ior is a number)")
+    return {
+        "type": "principled_thin",
+        "albedo": textured_color(p, "base_color", 0.5),
+        "roughness": textured_number(p, "roughness", 0.5),
+        "anisotropy": textured_number(p, "anisotropic", 0.0),
+        **{key: textured_number(p, key, 0.0) for key in THIN_KEYS[3:]},
+        "diff_trans": textured_number(p, "diff_trans", 0.0),
+        "ior": p.number("eta", 1.5),
+        **{key: p.number(key, 1.0) for key in THIN_RATES},
+    }
+
+
 def textured_number(p: Plugin, name: str, default: float) -> float | dict:
     """Number parameter ``name`` of ``p``: a number, or the texture table of its ``<texture>``,
     whose ``texture_float`` is Mitsuba's ``eval_1`` (a checkerboard's colours swapped: Mitsuba's
@@ -284,7 +304,7 @@ class Materials:
             front = self._convert(inner[0])
             if front.params["type"] in (*TRANSMITTING, "mask"):
                 raise self.doc.error(inner[0], "a twosided BSDF cannot nest a BSDF that transmits (Mitsuba rejects it)")
-            if front.params["type"] == "principled":
+            if front.params["type"] in ("principled", "principled_thin"):
                 self.doc.warn(
                     element, "a twosided principled is not supported: its back side stays Mitsuba's one-sided"
                 )
@@ -322,6 +342,8 @@ class Materials:
             )
         elif p.type == "principled":
             material = Material(principled(p), True)  # its sides are its own (the kernel's front)
+        elif p.type == "principledthin":
+            material = Material(principled_thin(p), True)  # the same from both sides
         elif p.type == "null":
             material = Material({"type": "null"}, True)
         elif p.type == "mask":
@@ -435,9 +457,5 @@ class Materials:
 
     def _closest(self, p: Plugin) -> Material:
         """An unsupported BSDF: its nearest wrt material, with a warning saying which."""
-        if p.type == "principledthin":
-            albedo = p.color("base_color", 0.5)
-            self.doc.warn(p.element, f"not supported: converted as diffuse, albedo {albedo}")
-            return Material({"type": "diffuse", "albedo": albedo}, False)
         self.doc.warn(p.element, "not supported: converted as diffuse 0.5 (Mitsuba's default BSDF)")
         return Material({"type": "diffuse", "albedo": [0.5, 0.5, 0.5]}, False)
