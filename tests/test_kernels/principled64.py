@@ -1,8 +1,10 @@
-"""An independent float64 numpy model of Mitsuba 3's ``principled`` BSDF (not ``principledthin``).
+"""An independent float64 numpy model of Mitsuba 3's ``principled`` and ``principledthin`` BSDFs.
 
-It follows Mitsuba 3's ``src/bsdfs/principled.cpp`` and ``principledhelpers.h`` (and the GGX
-``MicrofacetDistribution``, ``fresnel`` and ``warp`` routines they call) formula by formula, as the
-installed 3.9.1 build (scalar_rgb) behaves, so that a kernel can be tested against it without Mitsuba.
+It follows Mitsuba 3's ``src/bsdfs/principled.cpp``, ``principledthin.cpp`` and ``principledhelpers.h``
+(and the GGX ``MicrofacetDistribution``, ``fresnel`` and ``warp`` routines they call) formula by formula,
+as the installed 3.9.1 build (scalar_rgb) behaves, so that a kernel can be tested against it without
+Mitsuba. ``eval``, ``pdf``, ``sample`` and ``mitsuba_dict`` are ``principled``'s; ``thin_eval``,
+``thin_pdf``, ``thin_sample`` and ``thin_mitsuba_dict`` are ``principledthin``'s (its own section below).
 
 Conventions
 -----------
@@ -55,17 +57,23 @@ FLAGGED = ("anisotropic", "spec_trans", "sheen", "sheen_tint", "flatness", "spec
 # ----------------------------------------------------------------------------------------------------
 
 
-def mitsuba_dict(params: dict) -> dict:
-    """The dict for ``mi.load_dict`` of the principled BSDF ``params`` (only the keys given, as floats)."""
-    out = {"type": "principled"}
+def plugin_dict(plugin: str, names, params: dict) -> dict:
+    """The dict for ``mi.load_dict`` of BSDF ``plugin`` with ``params`` (only the keys given, as floats;
+    ``base_color`` as an ``rgb``); a key outside ``names`` is an error."""
+    out = {"type": plugin}
     for key, value in params.items():
-        if key not in DEFAULTS and key != "eta":
-            raise KeyError(f"principled has no parameter {key!r}")
+        if key not in names:
+            raise KeyError(f"{plugin} has no parameter {key!r}")
         if key == "base_color":
             out[key] = {"type": "rgb", "value": [float(c) for c in value]}
         else:
             out[key] = float(value)
     return out
+
+
+def mitsuba_dict(params: dict) -> dict:
+    """The dict for ``mi.load_dict`` of the principled BSDF ``params`` (only the keys given, as floats)."""
+    return plugin_dict("principled", (*DEFAULTS, "eta"), params)
 
 
 def has_flag(params: dict, name: str) -> bool:
@@ -91,15 +99,21 @@ def eta_of(params: dict) -> float:
     return 2.0 / (1.0 - np.sqrt(0.08 * specular)) - 1.0
 
 
-def alphas(params: dict) -> tuple[float, float]:
+def dist_params(roughness: float, anisotropic: float, has_anisotropic: bool) -> tuple[float, float]:
     """The GGX roughnesses ``(alpha_x, alpha_y)`` (``calc_dist_params``): roughness**2, stretched by
-    ``aspect = sqrt(1 - 0.9 anisotropic)`` (x rougher) when ``anisotropic`` is on, at least 0.001."""
-    r2 = float(params.get("roughness", DEFAULTS["roughness"])) ** 2
-    if not has_flag(params, "anisotropic"):
+    ``aspect = sqrt(1 - 0.9 anisotropic)`` (x rougher) when ``has_anisotropic``, at least 0.001."""
+    r2 = roughness**2
+    if not has_anisotropic:
         a = max(0.001, r2)
         return a, a
-    aspect = np.sqrt(1.0 - 0.9 * float(params["anisotropic"]))
+    aspect = np.sqrt(1.0 - 0.9 * anisotropic)
     return max(0.001, r2 / aspect), max(0.001, r2 * aspect)
+
+
+def alphas(params: dict) -> tuple[float, float]:
+    """The GGX roughnesses ``(alpha_x, alpha_y)`` of ``params``' roughness and anisotropy (``dist_params``)."""
+    roughness = float(params.get("roughness", DEFAULTS["roughness"]))
+    return dist_params(roughness, float(params.get("anisotropic", 0.0)), has_flag(params, "anisotropic"))
 
 
 def material(params: dict) -> dict:
@@ -430,13 +444,16 @@ def geometry(mat: dict, wi: np.ndarray, wo: np.ndarray) -> dict:
     }
 
 
+def microfacet_reflection(g: dict, wi: np.ndarray, wo: np.ndarray, ax: float, ay: float) -> np.ndarray:
+    """The GGX reflection factor without Fresnel, ``D(wh) G(wi, wo, wh) / (4 |cos theta_i|)`` ((N,))."""
+    return ggx_D(g["wh"], ax, ay) * ggx_G(wi, wo, g["wh"], ax, ay) / (4.0 * np.abs(g["cos_i"]))
+
+
 def specular_reflection(mat: dict, g: dict, wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
     """Main GGX reflection, both sides: ``principled_fresnel D G / (4 |cos theta_i|)``."""
     on = g["active"] & g["reflect"] & g["compat_reflect"] & (g["F"] > 0.0)
-    D = ggx_D(g["wh"], mat["alpha_x"], mat["alpha_y"])
-    G = ggx_G(wi, wo, g["wh"], mat["alpha_x"], mat["alpha_y"])
     F = principled_fresnel(mat, g["F"], g["wi_h"], g["front"])
-    return np.where(on[:, None], F * (D * G / (4.0 * np.abs(g["cos_i"])))[:, None], 0.0)
+    return np.where(on[:, None], F * microfacet_reflection(g, wi, wo, mat["alpha_x"], mat["alpha_y"])[:, None], 0.0)
 
 
 def specular_transmission(mat: dict, g: dict, wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
@@ -495,18 +512,23 @@ def diffuse_reflection(mat: dict, g: dict) -> np.ndarray:
     return np.where(diffuse_active(mat, g)[:, None], value, 0.0)
 
 
-def sheen_reflection(mat: dict, g: dict) -> np.ndarray:
-    """Sheen, front side: ``sheen (1 - metallic) schlick_weight(|wo . wh|) c_sheen |cos theta_o|``,
-    ``c_sheen = lerp(1, tint, sheen_tint)``. Only where the diffuse lobe is on (``brdf > 0``): the
-    scalar variants evaluate it inside the diffuse branch, so it vanishes at ``spec_trans == 1``."""
-    if not mat["has"]["sheen"]:
-        return np.zeros((len(g["cos_i"]), 3))
-    on = diffuse_active(mat, g) & (mat["sheen"] > 0.0) & (1.0 - mat["metallic"] > 0.0)
+def sheen_lobe(mat: dict, g: dict) -> np.ndarray:
+    """The sheen before its lobe weight: ``sheen schlick_weight(|wo . wh|) c_sheen |cos theta_o|``
+    ((N, 3)), ``c_sheen = lerp(1, tint, sheen_tint)``."""
     c_sheen = np.ones(3)
     if mat["has"]["sheen_tint"]:
         c_sheen = (1.0 - mat["sheen_tint"]) + tint(mat) * mat["sheen_tint"]
-    value = mat["sheen"] * (1.0 - mat["metallic"]) * schlick_weight(np.abs(g["wo_h"])) * np.abs(g["cos_o"])
-    return np.where(on[:, None], value[:, None] * c_sheen, 0.0)
+    value = mat["sheen"] * schlick_weight(np.abs(g["wo_h"])) * np.abs(g["cos_o"])
+    return value[:, None] * c_sheen
+
+
+def sheen_reflection(mat: dict, g: dict) -> np.ndarray:
+    """Sheen, front side: ``(1 - metallic) sheen_lobe``. Only where the diffuse lobe is on (``brdf >
+    0``): the scalar variants evaluate it inside the diffuse branch, so it vanishes at ``spec_trans == 1``."""
+    if not mat["has"]["sheen"]:
+        return np.zeros((len(g["cos_i"]), 3))
+    on = diffuse_active(mat, g) & (mat["sheen"] > 0.0) & (1.0 - mat["metallic"] > 0.0)
+    return np.where(on[:, None], (1.0 - mat["metallic"]) * sheen_lobe(mat, g), 0.0)
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -640,5 +662,255 @@ def sample(params: dict, wi, sample1, sample2):
         density = pdf(params, wi, wo)  # Mitsuba's bs.pdf: the pdf of wo, even where the sample is dropped
         active &= density > 0.0
         weight = np.where(active[:, None], eval(params, wi, wo) / density[:, None], 0.0)
+
+    return wo, weight, density
+
+
+# ----------------------------------------------------------------------------------------------------
+# principledthin: Mitsuba 3's thin principled BSDF (src/bsdfs/principledthin.cpp)
+#
+# A two-sided sheet with no interior: eval, pdf and sample turn both directions to the viewer's side
+# (``mulsign(., wi.z)``, all three components), so ``f(wi, wo) = f(-wi, -wo)``, and work on the front.
+# Its lobes: GGX reflection ``spec_trans F_thin D G / (4 cos_i)``; GGX "transmission" ``spec_trans
+# base_color (1 - F) D' G' / (4 cos_i)``, a reflection mirrored through the sheet (``wo.z -> -wo.z``),
+# with the distribution of roughness ``(0.65 eta - 0.35) roughness``; Burley's diffuse (and flatness,
+# sheen) weighted by ``(1 - spec_trans)(1 - diff_trans)``; Lambertian transmission ``(1 - spec_trans)
+# diff_trans base_color / pi``. ``diff_trans`` is halved (the parameter's range is 0-2); there is no
+# 1 / eta**2 factor (bs.eta = 1). Without ``spec_trans`` there is no specular lobe at all.
+# ----------------------------------------------------------------------------------------------------
+
+THIN_DEFAULTS = {
+    "base_color": (0.5, 0.5, 0.5),
+    "roughness": 0.5,
+    "anisotropic": 0.0,
+    "spec_trans": 0.0,
+    "spec_tint": 0.0,
+    "sheen": 0.0,
+    "sheen_tint": 0.0,
+    "flatness": 0.0,
+    "eta": 1.5,  # a number here (no specular alternative, no guard at 1)
+    "diff_trans": 0.0,  # 0-2, halved internally
+    "specular_reflectance_sampling_rate": 1.0,
+    "specular_transmittance_sampling_rate": 1.0,
+    "diffuse_reflectance_sampling_rate": 1.0,
+    "diffuse_transmittance_sampling_rate": 1.0,
+}
+THIN_FLAGGED = ("anisotropic", "spec_trans", "sheen", "sheen_tint", "flatness", "spec_tint", "diff_trans")
+
+
+def thin_mitsuba_dict(params: dict) -> dict:
+    """The dict for ``mi.load_dict`` of the principledthin BSDF ``params`` (only the keys given)."""
+    return plugin_dict("principledthin", THIN_DEFAULTS, params)
+
+
+def thin_material(params: dict) -> dict:
+    """principledthin's constants under ``material``'s keys where the meaning is the same.
+
+    ``brdf`` is the weight of the diffuse reflection (and sheen), ``(1 - spec_trans)(1 - diff_trans)``
+    with ``diff_trans`` already halved; ``alpha_x, alpha_y`` the reflection's GGX roughnesses,
+    ``trans_alpha_x, trans_alpha_y`` the transmission's (roughness scaled by ``0.65 eta - 0.35``).
+    """
+    p = {k: params.get(k, v) for k, v in THIN_DEFAULTS.items()}
+    m = {k: (float(p[k]) if has_flag(params, k) else 0.0) for k in THIN_FLAGGED}
+    m["has"] = {k: has_flag(params, k) for k in THIN_FLAGGED}
+    m["diff_trans"] /= 2.0
+    m["base_color"] = np.asarray(p["base_color"], dtype=np.float64).reshape(3)
+    m["roughness"] = float(p["roughness"])
+    m["eta"] = float(p["eta"])
+    m["spec_reflect_srate"] = float(p["specular_reflectance_sampling_rate"])
+    m["spec_trans_srate"] = float(p["specular_transmittance_sampling_rate"])
+    m["diff_reflect_srate"] = float(p["diffuse_reflectance_sampling_rate"])
+    m["diff_trans_srate"] = float(p["diffuse_transmittance_sampling_rate"])
+    aniso = (m["anisotropic"], m["has"]["anisotropic"])
+    m["alpha_x"], m["alpha_y"] = dist_params(m["roughness"], *aniso)
+    m["trans_alpha_x"], m["trans_alpha_y"] = dist_params((0.65 * m["eta"] - 0.35) * m["roughness"], *aniso)
+    m["brdf"] = (1.0 - m["spec_trans"]) * (1.0 - m["diff_trans"])
+    m["lum"] = float(LUMINANCE @ m["base_color"])
+    return m
+
+
+def thin_front(wi: np.ndarray, wo: np.ndarray):
+    """``(wi, wo)`` both multiplied by the sign of ``wi.z`` (``mulsign``): the viewer on the front."""
+    return mulsign(wi, wi[:, 2]), mulsign(wo, wi[:, 2])
+
+
+def thin_geometry(mat: dict, wi: np.ndarray, wo: np.ndarray) -> dict:
+    """``geometry``'s quantities for a front-side pair (``thin_front``): the half vector ``wh =
+    normalize(wi + wo_r)`` of ``wo_r``, ``wo`` mirrored to the front, for reflection and transmission
+    alike; ``wo_h = wo . wh`` (Mitsuba's ``cos_theta_d``, negative for transmission), ``wor_h = wo_r . wh``
+    (its Jacobian's), the dielectric ``F = fresnel(wi . wh, eta)`` and the ``mac_mic_compatible`` masks
+    of ``wh`` with ``wo`` itself (not ``wo_r``)."""
+    cos_i, cos_o = wi[:, 2], wo[:, 2]
+    wo_r = wo * np.array([1.0, 1.0, 0.0]) + np.abs(cos_o)[:, None] * np.array([0.0, 0.0, 1.0])
+    wh = normalize(wi + wo_r)
+    wi_h = dot(wi, wh)
+    return {
+        "cos_i": cos_i,
+        "cos_o": cos_o,
+        "active": cos_i != 0.0,  # perfectly grazing wi: nothing
+        "front": cos_i > 0.0,  # everywhere active
+        "reflect": cos_o > 0.0,
+        "refract": cos_o < 0.0,
+        "wh": wh,
+        "wi_h": wi_h,
+        "wo_h": dot(wo, wh),
+        "wor_h": dot(wo_r, wh),
+        "F": fresnel(wi_h, mat["eta"])[0],
+        "compat_reflect": mac_mic_compatible(wh, wi, wo, cos_i, True),
+        "compat_refract": mac_mic_compatible(wh, wi, wo, cos_i, False),
+    }
+
+
+def thin_fresnel(mat: dict, F_dielectric: np.ndarray, cos_theta_i: np.ndarray) -> np.ndarray:
+    """The reflection's (N, 3) Fresnel factor (``thin_fresnel``): ``lerp(F_dielectric, F_schlick,
+    spec_tint)``, ``F_schlick`` the Schlick term of ``R0 = tint R0(eta)`` (0 without ``spec_tint``)."""
+    F = (1.0 - mat["spec_tint"]) * F_dielectric[:, None] * np.ones(3)
+    if mat["has"]["spec_tint"]:
+        F0 = tint(mat) * schlick_R0(mat["eta"])
+        F = F + mat["spec_tint"] * schlick_F(F0, cos_theta_i, mat["eta"])
+    return F
+
+
+def thin_specular_reflection(mat: dict, g: dict, wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
+    """GGX reflection: ``spec_trans thin_fresnel D G / (4 cos theta_i)`` (only with ``spec_trans``)."""
+    on = g["active"] & (mat["spec_trans"] > 0.0) & g["reflect"] & g["compat_reflect"]
+    F = thin_fresnel(mat, g["F"], g["wi_h"])
+    value = mat["spec_trans"] * F * microfacet_reflection(g, wi, wo, mat["alpha_x"], mat["alpha_y"])[:, None]
+    return np.where(on[:, None], value, 0.0)
+
+
+def thin_specular_transmission(mat: dict, g: dict, wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
+    """The mirrored GGX reflection through the sheet: ``spec_trans base_color (1 - F) D' G' / (4 cos
+    theta_i)`` with the scaled roughness, ``G'`` of ``wo`` itself; ``wh`` must face ``wi`` and turn its
+    back on ``wo`` (so only part of the mirrored lobe survives)."""
+    on = g["active"] & (mat["spec_trans"] > 0.0) & g["refract"] & g["compat_refract"]
+    factor = microfacet_reflection(g, wi, wo, mat["trans_alpha_x"], mat["trans_alpha_y"])
+    value = mat["spec_trans"] * ((1.0 - g["F"]) * factor)[:, None] * mat["base_color"]
+    return np.where(on[:, None], value, 0.0)
+
+
+def thin_sheen(mat: dict, g: dict) -> np.ndarray:
+    """Sheen: ``brdf sheen_lobe`` where the diffuse reflection is on."""
+    if not mat["has"]["sheen"]:
+        return np.zeros((len(g["cos_i"]), 3))
+    on = diffuse_active(mat, g) & (mat["sheen"] > 0.0)
+    return np.where(on[:, None], mat["brdf"] * sheen_lobe(mat, g), 0.0)
+
+
+def thin_diffuse_transmission(mat: dict, g: dict) -> np.ndarray:
+    """Lambertian transmission: ``(1 - spec_trans) diff_trans base_color |cos theta_o| / pi``."""
+    on = g["active"] & g["refract"] & (mat["spec_trans"] < 1.0) & (mat["diff_trans"] > 0.0)
+    value = (1.0 - mat["spec_trans"]) * mat["diff_trans"] * INV_PI * np.abs(g["cos_o"])
+    return np.where(on[:, None], value[:, None] * mat["base_color"], 0.0)
+
+
+def thin_eval(params: dict, wi, wo) -> np.ndarray:
+    """Mitsuba's ``principledthin`` eval: (N, 3) RGB BSDF value times ``|cos theta_o|``, the sum of the
+    specular reflection and transmission, diffuse, sheen and diffuse transmission lobes."""
+    mat = thin_material(params)
+    wi = rows(wi)
+    wi, wo = thin_front(wi, rows(wo, len(wi)))
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        g = thin_geometry(mat, wi, wo)
+        value = diffuse_reflection(mat, g) + thin_sheen(mat, g)
+        if mat["has"]["spec_trans"]:
+            value += thin_specular_reflection(mat, g, wi, wo) + thin_specular_transmission(mat, g, wi, wo)
+        if mat["has"]["diff_trans"]:
+            value += thin_diffuse_transmission(mat, g)
+    return np.where(g["active"][:, None], value, 0.0)
+
+
+def thin_lobe_probabilities(mat: dict):
+    """Normalised selection probabilities ``(spec_reflect, spec_trans, diffuse_reflect, diffuse_trans)``
+    (constants: no Fresnel): ``spec_trans srate / 2`` twice, ``srate (1 - spec_trans)(1 - diff_trans)``,
+    ``srate (1 - spec_trans) diff_trans``; a lobe off (``has_``) has probability 0."""
+    st, dt = mat["spec_trans"], mat["diff_trans"]
+    p = np.array(
+        [
+            st * mat["spec_reflect_srate"] / 2.0 if mat["has"]["spec_trans"] else 0.0,
+            st * mat["spec_trans_srate"] / 2.0 if mat["has"]["spec_trans"] else 0.0,
+            mat["diff_reflect_srate"] * (1.0 - st) * (1.0 - dt),
+            mat["diff_trans_srate"] * (1.0 - st) * dt if mat["has"]["diff_trans"] else 0.0,
+        ]
+    )
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return tuple(p / p.sum())
+
+
+def thin_pdf(params: dict, wi, wo) -> np.ndarray:
+    """Mitsuba's ``principledthin`` pdf: (N,) solid-angle density of ``thin_sample``.
+
+    Front-side pair (``thin_front``); both GGX terms are visible-normal densities of ``wh`` seen from
+    ``wi``, each with its own roughness, times the reflection Jacobian ``1 / (4 |wo_r . wh|)``; the
+    cosine-hemisphere terms are ``cos theta_o / pi`` on the reflected and ``-cos theta_o / pi`` on the
+    transmitted side.
+    """
+    mat = thin_material(params)
+    wi = rows(wi)
+    wi, wo = thin_front(wi, rows(wo, len(wi)))
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        g = thin_geometry(mat, wi, wo)
+        p_sr, p_st, p_dr, p_dt = thin_lobe_probabilities(mat)
+        result = np.where(g["reflect"], p_dr * INV_PI * g["cos_o"], 0.0)
+        if mat["has"]["spec_trans"]:
+            jacobian = np.abs(1.0 / (4.0 * g["wor_h"]))
+            reflect_pdf = ggx_visible_pdf(wi, g["wh"], mat["alpha_x"], mat["alpha_y"])
+            trans_pdf = ggx_visible_pdf(wi, g["wh"], mat["trans_alpha_x"], mat["trans_alpha_y"])
+            result = result + np.where(g["compat_reflect"] & g["reflect"], p_sr * reflect_pdf * jacobian, 0.0)
+            result = result + np.where(g["compat_refract"] & g["refract"], p_st * trans_pdf * jacobian, 0.0)
+        if mat["has"]["diff_trans"]:
+            result = result + np.where(g["refract"], p_dt * INV_PI * -g["cos_o"], 0.0)
+    return np.where(g["active"], result, 0.0)
+
+
+def thin_sample(params: dict, wi, sample1, sample2):
+    """Mitsuba's ``principledthin`` sample: ``(wo (N, 3), weight (N, 3), pdf (N,))``.
+
+    ``sample1`` picks, in order, specular reflection (a GGX visible normal from ``sample2``, ``wo``
+    reflected about it), specular transmission (the same with the scaled roughness, then ``wo.z ->
+    -wo.z``), cosine-hemisphere reflection and cosine-hemisphere transmission (``-wo``), all on the
+    front and turned back to ``wi``'s side at the end. ``pdf`` is ``thin_pdf`` of the returned ``wo``;
+    the weight is 0 where ``wi.z == 0`` or no lobe is picked (``wo`` and ``pdf`` 0), where a specular
+    ``wo`` lands on the wrong side or ``m`` is not ``mac_mic_compatible`` with it, and where ``pdf <= 0``;
+    elsewhere ``weight = thin_eval / pdf``. A rejected specular sample still reports its ``wo`` and its
+    nonzero ``pdf``: the source passes the rejection mask to ``pdf``, but 3.9.1's scalar ``pdf`` and
+    ``eval`` ignore their ``active`` argument (only the weight's final ``& active`` zeroes it).
+    """
+    mat = thin_material(params)
+    wi = rows(wi)
+    n = len(wi)
+    sample1 = np.broadcast_to(np.asarray(sample1, dtype=np.float64), (n,))
+    sample2 = rows(sample2, n, 2)
+    cos_i = wi[:, 2]
+    active = cos_i != 0.0
+    wi_f = mulsign(wi, cos_i)
+    p_sr, p_st, p_dr, _ = thin_lobe_probabilities(mat)
+    has_st, has_dt = mat["has"]["spec_trans"], mat["has"]["diff_trans"]
+    pick_sr = has_st & active & (sample1 < p_sr)
+    pick_st = has_st & active & (sample1 >= p_sr) & (sample1 < p_sr + p_st)
+    pick_dr = active & (sample1 >= p_sr + p_st) & (sample1 < p_sr + p_st + p_dr)
+    pick_dt = has_dt & active & (sample1 >= p_sr + p_st + p_dr)
+
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        wo = np.zeros((n, 3))
+        ok = np.ones(n, dtype=bool)
+        if has_st:
+            m_r = ggx_sample(wi_f, sample2, mat["alpha_x"], mat["alpha_y"])
+            wo_r = reflect(wi_f, m_r)
+            wo = np.where(pick_sr[:, None], wo_r, wo)
+            ok &= ~pick_sr | (mac_mic_compatible(m_r, wi_f, wo_r, wi_f[:, 2], True) & (wo_r[:, 2] > 0.0))
+            m_t = ggx_sample(wi_f, sample2, mat["trans_alpha_x"], mat["trans_alpha_y"])
+            wo_t = reflect(wi_f, m_t) * np.array([1.0, 1.0, -1.0])
+            wo = np.where(pick_st[:, None], wo_t, wo)
+            ok &= ~pick_st | (mac_mic_compatible(m_t, wi_f, wo_t, wi_f[:, 2], False) & (wo_t[:, 2] < 0.0))
+        wo_d = square_to_cosine_hemisphere(sample2)
+        wo = np.where(pick_dr[:, None], wo_d, wo)
+        wo = np.where(pick_dt[:, None], -wo_d, wo)
+        wo = mulsign(wo, cos_i)
+
+        active &= ok
+        density = thin_pdf(params, wi, wo)
+        active &= density > 0.0
+        weight = np.where(active[:, None], thin_eval(params, wi, wo) / density[:, None], 0.0)
 
     return wo, weight, density
