@@ -178,13 +178,15 @@ def start_path(materials: MaterialData, settings: IntegratorSettings, ray: Camer
 
 def make_next_event(record: bool, trace: Traversal, features: Features):
     """``next_event``, recording its shadow rays when ``record``, sampling environment maps and
-    emissive primitives when the scene has them, lights across the surface when it has rough
-    dielectrics, and from scattering events when it has participating media (each compiled out
-    otherwise); it and its BSDF interface have ``trace``'s inline hint (out of line on CUDA: the
-    path kernel calls it once, from surfaces and from media alike)."""
+    emissive primitives when the scene has them, lights across the surface when it has glossy
+    transmission (rough dielectrics, principled materials), and from scattering events when it has
+    participating media (each compiled out otherwise); it and its BSDF interface have ``trace``'s
+    inline hint (out of line on CUDA: the path kernel calls it once, from surfaces and from media
+    alike)."""
     shadow_ray = make_shadow_ray(record, trace, features.media)
     lighting = lighting_for(features)
     bsdf = make_bsdf(families_for(features), features.textures, trace.inline, features.beckmann, features.anisotropic)
+    glossy_transmission = features.rough_dielectric or features.principled  # lights seen through a surface
 
     @wp.func
     def scattered(
@@ -198,7 +200,7 @@ def make_next_event(record: bool, trace: Traversal, features: Features):
                 phase = phase_value(materials.media, scatter_medium, hit.wo, wi)
                 return wp.vec3(phase), 1.0, phase
         cos_theta = wp.dot(hit.n_facing, wi)
-        if wp.static(features.rough_dielectric):
+        if wp.static(glossy_transmission):
             cos_theta = seen_through(cos_theta, flags)
         if cos_theta <= 0.0:
             return wp.vec3(0.0), cos_theta, 0.0

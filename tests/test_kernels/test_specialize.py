@@ -271,6 +271,21 @@ SCENES = {
         {},
         "path",
     ),
+    "path principled transmission": (  # lights seen through a surface without a rough dielectric
+        [
+            FLOOR,
+            {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "frosted"},
+            {"type": "polygon", "vertices": [[-2, 2, -1], [2, 2, -1], [2, 2, 1], [-2, 2, 1]], "material": "leaf"},
+        ],
+        DIFFUSE
+        + [
+            {"name": "frosted", "type": "principled", "spec_trans": 0.8, "ior": 1.4, "roughness": 0.3},
+            {"name": "leaf", "type": "principled_thin", "diff_trans": 1.5, "spec_trans": 0.3},
+        ],
+        [AREA],
+        {},
+        "path",
+    ),
     "raycast": (
         [FLOOR, {"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white"}],
         DIFFUSE,
