@@ -1,4 +1,4 @@
-"""The principled BSDF (``PRINCIPLED`` of kernels/materials/principled.py) against the float64
+"""The principled BSDFs (``PRINCIPLED`` and ``PRINCIPLED_THIN`` of kernels/materials/principled.py) against the float64
 implementation of Mitsuba 3's formulas in ``principled64`` and against Mitsuba 3's ``principled``
 itself, on both sides of the surface; its sampling (``weight = f |cos| / pdf``, a chi-square test
 of each hemisphere), its density's integral, and reciprocity."""
