@@ -28,7 +28,10 @@ an area or sphere light (its material the ``emitter`` one) or an emissive primit
   does not sample, so the MIS weight of what a BSDF sample found there is 1;
 - ``environment_radiance(lights, d, bsdf_pdf, specular)``: the lights infinitely far along a ray
   that left the scene (the families' ``le``), MIS-weighted against their sampling unless it came
-  from the camera or a specular bounce.
+  from the camera or a specular bounce;
+- ``sample_le(geometry, materials, lights, i, center, radius, time, u_pos, u_dir, uc)``: a ray
+  leaving light ``i`` (an ``EmissionSample``), for the light tracer: lights at infinity send it
+  from outside the scene's bounding sphere (``center``, ``radius``).
 
 Emission at a surface a ray hits is its material's ``emission`` (``wrt.kernels.materials``).
 
@@ -50,7 +53,7 @@ from ..sampling import Sampler
 from ..traverse import GeometryData
 from . import area, delta, emitting, environment, sphere
 from .area import AREA
-from .data import SHADOW_MARGIN, LightData, LightSample
+from .data import SHADOW_MARGIN, EmissionSample, LightData, LightSample, emission_ray
 from .delta import DIRECTIONAL, POINT, PROJECTOR, SPOT, light_incident
 from .emitting import EMITTING
 from .environment import ENVIRONMENT, ENVIRONMENT_MAP
@@ -77,6 +80,7 @@ __all__ = [
     "AREA",
     "DIRECTIONAL",
     "EMITTING",
+    "EmissionSample",
     "ENVIRONMENT",
     "ENVIRONMENT_MAP",
     "FAMILIES",
@@ -134,6 +138,7 @@ class Lighting(NamedTuple):
     sample_li: wp.Function
     pdf_li: wp.Function
     environment_radiance: wp.Function
+    sample_le: wp.Function
 
 
 def lighting_for(features) -> Lighting:
@@ -150,6 +155,7 @@ def make_lighting(families: tuple[str, ...] = ALL_FAMILIES, options: Options = O
     sample_case = _sample_cases([(f.owns, f.sample_li) for f in functions])
     pdf_sum = _pdf_sum([f.pdf_li for f in functions if f.pdf_li is not None])
     le_case = _le_cases([(f.owns, f.le) for f in functions if f.le is not None])
+    emission_case = _emission_cases([(f.owns, f.sample_le) for f in functions])
     pool = "emitting" in families
 
     @wp.func
@@ -194,7 +200,25 @@ def make_lighting(families: tuple[str, ...] = ALL_FAMILIES, options: Options = O
                 total += radiance * mis
         return total
 
-    return Lighting(count, is_delta, sample_li, pdf_sum, environment_radiance)
+    @wp.func
+    def sample_le(
+        geometry: GeometryData,
+        materials: MaterialData,
+        lights: LightData,
+        i: wp.int32,
+        center: wp.vec3,
+        radius: float,
+        time: float,
+        u_pos: wp.vec2,
+        u_dir: wp.vec2,
+        uc: float,
+    ) -> EmissionSample:
+        light_type = EMITTING
+        if i < lights.type.shape[0]:
+            light_type = lights.type[i]
+        return emission_case(light_type, geometry, materials, lights, i, center, radius, time, u_pos, u_dir, uc)
+
+    return Lighting(count, is_delta, sample_li, pdf_sum, environment_radiance, sample_le)
 
 
 # The dispatch: chains of cases, one per family, each calling its family's function and the next
@@ -251,6 +275,52 @@ def _sample_cases(cases: list) -> wp.Function:
         return rest(light_type, geometry, materials, lights, i, p, time, sampler, pixel, sample, dim)
 
     return sample_case
+
+
+def _emission_cases(cases: list) -> wp.Function:
+    """``sample_le`` of the first family of ``cases`` (``(owns, sample_le)`` pairs) that owns
+    ``light_type``, else no ray."""
+    if not cases:
+
+        @wp.func
+        def no_emission(
+            light_type: wp.int32,
+            geometry: GeometryData,
+            materials: MaterialData,
+            lights: LightData,
+            i: wp.int32,
+            center: wp.vec3,
+            radius: float,
+            time: float,
+            u_pos: wp.vec2,
+            u_dir: wp.vec2,
+            uc: float,
+        ) -> EmissionSample:
+            return emission_ray(center, wp.vec3(0.0, 0.0, 1.0), wp.vec3(0.0))
+
+        return no_emission
+    owns, family_emission = cases[0]
+    rest = _emission_cases(cases[1:])
+
+    @wp.func
+    def emission_case(
+        light_type: wp.int32,
+        geometry: GeometryData,
+        materials: MaterialData,
+        lights: LightData,
+        i: wp.int32,
+        center: wp.vec3,
+        radius: float,
+        time: float,
+        u_pos: wp.vec2,
+        u_dir: wp.vec2,
+        uc: float,
+    ) -> EmissionSample:
+        if owns(light_type):
+            return family_emission(geometry, materials, lights, i, center, radius, time, u_pos, u_dir, uc)
+        return rest(light_type, geometry, materials, lights, i, center, radius, time, u_pos, u_dir, uc)
+
+    return emission_case
 
 
 def _pdf_sum(pdfs: list) -> wp.Function:

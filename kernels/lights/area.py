@@ -1,5 +1,6 @@
 """``area``: a parallelogram light (``corner``, ``edge_u``, ``edge_v``) emitting ``radiance``
-(W/(m^2 sr)) from the side of ``cross(edge_u, edge_v)`` only, sampled by a uniform point on it.
+(W/(m^2 sr)) from the side of ``cross(edge_u, edge_v)`` only, sampled by a uniform point on it
+(and, for the light tracer, a cosine-weighted direction from it).
 
 Its surface is surface ``num_shapes + k`` of the geometry for light row ``k`` (``wrt.geometry``'s
 numbering), a polygon that reflects nothing.
@@ -7,7 +8,8 @@ numbering), a polygon that reflects nothing.
 
 import warp as wp
 
-from .data import LightData
+from ..sample_warps import cosine_hemisphere
+from .data import EmissionSample, LightData, surface_emission
 from .interface import Family, Functions, Options, surface_light
 
 AREA = wp.constant(4)
@@ -49,6 +51,14 @@ def area_pdf(lights: LightData, i: wp.int32, p: wp.vec3, wi: wp.vec3, dist: floa
     return dist * dist / (area * cos_light)
 
 
+@wp.func
+def emit_area(lights: LightData, i: wp.int32, u_pos: wp.vec2, u_dir: wp.vec2) -> EmissionSample:
+    """A ray leaving parallelogram light ``i``: a uniform point, a cosine-weighted direction."""
+    n, area = area_normal_and_size(lights, i)
+    o = lights.position[i] + u_pos[0] * lights.edge_u[i] + u_pos[1] * lights.edge_v[i]
+    return surface_emission(o, n, lights.power[i], 1.0 / area, cosine_hemisphere(u_dir[0], u_dir[1]))
+
+
 def row(light) -> dict:
     return {
         "type": AREA,
@@ -60,7 +70,7 @@ def row(light) -> dict:
 
 
 def make(options: Options) -> Functions:
-    return surface_light(AREA, sample_area, area_pdf)
+    return surface_light(AREA, sample_area, area_pdf, emit_area)
 
 
 FAMILY = Family(name="area", codes=(AREA,), make=make, light_types=("area",), row=row)

@@ -11,6 +11,7 @@ area/sphere/environment ``radiance`` in W/(m^2 sr) (RGB).
 
 import warp as wp
 
+from ..sample_warps import frame
 from ..textures import TextureData
 
 SHADOW_MARGIN = wp.constant(1.0e-4)  # shadow rays toward a light's surface stop this fraction short of it
@@ -66,3 +67,52 @@ def surface_sample(wi: wp.vec3, dist: float, radiance: wp.vec3, pdf: float) -> L
     ls.pdf = pdf
     ls.t_max = dist * (1.0 - SHADOW_MARGIN)
     return ls
+
+
+@wp.struct
+class EmissionSample:
+    """A ray leaving a light (the light tracer's start, ``sample_le``), and the point it leaves from.
+
+    ``weight`` is ``Le |cos| / (pdf_position pdf_direction)``: the power (W) the ray carries,
+    before the light's selection probability. Where the light has a surface the camera can see,
+    ``n`` is its unit emitting normal at ``o``, ``radiance`` what it emits toward ``n``'s side
+    (W/(m^2 sr)) and ``pdf_area`` the density of ``o`` on it (1/m^2); ``pdf_area`` is 0 for lights
+    without one (delta lights, lights at infinity). ``weight`` 0: no ray."""
+
+    o: wp.vec3
+    d: wp.vec3
+    weight: wp.vec3
+    n: wp.vec3
+    radiance: wp.vec3
+    pdf_area: float
+
+
+@wp.func
+def emission_ray(o: wp.vec3, d: wp.vec3, weight: wp.vec3) -> EmissionSample:
+    """The ray ``o + s d`` of a light without a surface to see, carrying ``weight``."""
+    es = EmissionSample()
+    es.o = o
+    es.d = d
+    es.weight = weight
+    es.n = wp.vec3(0.0)
+    es.radiance = wp.vec3(0.0)
+    es.pdf_area = 0.0
+    return es
+
+
+@wp.func
+def surface_emission(o: wp.vec3, n: wp.vec3, radiance: wp.vec3, pdf_area: float, local: wp.vec3) -> EmissionSample:
+    """The ray leaving point ``o`` of an emitting surface (unit normal ``n``, emitting
+    ``radiance`` toward its side, ``o`` drawn with density ``pdf_area``) in the cosine-weighted
+    direction ``local`` (z along ``n``, density ``cos / pi``): it carries ``pi radiance / pdf_area``."""
+    es = EmissionSample()
+    es.o = o
+    es.d = frame(n) * local
+    es.weight = radiance * (wp.pi / pdf_area)
+    es.n = n
+    es.radiance = radiance
+    es.pdf_area = pdf_area
+    if pdf_area <= 0.0:
+        es.weight = wp.vec3(0.0)
+        es.pdf_area = 0.0
+    return es

@@ -20,10 +20,11 @@ the frame's x. A projector delivers ``pi scale texture(uv) d / z^3`` at distance
 import warp as wp
 
 from ..materials import MaterialData
+from ..sample_warps import concentric_disk, frame, uniform_cone, uniform_sphere
 from ..sampling import Sampler
 from ..textures import texture_rgb, uv_context
 from ..traverse import GeometryData
-from .data import LightData, LightSample
+from .data import EmissionSample, LightData, LightSample, emission_ray
 from .interface import Family, Functions, Options
 
 POINT = wp.constant(0)
@@ -117,6 +118,47 @@ def sample_li(
     return ls
 
 
+@wp.func
+def sample_le(
+    geometry: GeometryData,
+    materials: MaterialData,
+    lights: LightData,
+    i: wp.int32,
+    center: wp.vec3,
+    radius: float,
+    time: float,
+    u_pos: wp.vec2,
+    u_dir: wp.vec2,
+    uc: float,
+) -> EmissionSample:
+    """A ray leaving delta light ``i``: a point light's uniform on the sphere, a spot's uniform in
+    its cone, a projector's uniform over its image (in the plane at depth 1), carrying the
+    intensity along it over that density; a directional light's from a uniform point of the disk
+    of radius ``radius`` about ``center``, across its direction, backed off by ``radius`` (it
+    carries irradiance times the disk's area)."""
+    light_type = lights.type[i]
+    if light_type == DIRECTIONAL:
+        d = lights.direction[i]
+        disk = concentric_disk(u_pos[0], u_pos[1])
+        o = center + radius * (frame(d) * wp.vec3(disk[0], disk[1], -1.0))
+        return emission_ray(o, d, lights.power[i] * (wp.pi * radius * radius))
+    d = uniform_sphere(u_dir[0], u_dir[1])
+    pdf = 1.0 / (4.0 * wp.pi)
+    if light_type == SPOT:
+        one_minus_cos = 1.0 - lights.cos_cutoff[i]
+        d = frame(lights.direction[i]) * uniform_cone(u_dir[0], u_dir[1], one_minus_cos)
+        pdf = 1.0 / (2.0 * wp.pi * one_minus_cos)
+    elif light_type == PROJECTOR:
+        scale = lights.uv_scale[i]
+        local = wp.vec3((u_dir[0] - 0.5) / scale[0], (u_dir[1] - 0.5) / scale[1], 1.0)
+        length = wp.length(local)
+        d = wp.transpose(lights.frame[i]) * (local / length)
+        pdf = wp.abs(scale[0] * scale[1]) * length * length * length  # per unit image area, over cos^3
+    o = lights.position[i]
+    _wi, _dist, intensity = light_incident(lights, i, o + d)  # the irradiance at distance 1
+    return emission_ray(o, d, intensity / pdf)
+
+
 def row(light) -> dict:
     if light.type == "point":
         return {"type": POINT, "position": light.position, "power": light.intensity}
@@ -146,7 +188,7 @@ def row(light) -> dict:
 
 
 def make(options: Options) -> Functions:
-    return Functions(owns, sample_li)
+    return Functions(owns, sample_li, sample_le)
 
 
 FAMILY = Family(

@@ -1,7 +1,8 @@
 """The emissive primitives (``wrt.emitting``: the triangles, polygons and spheres of emitting,
 unmoving ``[[shape]]``s), sampled together as one more light after the light rows: a primitive
 chosen by emitted power, then a uniform point on a triangle or polygon, a direction uniform in a
-sphere's cone. They emit their material's ``emission`` from their shading front (a sphere's
+sphere's cone (for the light tracer: a uniform point on any of them, a cosine-weighted
+direction). They emit their material's ``emission`` from their shading front (a sphere's
 outside), as a path hitting them sees it. Scenes whose emissive primitives are all triangles
 compile the triangles' code only (``Options.emissive_shapes``).
 """
@@ -11,12 +12,12 @@ import functools
 import warp as wp
 
 from ..materials import MaterialData
-from ..sample_warps import find_interval
+from ..sample_warps import cosine_hemisphere, find_interval
 from ..sampling import Sampler, sample_1d, sample_2d
 from ..traverse import KIND_BITS, KIND_MASK, POLYGON, SPHERE, TRIANGLE, GeometryData, shading_normal
-from .data import LightData, LightSample, surface_sample
+from .data import EmissionSample, LightData, LightSample, surface_emission, surface_sample
 from .interface import Family, Functions, Options
-from .sphere import sample_sphere_cone, sphere_solid_angle
+from .sphere import emit_sphere, sample_sphere_cone, sphere_solid_angle
 
 EMITTING = wp.constant(8)  # not a row's type: the pool, light ``lights.type.shape[0]``
 
@@ -183,10 +184,76 @@ def make_sample_emitting(smooth: bool, shapes: bool):
 
 
 @functools.cache
+def make_emit_emitting(smooth: bool, shapes: bool):
+    """``emit_emitting``; with ``smooth``, a smooth-shaded triangle emits about its interpolated
+    normal; with ``shapes``, polygons and spheres are in the pool too (else triangles only)."""
+
+    @wp.func
+    def emit_emitting(
+        geometry: GeometryData,
+        materials: MaterialData,
+        lights: LightData,
+        time: float,
+        uc: float,
+        u_pos: wp.vec2,
+        u_dir: wp.vec2,
+    ) -> EmissionSample:
+        """A ray leaving an emitting primitive chosen by ``uc`` with its power probability: a
+        uniform point on it (a polygon's triangle chosen by area with what is left of ``uc``), a
+        cosine-weighted direction about its emitting normal."""
+        e = find_interval(lights.emit_cdf, 0, lights.emit_cdf.shape[0], uc)
+        i = lights.emit_prim[e]
+        selection = lights.emit_cdf[e + 1] - lights.emit_cdf[e]
+        local = cosine_hemisphere(u_dir[0], u_dir[1])
+        kind = int(TRIANGLE)
+        if wp.static(shapes):
+            kind = lights.emit_kind[e]
+            if kind == SPHERE:
+                radiance = materials.emission[materials.shape_material[geometry.sphere_shape[i]]]
+                es = emit_sphere(geometry.sphere_center[i], geometry.sphere_radius[i], radiance, u_pos, u_dir)
+                es.weight = es.weight / selection
+                es.pdf_area = es.pdf_area * selection
+                return es
+        a = wp.vec3(0.0)
+        b = wp.vec3(0.0)
+        c = wp.vec3(0.0)
+        shape = int(0)
+        if kind == TRIANGLE:
+            a = geometry.tri_verts[3 * i]
+            b = geometry.tri_verts[3 * i + 1]
+            c = geometry.tri_verts[3 * i + 2]
+            shape = geometry.tri_shape[i]
+        if wp.static(shapes):
+            if kind == POLYGON:
+                below = lights.emit_cdf[e]
+                x = wp.clamp((uc - below) / selection, 0.0, 1.0)
+                k = polygon_triangle(lights, e, x)
+                a = lights.emit_corner[3 * k]
+                b = lights.emit_corner[3 * k + 1]
+                c = lights.emit_corner[3 * k + 2]
+                shape = geometry.poly_shape[i]
+        su = wp.sqrt(u_pos[0])
+        q = a + su * (1.0 - u_pos[1]) * (b - a) + su * u_pos[1] * (c - a)
+        ns = wp.vec3(0.0)
+        if kind == TRIANGLE:
+            ns = wp.normalize(wp.cross(b - a, c - a))
+            if wp.static(smooth):
+                ns = shading_normal(geometry, (i << KIND_BITS) | TRIANGLE, -1, q, ns, time)
+        if wp.static(shapes):
+            if kind == POLYGON:
+                ns = geometry.poly_normal[i]
+        radiance = materials.emission[materials.shape_material[shape]]
+        return surface_emission(q, ns, radiance, selection / lights.emit_area[e], local)
+
+    return emit_emitting
+
+
+@functools.cache
 def make(options: Options) -> Functions:
     emitting_index = make_emitting_index(options.emissive_shapes)
     emitting_pdf = make_emitting_pdf(options.emissive_shapes, options.smooth)
     sample_emitting = make_sample_emitting(options.smooth, options.emissive_shapes)
+    emit_emitting = make_emit_emitting(options.smooth, options.emissive_shapes)
 
     @wp.func
     def owns(light_type: wp.int32) -> bool:
@@ -212,6 +279,21 @@ def make(options: Options) -> Functions:
         return surface_sample(wi, dist, radiance, pdf)
 
     @wp.func
+    def sample_le(
+        geometry: GeometryData,
+        materials: MaterialData,
+        lights: LightData,
+        i: wp.int32,
+        center: wp.vec3,
+        radius: float,
+        time: float,
+        u_pos: wp.vec2,
+        u_dir: wp.vec2,
+        uc: float,
+    ) -> EmissionSample:
+        return emit_emitting(geometry, materials, lights, time, uc, u_pos, u_dir)
+
+    @wp.func
     def pdf_li(
         geometry: GeometryData,
         lights: LightData,
@@ -229,7 +311,7 @@ def make(options: Options) -> Functions:
                 return emitting_pdf(geometry, lights, e, p, wi, dist)
         return 0.0
 
-    return Functions(owns, sample_li, pdf_li)
+    return Functions(owns, sample_li, sample_le, pdf_li)
 
 
 FAMILY = Family(name="emitting", codes=(EMITTING,), make=make, feature="emissive")

@@ -10,10 +10,10 @@ import functools
 import warp as wp
 
 from ..materials import MaterialData
-from ..sample_warps import find_interval, uniform_sphere
+from ..sample_warps import concentric_disk, find_interval, frame, uniform_sphere
 from ..sampling import Sampler, sample_2d
 from ..traverse import GeometryData
-from .data import LightData, LightSample, surface_sample
+from .data import EmissionSample, LightData, LightSample, emission_ray, surface_sample
 from .interface import Family, Functions, Options
 
 ENVIRONMENT = wp.constant(6)
@@ -123,13 +123,36 @@ def make(options: Options) -> Functions:
         return surface_sample(wi, wp.inf, radiance, pdf)
 
     @wp.func
+    def sample_le(
+        geometry: GeometryData,
+        materials: MaterialData,
+        lights: LightData,
+        i: wp.int32,
+        center: wp.vec3,
+        radius: float,
+        time: float,
+        u_pos: wp.vec2,
+        u_dir: wp.vec2,
+        uc: float,
+    ) -> EmissionSample:
+        """A ray from the sky: a direction ``wi`` toward it as ``sample_li`` draws it, the ray
+        travelling along ``-wi`` from a uniform point of the disk of radius ``radius`` across
+        ``wi``, ``radius`` beyond ``center`` (radiance times the disk's area over the density)."""
+        wi, radiance, pdf = sample_environment(lights, i, u_dir[0], u_dir[1])
+        if pdf <= 0.0:
+            return emission_ray(center, -wi, wp.vec3(0.0))
+        disk = concentric_disk(u_pos[0], u_pos[1])
+        o = center + radius * (frame(wi) * wp.vec3(disk[0], disk[1], 1.0))
+        return emission_ray(o, -wi, radiance * (wp.pi * radius * radius / pdf))
+
+    @wp.func
     def le(lights: LightData, i: wp.int32, d: wp.vec3):
         if wp.static(environment_map):
             if lights.type[i] == ENVIRONMENT_MAP:
                 return environment_map_radiance(lights, i, d), environment_map_pdf(lights, d)
         return lights.power[i], 1.0 / (4.0 * wp.pi)
 
-    return Functions(owns, sample_li, le=le)
+    return Functions(owns, sample_li, sample_le, le=le)
 
 
 def row(light) -> dict:

@@ -15,7 +15,12 @@ factory ``make(options)`` of its device functions (``Functions``):
   ``dist`` (shape ``shape``, primitive ``prim``, instance ``inst``), 0 for a surface not the
   family's; None for a family without surfaces;
 - ``le(lights, i, d)``: ``(radiance, pdf)`` of light ``i`` seen along a ray ``d`` that left the
-  scene, with the density ``sample_li`` draws ``d`` with; None for a family that is not infinitely far.
+  scene, with the density ``sample_li`` draws ``d`` with; None for a family that is not infinitely far;
+- ``sample_le(geometry, materials, lights, i, center, radius, time, u_pos, u_dir, uc)``: a ray
+  leaving light ``i`` (the light tracer's), an ``EmissionSample`` (``wrt.kernels.lights.data``):
+  a point by the 2D sample ``u_pos`` (and ``uc`` where the family chooses among parts), a
+  direction by ``u_dir``; lights at infinity send it from a disk of radius ``radius`` outside the
+  scene's bounding sphere (``center``, ``radius``).
 
 A surface light's radiance where a ray hits it is its surface's ``emission``
 (``wrt.kernels.materials``: the ``emitter`` material of a light's surface, an emissive
@@ -32,7 +37,7 @@ import warp as wp
 from ..materials import MaterialData
 from ..sampling import Sampler, sample_2d
 from ..traverse import GeometryData
-from .data import LightData, LightSample, surface_sample
+from .data import EmissionSample, LightData, LightSample, surface_sample
 
 
 class Options(NamedTuple):
@@ -48,6 +53,7 @@ class Functions(NamedTuple):
 
     owns: wp.Function
     sample_li: wp.Function
+    sample_le: wp.Function
     pdf_li: wp.Function | None = None
     le: wp.Function | None = None
 
@@ -74,11 +80,12 @@ class Family:
     feature: str | None = None
 
 
-def surface_light(code: int, sample_light: wp.Function, light_pdf: wp.Function) -> Functions:
+def surface_light(code: int, sample_light: wp.Function, light_pdf: wp.Function, emit_light: wp.Function) -> Functions:
     """The functions of a family of one code whose lights have a surface of their own (surface
     ``num_shapes + k`` of the geometry for row ``k``, ``wrt.geometry``'s numbering), from its
-    ``sample_light(lights, i, p, u1, u2) -> (wi, distance, radiance, pdf)`` and ``light_pdf(lights,
-    i, p, wi, dist)``, the density of a direction ``wi`` that meets light ``i`` at ``dist``."""
+    ``sample_light(lights, i, p, u1, u2) -> (wi, distance, radiance, pdf)``, ``light_pdf(lights,
+    i, p, wi, dist)``, the density of a direction ``wi`` that meets light ``i`` at ``dist``, and
+    ``emit_light(lights, i, u_pos, u_dir) -> EmissionSample``, a ray leaving it."""
 
     @wp.func
     def owns(light_type: wp.int32) -> bool:
@@ -118,4 +125,19 @@ def surface_light(code: int, sample_light: wp.Function, light_pdf: wp.Function) 
                 return light_pdf(lights, k, p, wi, dist)
         return 0.0
 
-    return Functions(owns, sample_li, pdf_li)
+    @wp.func
+    def sample_le(
+        geometry: GeometryData,
+        materials: MaterialData,
+        lights: LightData,
+        i: wp.int32,
+        center: wp.vec3,
+        radius: float,
+        time: float,
+        u_pos: wp.vec2,
+        u_dir: wp.vec2,
+        uc: float,
+    ) -> EmissionSample:
+        return emit_light(lights, i, u_pos, u_dir)
+
+    return Functions(owns, sample_li, sample_le, pdf_li)

@@ -1,5 +1,6 @@
 """``sphere``: a sphere light emitting ``radiance`` (W/(m^2 sr)) outward, sampled uniformly in the
-cone it subtends; and that cone's sampling, which emissive spheres share (``emitting``).
+cone it subtends (for the light tracer, a uniform point and a cosine-weighted direction from it);
+and that cone's sampling, which emissive spheres share (``emitting``).
 
 Its surface is surface ``num_shapes + k`` of the geometry for light row ``k``, a sphere that
 reflects nothing.
@@ -8,8 +9,8 @@ reflects nothing.
 import warp as wp
 
 from ..intersect import intersect_sphere
-from ..sample_warps import cone_one_minus_cos, frame, uniform_cone
-from .data import LightData
+from ..sample_warps import cone_one_minus_cos, cosine_hemisphere, frame, uniform_cone, uniform_sphere
+from .data import EmissionSample, LightData, surface_emission
 from .interface import Family, Functions, Options, surface_light
 
 SPHERE_LIGHT = wp.constant(5)
@@ -61,12 +62,27 @@ def sphere_pdf(lights: LightData, i: wp.int32, p: wp.vec3, wi: wp.vec3, dist: fl
     return wp.where(solid_angle == 0.0, 0.0, 1.0 / solid_angle)
 
 
+@wp.func
+def emit_sphere(center: wp.vec3, r: float, radiance: wp.vec3, u_pos: wp.vec2, u_dir: wp.vec2) -> EmissionSample:
+    """A ray leaving a sphere emitting ``radiance`` outward: a uniform point on it, a
+    cosine-weighted direction (emissive spheres share it)."""
+    n = uniform_sphere(u_pos[0], u_pos[1])
+    area = 4.0 * wp.pi * r * r
+    return surface_emission(center + r * n, n, radiance, 1.0 / area, cosine_hemisphere(u_dir[0], u_dir[1]))
+
+
+@wp.func
+def emit_sphere_light(lights: LightData, i: wp.int32, u_pos: wp.vec2, u_dir: wp.vec2) -> EmissionSample:
+    """A ray leaving sphere light ``i`` (``emit_sphere``)."""
+    return emit_sphere(lights.position[i], lights.radius[i], lights.power[i], u_pos, u_dir)
+
+
 def row(light) -> dict:
     return {"type": SPHERE_LIGHT, "position": light.center, "radius": light.radius, "power": light.radiance}
 
 
 def make(options: Options) -> Functions:
-    return surface_light(SPHERE_LIGHT, sample_sphere, sphere_pdf)
+    return surface_light(SPHERE_LIGHT, sample_sphere, sphere_pdf, emit_sphere_light)
 
 
 FAMILY = Family(name="sphere", codes=(SPHERE_LIGHT,), make=make, light_types=("sphere",), row=row)
