@@ -24,7 +24,9 @@ from .features import ALL, GEOMETRY, Features, only
 from .integrator import make_render_kernel
 from .materials import MATERIAL_FLAGS
 
-INTEGRATORS = ("raycast", "whitted", "path")
+INTEGRATORS = ("raycast", "whitted", "path", "ptracer")
+RECORDING = ("raycast", "whitted", "path")
+"""The integrators with recording kernels (``wrt.rays``): the light tracer's paths belong to no pixel."""
 
 
 CUDA_INLINE = False
@@ -59,6 +61,7 @@ OPTIONS = {
     "raycast": {},
     "whitted": {},
     "path": {"cpu_compiler_flags": with_inline_threshold(wp.config.cpu_compiler_flags, PATH_INLINE_THRESHOLD)},
+    "ptracer": {"cpu_compiler_flags": with_inline_threshold(wp.config.cpu_compiler_flags, PATH_INLINE_THRESHOLD)},
 }
 """The Warp options of each integrator's modules, besides ``wrt.kernels.MODULE_OPTIONS``."""
 
@@ -82,6 +85,7 @@ RELEVANT = {
         "media",
     ),
 }
+RELEVANT["ptracer"] = tuple(flag for flag in RELEVANT["path"] if flag != "media")
 """The flags each integrator's variants are specialised on besides those (``relevant``)."""
 
 
@@ -99,7 +103,7 @@ def relevant(integrator: str, features: Features) -> Features:
 
 
 def render_kernel(integrator: str, features: Features, cuda: bool = False):
-    """The rendering kernel of ``integrator`` ("raycast", "whitted" or "path") for ``features``; for
+    """The rendering kernel of ``integrator`` (one of ``INTEGRATORS``) for ``features``; for
     a CUDA device where ``cuda`` (its modules' names end in ``_cuda``)."""
     return _kernel(integrator, relevant(integrator, features), cuda)
 
@@ -110,6 +114,10 @@ def all_features_kernel(integrator: str, record: bool = False, cuda: bool = Fals
     Warp module ``wrt_NAME_all`` (``wrt_NAME_record``; for CUDA where ``cuda``, ``_cuda`` after
     either); built on first use."""
     module = f"wrt_{integrator}_{'record' if record else 'all'}{'_cuda' if cuda else ''}"
+    if integrator == "ptracer":
+        if record:
+            raise ValueError("the light tracer has no recording kernel (RECORDING)")
+        return _light_tracer(ALL, module, cuda)
     return make_render_kernel(
         _radiance(integrator, ALL, record, cuda),
         module=module,
@@ -123,6 +131,8 @@ def all_features_kernel(integrator: str, record: bool = False, cuda: bool = Fals
 def _kernel(integrator: str, features: Features, cuda: bool = False):
     if features == ALL:
         return all_features_kernel(integrator, cuda=cuda)
+    if integrator == "ptracer":
+        return _light_tracer(features, f"wrt_ptracer_{features.key}{'_cuda' if cuda else ''}", cuda)
     return make_render_kernel(
         _radiance(integrator, features, cuda=cuda),
         module=f"wrt_{integrator}_{features.key}{'_cuda' if cuda else ''}",
@@ -130,3 +140,10 @@ def _kernel(integrator: str, features: Features, cuda: bool = False):
         options=OPTIONS[integrator],
         inline=_inline(cuda),
     )
+
+
+def _light_tracer(features: Features, module: str, cuda: bool):
+    """The light tracer's kernel for ``features`` in Warp module ``module`` (``wrt.kernels.ptracer``)."""
+    from .ptracer import make_ptracer_kernel
+
+    return make_ptracer_kernel(module=module, features=features, options=OPTIONS["ptracer"], inline=_inline(cuda))

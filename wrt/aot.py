@@ -250,7 +250,7 @@ def scene_modules(path: str, cuda: bool = False) -> dict[str, wp.context.Module]
     on the CPU or, where ``cuda``, on a CUDA device. A Mitsuba scene counts as imported strictly
     and with ``--approximate``; a scene that neither loads adds nothing."""
     from wrt.kernels.features import ALL
-    from wrt.kernels.variants import all_features_kernel, render_kernel
+    from wrt.kernels.variants import RECORDING, all_features_kernel, render_kernel
 
     from .loader import load_scene
     from .renderer import scene_features
@@ -263,11 +263,10 @@ def scene_modules(path: str, cuda: bool = False) -> dict[str, wp.context.Module]
         except WrtError:
             continue
         integrator = scene.render.integrator
-        for kernel in (
-            render_kernel(integrator, ALL, cuda),
-            render_kernel(integrator, scene_features(scene), cuda),
-            all_features_kernel(integrator, record=True, cuda=cuda),
-        ):
+        kernels = [render_kernel(integrator, ALL, cuda), render_kernel(integrator, scene_features(scene), cuda)]
+        if integrator in RECORDING:
+            kernels.append(all_features_kernel(integrator, record=True, cuda=cuda))
+        for kernel in kernels:
             modules[kernel.module.name] = kernel.module
     return modules
 
@@ -327,11 +326,11 @@ def cuda_modules() -> dict[str, wp.context.Module]:
     integrator's all-features and recording kernels in their CUDA forms. A render below
     ``wrt.renderer.SPECIALIZE_COLD_SAMPLES`` pixel samples takes its integrator's all-features
     kernel where its variant is not cached, so these serve the examples and the matrix on a GPU."""
-    from wrt.kernels.variants import INTEGRATORS, all_features_kernel
+    from wrt.kernels.variants import INTEGRATORS, RECORDING, all_features_kernel
 
     modules = library_modules()
     for integrator in INTEGRATORS:
-        for record in (False, True):
+        for record in (False, True) if integrator in RECORDING else (False,):
             module = all_features_kernel(integrator, record=record, cuda=True).module
             modules[module.name] = module
     return dict(sorted(modules.items()))

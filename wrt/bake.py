@@ -10,7 +10,7 @@ upload, ``wrt.device``, rounds to float32 and converts to Warp arrays, nothing m
   each surface bounds.
 - ``bake_lights``: one row per light (``wrt.kernels.lights.LightData``), the environment map's
   sampling distribution (``wrt.envmap``) and the pool of emissive primitives (``wrt.emitting``).
-- ``camera_media``: the dielectric volumes the camera starts inside, found with a float64 twin of
+- ``camera_media`` (``media_at``): the dielectric volumes the camera starts inside, found with a float64 twin of
   the kernels' watertight triangle test (``watertight_crossings``, held against the kernel by a test).
 """
 
@@ -242,16 +242,20 @@ def bake_lights(scene: Scene, prims: Primitives | None = None) -> BakedLights:
 
 
 def camera_media(scene: Scene) -> list[int]:
-    """The dielectric spheres and meshes the camera rays start inside (shape indices, the largest
-    first, as a ray from outside would have entered them): their absorption applies from the
-    first segment on. They are found at one point, where the image's central ray starts,
-    ``origin + near_clip forward``, and taken for every camera ray (those of an orthographic camera
-    or a thin lens start elsewhere on the camera plane, or its near clip plane). A mesh holds the
-    point when a ray from it crosses the mesh an odd number of times, counted by the kernels'
-    watertight test (``watertight_crossings``). Triangles, polygons, disks and (open) cylinders
-    bound no volume alone; a moving shape is taken at time 0."""
+    """The dielectric spheres and meshes the camera rays start inside (``media_at``), found at one
+    point, where the image's central ray starts, ``origin + near_clip forward``, and taken for every
+    camera ray (those of an orthographic camera or a thin lens start elsewhere on the camera
+    plane, or its near clip plane)."""
     forward, _, _ = scene.camera.basis()
-    o = np.asarray(scene.camera.origin, dtype=np.float64) + scene.camera.near_clip * forward
+    return media_at(scene, np.asarray(scene.camera.origin, dtype=np.float64) + scene.camera.near_clip * forward)
+
+
+def media_at(scene: Scene, o: np.ndarray) -> list[int]:
+    """The dielectric spheres and meshes point ``o`` lies inside (shape indices, the largest first,
+    as a ray from outside would have entered them). A mesh holds the point when a ray from it
+    crosses the mesh an odd number of times, counted by the kernels' watertight test
+    (``watertight_crossings``). Triangles, polygons, disks and (open) cylinders bound no volume
+    alone; a moving shape is taken at time 0."""
     inside = []
     for index, shape in enumerate(scene.shapes):
         if not FAMILY_OF[scene.materials[shape.material].type].medium:

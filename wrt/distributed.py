@@ -509,7 +509,13 @@ class Cluster:
         """``wrt.render`` on the cluster, in pixel tiles: the same arguments (but no adaptive
         sampling, and no ``threads``: each worker thread runs one tile at a time) and a
         bit-identical ``RenderResult``. ``stop`` cancels the pass in flight; the result holds the
-        passes done. ``threads`` in the result: the cluster's worker threads."""
+        passes done. ``threads`` in the result: the cluster's worker threads. The light tracer
+        (``ptracer``) is refused: its light paths splat anywhere, not into their tile."""
+        if scene.render.integrator == "ptracer":
+            raise WrtError(
+                f"{scene.path}: render.integrator = ptracer: a cluster renders pixel tiles, and a light path splats "
+                "anywhere on the film (render it on this machine)"
+            )
         start = partial(ClusterTiles, self, device=device, specialize=specialize, stop=stop)
         return render_passes(scene, start, spp=spp, seed=seed, progress=progress, progress_every=progress_every)
 

@@ -28,6 +28,7 @@ from .kernels.materials.principled import THIN_RATES, transmits
 from .kernels.microfacet import DISTRIBUTIONS
 from .kernels.volumes import MEDIUM_TYPES as MEDIUM_REGISTRY
 from .kernels.volumes import PHASE_TYPES as PHASE_REGISTRY
+from .light_tracing import check_light_tracer
 from .limits import MAX_DEPTH, MAX_IMAGE_SIDE, MAX_MAGNITUDE, MAX_SEED, MAX_SPP
 from .meshio import apply_transform, load_mesh, ply_attributes, transform_matrix, transform_normals, vertex_normals
 from .scene import (
@@ -1128,7 +1129,7 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
         raise SceneError(file, f"light[{maps[1]}]", "file", f"a second environment map (light[{maps[0]}] has one)")
     if render.integrator == "whitted":
         _check_whitted(file, lights, materials, media)
-    return Scene(
+    scene = Scene(
         render=render,
         camera=camera,
         materials=tuple(materials),
@@ -1140,6 +1141,9 @@ def parse_scene(doc: Mapping, *, file: str = "<memory>", scene_dir: str = ".") -
         boundaries=tuple(boundaries),
         camera_medium=-1 if camera_medium is None else camera_medium,
     )
+    if render.integrator == "ptracer":
+        check_light_tracer(file, scene)
+    return scene
 
 
 NESTED_RULES = {
@@ -1256,7 +1260,8 @@ def override_render(scene: Scene, *, source: str = "command line", **changes) ->
 
     The new values are validated exactly like the file's, errors naming ``source``; a switch to
     the whitted integrator is refused where the file's would be (area, sphere and environment
-    lights; rough dielectrics and masks).
+    lights; rough dielectrics and masks), and so is a switch to the light tracer
+    (``wrt.light_tracing.check_light_tracer``).
     """
     values = {k: v for k, v in changes.items() if v is not None}
     if not values:
@@ -1267,4 +1272,6 @@ def override_render(scene: Scene, *, source: str = "command line", **changes) ->
     render = _render(source, merged)
     if render.integrator == "whitted" and scene.render.integrator != "whitted":
         _check_whitted(source, scene.lights, scene.materials, scene.media)
+    if render.integrator == "ptracer" and scene.render.integrator != "ptracer":
+        check_light_tracer(source, scene)
     return dataclasses.replace(scene, render=render)

@@ -31,7 +31,7 @@ from wrt.kernels.record import (
     Segment,
 )
 from wrt.kernels.traverse import VisitLog, trace_visits
-from wrt.kernels.variants import all_features_kernel
+from wrt.kernels.variants import RECORDING, all_features_kernel
 
 from .aot import load
 from .bvh import node_bounds
@@ -195,6 +195,11 @@ def trace_rays(
         raise WrtError(f"samples must be >= 1, got {samples}")
     if capacity < 1:
         raise WrtError(f"capacity must be >= 1, got {capacity}")
+    if scene.render.integrator not in RECORDING:
+        raise WrtError(
+            f"{scene.path}: render.integrator = {scene.render.integrator}: its light paths belong to no pixel, so none "
+            'is recorded; set [render] integrator = "path" to see its camera paths'
+        )
     dev = resolve_device(device)
     kernel = all_features_kernel(scene.render.integrator, record=True, cuda=dev.is_cuda)
     load(kernel.module, dev)

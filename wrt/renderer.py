@@ -36,6 +36,7 @@ from wrt.kernels.features import ALL, Features
 from wrt.kernels.film import LUMINANCE_WEIGHTS, Film
 from wrt.kernels.integrator import RenderPass
 from wrt.kernels.materials import FAMILIES, FAMILY_OF
+from wrt.kernels.ptracer import FIXED_POINT, LightTracing
 from wrt.kernels.record import RayRecord
 from wrt.kernels.variants import render_kernel
 
@@ -53,6 +54,7 @@ from .emitting import emitting_shapes
 from .errors import WrtError
 from .geometry import build
 from .host import default_threads
+from .light_tracing import bounding_sphere
 from .loader import override_render
 from .scene import (
     AreaLight,
@@ -189,11 +191,12 @@ class DeviceScene:
         first_sample: int = 0,
         pass_spp: int | None = None,
         active: wp.array | None = None,
+        tracing: LightTracing | None = None,
     ) -> None:
         """Run ``kernel`` over pixels ``first .. first + count - 1`` (or, given ``active``, over
         pixels ``active[first .. first + count - 1]``), samples ``first_sample .. first_sample +
         pass_spp - 1`` (default: all ``spp``) of a render of ``spp`` samples; ``rec`` only for a
-        recording variant."""
+        recording variant, ``tracing`` only for the light tracer (whose pixels are its slots)."""
         launch = RenderPass()
         launch.first_sample = first_sample
         launch.pass_spp = spp - first_sample if pass_spp is None else pass_spp
@@ -201,7 +204,10 @@ class DeviceScene:
         launch.active = self.no_active if active is None else active
         sampler = sampler_data(self.sampler, spp, seed)
         scene = [self.geometry, self.materials, self.lights, self.settings, self.camera]
-        inputs = [*scene, sampler, launch, self.film, NO_RECORD if rec is None else rec]
+        if tracing is not None:
+            inputs = [*scene, sampler, launch, tracing, self.film]
+        else:
+            inputs = [*scene, sampler, launch, self.film, NO_RECORD if rec is None else rec]
         wp.launch(kernel, dim=count, inputs=inputs, device=self.device)
 
 
@@ -420,6 +426,70 @@ class LocalTiles:
         return finished
 
 
+class LightTracerTiles(LocalTiles):
+    """The tile executor of a light-tracer render (``integrator = "ptracer"``): its launches take
+    slots (one light path per slot and sample, ``wrt.kernels.ptracer``) instead of pixels, and
+    splat anywhere on the film. Each CPU thread splats into a buffer of its own (the CPU's atomics
+    are plain additions, so concurrent launches must not share one); the buffers are integer
+    sums, added after each pass into the render's, so the image does not depend on the tiling or
+    the threads. After each pass the film's ``rgb`` is those sums over the samples done."""
+
+    def __init__(self, scene: Scene, **options):
+        super().__init__(scene, **options)
+        dev, pixels = self.device_scene.device, self.device_scene.width * self.device_scene.height
+        self.buffers = [wp.zeros((pixels, 3), dtype=wp.int64, device=dev) for _ in range(self.threads)]
+        self.sums = np.zeros((pixels, 3), dtype=np.int64)
+        center, radius = bounding_sphere(scene)
+        self.tracings = []
+        for buffer in self.buffers:
+            tracing = LightTracing()
+            tracing.splat = buffer
+            tracing.center = wp.vec3(*center)
+            tracing.radius = radius
+            tracing.sky = int(any(isinstance(light, EnvironmentLight) for light in scene.lights))
+            self.tracings.append(tracing)
+
+    def run_pass(self, first_sample: int, pass_spp: int, active: np.ndarray | None) -> bool:
+        """See ``TileExecutor.run_pass``; ``active`` must be None (no adaptive sampling)."""
+        assert active is None, "the light tracer has no adaptive sampling"
+        device_scene, dev = self.device_scene, self.device_scene.device
+        n = device_scene.width * device_scene.height
+        for buffer in self.buffers:
+            buffer.zero_()
+
+        def launch(worker: int, first: int, count: int) -> None:
+            tracing = self.tracings[worker]
+            spp, seed = self.spp, self.seed
+            device_scene.launch(self.kernel, first, count, spp, seed, None, first_sample, pass_spp, None, tracing)
+
+        names = pass_outputs(first_sample) if self.stop is not None else ()
+        before = {name: np.copy(getattr(self.film, name).numpy()) for name in names}
+        if dev.is_cuda:
+            launch(0, 0, n)
+            wp.synchronize_device(dev)
+        else:
+            tiles = [(first, min(TILE_PIXELS, n - first)) for first in range(0, n, TILE_PIXELS)]
+
+            def worker(w: int) -> bool:
+                for t in tiles[w :: self.threads]:
+                    if self.stop is not None and self.stop.is_set():
+                        return False
+                    launch(w, *t)
+                return True
+
+            with ThreadPoolExecutor(max_workers=self.threads) as pool:
+                finished = all(pool.map(worker, range(self.threads)))
+            if not finished:
+                for name, saved in before.items():
+                    getattr(self.film, name).numpy()[...] = saved
+                return False
+        for buffer in self.buffers:
+            self.sums += buffer.numpy()
+        rgb = self.sums / (FIXED_POINT * (first_sample + pass_spp))
+        self.film.rgb.assign(wp.array(rgb.astype(np.float32), dtype=wp.vec3, device=dev))
+        return True
+
+
 # ---- The pass loop: one for every executor -----------------------------------------------------
 
 
@@ -442,6 +512,11 @@ def render_passes(
         raise WrtError(f"progress_every must be >= 1, got {progress_every}")
     if target_error is not None and not target_error > 0.0:
         raise WrtError(f"target_error must be > 0, got {target_error}")
+    if target_error is not None and scene.render.integrator == "ptracer":
+        raise WrtError(
+            f"{scene.path}: render.integrator = ptracer: adaptive sampling needs each pixel's own samples, and a "
+            "light path splats anywhere (render without a target error)"
+        )
     executor = start(scene)
     spp, pixels = scene.render.spp, scene.render.width * scene.render.height
     schedule = None if target_error is None else adaptive_passes(spp)
@@ -568,7 +643,8 @@ def render(
     centre; with ``spp > 1`` every sample, the first pass's included, is uniform over the pixel.
     An adaptive render is deterministic too: a pixel's stopping depends only on its own samples.
     """
-    start = partial(LocalTiles, device=device, threads=threads, specialize=specialize, stop=stop)
+    tiles = LightTracerTiles if scene.render.integrator == "ptracer" else LocalTiles
+    start = partial(tiles, device=device, threads=threads, specialize=specialize, stop=stop)
     return render_passes(
         scene, start, spp=spp, seed=seed, progress=progress, progress_every=progress_every, target_error=target_error
     )

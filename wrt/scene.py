@@ -17,7 +17,7 @@ from wrt.kernels.materials import TYPES
 from wrt.kernels.volumes import MEDIUM_TYPES as MEDIUM_REGISTRY
 from wrt.kernels.volumes import PHASE_TYPES as PHASE_REGISTRY
 
-INTEGRATORS = ("raycast", "whitted", "path")
+INTEGRATORS = ("raycast", "whitted", "path", "ptracer")
 SAMPLERS = ("independent", "stratified", "sobol")
 FILTERS = ("box", "tent", "gaussian")
 DIELECTRIC_SHADOWS = ("opaque", "filtered")

@@ -683,6 +683,8 @@ def test_one_approximation_per_cause(tmp_path):
         ('<integrator type="moment"><integrator type="direct"/></integrator>', ("path", 2)),
         ('<integrator type="volpath"><integer name="max_depth" value="3"/></integrator>', ("path", 3)),
         ('<integrator type="volpathmis"><integer name="max_depth" value="4"/></integrator>', ("path", 4)),
+        ('<integrator type="ptracer"><integer name="max_depth" value="3"/></integrator>', ("ptracer", 3)),
+        ('<integrator type="ptracer"><integer name="rr_depth" value="2"/></integrator>', ("ptracer", MAX_DEPTH)),
     ],
 )
 def test_integrators_convert_exactly(tmp_path, body, expected):
@@ -690,7 +692,7 @@ def test_integrators_convert_exactly(tmp_path, body, expected):
     assert (doc["render"]["integrator"], doc["render"]["max_depth"]) == expected and warnings == []
 
 
-@pytest.mark.parametrize("kind", ["ptracer", "aov"])
+@pytest.mark.parametrize("kind", ["prb", "aov"])
 def test_other_integrators_are_refused(tmp_path, kind):
     with pytest.raises(WrtError, match=rf'scene.xml:2: <integrator type="{kind}">: integrator not supported'):
         convert(tmp_path, f'<integrator type="{kind}"/>', approximate=False)

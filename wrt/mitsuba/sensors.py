@@ -195,11 +195,13 @@ def sampler(doc: Document, element: Element) -> dict:
     return render
 
 
-INTEGRATORS = ("path", "volpath", "volpathmis", "direct", "moment")
+INTEGRATORS = ("path", "volpath", "volpathmis", "direct", "moment", "ptracer")
 """Mitsuba integrators converted exactly: ``path``, ``volpath`` and ``volpathmis`` (wrt's path
 integrator, which follows ``volpath``'s semantics in a scene with media and ``path``'s without;
 the two volumetric ones converge to the same image), ``direct`` (path with ``max_depth = 2``: emitters seen
-directly plus direct light), ``moment`` (its nested integrator: the moments are extra channels)."""
+directly plus direct light), ``moment`` (its nested integrator: the moments are extra channels),
+``ptracer`` (wrt's light tracer; its ``rr_depth`` and ``samples_per_pass`` change the noise and
+the work's division only, and are read and dropped)."""
 
 
 def integrator(doc: Document, element: Element | None) -> dict:
@@ -226,5 +228,10 @@ def integrator(doc: Document, element: Element | None) -> dict:
     depth = p.number("max_depth", -1, integer=True)
     if depth == 0:
         doc.warn(p.params["max_depth"], "max_depth = 0 (a black image) becomes 1")
+    kind = "path"
+    if p.type == "ptracer":
+        kind = "ptracer"
+        p.number("rr_depth", 5, integer=True)
+        p.number("samples_per_pass", 0, integer=True)
     p.finish()
-    return {"integrator": "path", "max_depth": MAX_DEPTH if depth < 0 else min(max(depth, 1), MAX_DEPTH)}
+    return {"integrator": kind, "max_depth": MAX_DEPTH if depth < 0 else min(max(depth, 1), MAX_DEPTH)}
