@@ -48,13 +48,13 @@ def check_light_tracer(source: str, scene: Scene) -> None:
         )
     for i, light in enumerate(scene.lights):
         point = _light_point(light)
-        if point is not None and media_at(scene, point):
-            inside = media_at(scene, point)[-1]
+        inside = [] if point is None else media_at(scene, point)
+        if inside:
             raise SceneError(
                 source,
                 f"light[{i}]",
                 "type",
-                f"lies inside shape[{inside}], a dielectric: the ptracer integrator starts light paths outside "
+                f"lies inside shape[{inside[-1]}], a dielectric: the ptracer integrator starts light paths outside "
                 'every dielectric (use integrator = "path")',
                 light.type,
             )
