@@ -80,7 +80,9 @@ THIN_RATES = (
     "diffuse_transmittance_sampling_rate",
 )
 """The sampling rates of each type, in ``PrincipledData.rates`` order."""
-THIN_KEYS = ("albedo", "roughness", "anisotropy", "spec_trans", "spec_tint", "sheen", "sheen_tint", "flatness")
+THIN_NUMBERS = ("spec_trans", "spec_tint", "sheen", "sheen_tint", "flatness")
+"""The thin variant's ``NUMBERS`` (it has no metallic or clearcoat)."""
+THIN_KEYS = ("albedo", "roughness", "anisotropy", *THIN_NUMBERS)
 
 
 @wp.struct

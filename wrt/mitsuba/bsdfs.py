@@ -15,7 +15,7 @@ from ..conductors import METALS
 from ..errors import token
 from ..kernels.materials.principled import NUMBERS as PRINCIPLED_NUMBERS
 from ..kernels.materials.principled import RATES as PRINCIPLED_RATES
-from ..kernels.materials.principled import THIN_KEYS, THIN_RATES
+from ..kernels.materials.principled import THIN_NUMBERS, THIN_RATES
 from ..kernels.microfacet import DISTRIBUTIONS
 from ..loader import NESTED_RULES
 from .textures import texture, textured_color
@@ -158,6 +158,16 @@ def plastic(p: Plugin) -> dict:
     return table
 
 
+def principled_base(p: Plugin) -> dict:
+    """The keys ``principled`` and ``principledthin`` share under other names: ``base_color`` is
+    wrt's ``albedo``, ``anisotropic`` its ``anisotropy``; ``roughness`` the same."""
+    return {
+        "albedo": textured_color(p, "base_color", 0.5),
+        "roughness": textured_number(p, "roughness", 0.5),
+        "anisotropy": textured_number(p, "anisotropic", 0.0),
+    }
+
+
 def principled(p: Plugin) -> dict:
     """The ``[[material]]`` table of a ``principled``, exact: ``base_color`` is wrt's ``albedo``,
     ``anisotropic`` its ``anisotropy``, the other parameters the same (numbers or textures), ``eta``
@@ -165,9 +175,7 @@ def principled(p: Plugin) -> dict:
     ``specular`` 0 taken as 0.001 where it transmits)."""
     table = {
         "type": "principled",
-        "albedo": textured_color(p, "base_color", 0.5),
-        "roughness": textured_number(p, "roughness", 0.5),
-        "anisotropy": textured_number(p, "anisotropic", 0.0),
+        **principled_base(p),
         **{key: textured_number(p, key, 0.0) for key in PRINCIPLED_NUMBERS},
         **{key: p.number(key, 1.0) for key in PRINCIPLED_RATES},
     }
@@ -194,10 +202,8 @@ def principled_thin(p: Plugin) -> dict:
         raise p.doc.error(p.element, "a textured eta of a principledthin is not supported (wrt's ior is a number)")
     return {
         "type": "principled_thin",
-        "albedo": textured_color(p, "base_color", 0.5),
-        "roughness": textured_number(p, "roughness", 0.5),
-        "anisotropy": textured_number(p, "anisotropic", 0.0),
-        **{key: textured_number(p, key, 0.0) for key in THIN_KEYS[3:]},
+        **principled_base(p),
+        **{key: textured_number(p, key, 0.0) for key in THIN_NUMBERS},
         "diff_trans": textured_number(p, "diff_trans", 0.0),
         "ior": p.number("eta", 1.5),
         **{key: p.number(key, 1.0) for key in THIN_RATES},
