@@ -412,18 +412,31 @@ class LocalTiles:
             launch(first, count)
             return True
 
-        names = pass_outputs(first_sample) if self.stop is not None else ()
-        before = {name: np.copy(getattr(self.film, name).numpy()) for name in names}  # CPU: numpy views of the film
+        before = self._saved(first_sample)
         pool = ThreadPoolExecutor(max_workers=self.threads)
         try:
-            tiles = [(first, min(TILE_PIXELS, n - first)) for first in range(0, n, TILE_PIXELS)]
-            finished = all([future.result() for future in [pool.submit(tile, *t) for t in tiles]])
+            finished = all([future.result() for future in [pool.submit(tile, *t) for t in tiles_of(n)]])
         finally:
             pool.shutdown(cancel_futures=True)  # interrupted: drop the tiles not started
         if not finished:
-            for name, saved in before.items():
-                getattr(self.film, name).numpy()[...] = saved
+            self._restore(before)
         return finished
+
+    def _saved(self, first_sample: int) -> dict[str, np.ndarray]:
+        """Copies of the film arrays a CPU pass from ``first_sample`` writes, where a stop may
+        abandon it (none without ``stop``)."""
+        names = pass_outputs(first_sample) if self.stop is not None else ()
+        return {name: np.copy(getattr(self.film, name).numpy()) for name in names}  # CPU: numpy views of the film
+
+    def _restore(self, saved: dict[str, np.ndarray]) -> None:
+        """Roll an abandoned CPU pass back to the film arrays ``_saved`` copied."""
+        for name, values in saved.items():
+            getattr(self.film, name).numpy()[...] = values
+
+
+def tiles_of(n: int) -> list[tuple[int, int]]:
+    """``(first, count)`` of the CPU launches over ``n`` pixels (or slots): ``TILE_PIXELS`` each."""
+    return [(first, min(TILE_PIXELS, n - first)) for first in range(0, n, TILE_PIXELS)]
 
 
 class LightTracerTiles(LocalTiles):
@@ -440,13 +453,14 @@ class LightTracerTiles(LocalTiles):
         self.buffers = [wp.zeros((pixels, 3), dtype=wp.int64, device=dev) for _ in range(self.threads)]
         self.sums = np.zeros((pixels, 3), dtype=np.int64)
         center, radius = bounding_sphere(scene)
+        sky = int(any(isinstance(light, EnvironmentLight) for light in scene.lights))
         self.tracings = []
         for buffer in self.buffers:
             tracing = LightTracing()
             tracing.splat = buffer
             tracing.center = wp.vec3(*center)
             tracing.radius = radius
-            tracing.sky = int(any(isinstance(light, EnvironmentLight) for light in scene.lights))
+            tracing.sky = sky
             self.tracings.append(tracing)
 
     def run_pass(self, first_sample: int, pass_spp: int, active: np.ndarray | None) -> bool:
@@ -459,16 +473,15 @@ class LightTracerTiles(LocalTiles):
 
         def launch(worker: int, first: int, count: int) -> None:
             tracing = self.tracings[worker]
-            spp, seed = self.spp, self.seed
-            device_scene.launch(self.kernel, first, count, spp, seed, None, first_sample, pass_spp, None, tracing)
+            device_scene.launch(
+                self.kernel, first, count, self.spp, self.seed, None, first_sample, pass_spp, None, tracing
+            )
 
-        names = pass_outputs(first_sample) if self.stop is not None else ()
-        before = {name: np.copy(getattr(self.film, name).numpy()) for name in names}
-        if dev.is_cuda:
+        if dev.is_cuda:  # one launch: it ends before a stop is looked at
             launch(0, 0, n)
             wp.synchronize_device(dev)
         else:
-            tiles = [(first, min(TILE_PIXELS, n - first)) for first in range(0, n, TILE_PIXELS)]
+            tiles = tiles_of(n)
 
             def worker(w: int) -> bool:
                 for t in tiles[w :: self.threads]:
@@ -477,11 +490,11 @@ class LightTracerTiles(LocalTiles):
                     launch(w, *t)
                 return True
 
+            before = self._saved(first_sample)
             with ThreadPoolExecutor(max_workers=self.threads) as pool:
                 finished = all(pool.map(worker, range(self.threads)))
             if not finished:
-                for name, saved in before.items():
-                    getattr(self.film, name).numpy()[...] = saved
+                self._restore(before)
                 return False
         for buffer in self.buffers:
             self.sums += buffer.numpy()
