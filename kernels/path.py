@@ -88,6 +88,7 @@ from .sample_warps import power_heuristic
 from .sampling import Sampler, sample_1d, sample_2d
 from .shadow import make_shadow_ray
 from .spawn import past_hit, spawn_origin
+from .textures import EMISSION, material_rgb
 from .traverse import NO_HIT, GeometryData, Traversal, traversal
 from .volumes import boundary_medium, free_flight, has_media, phase_sample, phase_value, tracking_key
 
@@ -415,6 +416,8 @@ def make_path_radiance(record: bool, features: Features = ALL, inline: bool | No
                 # Emission at the front of what was hit, MIS-weighted against light sampling
                 hit = surface_hit(geometry, materials, found)
                 emission = materials.emission[hit.material]
+                if wp.static(features.textures):
+                    emission = material_rgb(materials.textures, hit.material, EMISSION, hit.tex, emission)
                 if hit.front and max_component(emission) > 0.0:
                     mis = float(1.0)
                     if not path.specular:

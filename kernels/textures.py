@@ -60,6 +60,7 @@ CLEARCOAT = wp.constant(16)
 CLEARCOAT_GLOSS = wp.constant(17)
 ANISOTROPY = wp.constant(18)
 DIFF_TRANS = wp.constant(19)
+EMISSION = wp.constant(20)
 SLOTS = (
     "albedo",
     "specular",
@@ -81,6 +82,7 @@ SLOTS = (
     "clearcoat_gloss",
     "anisotropy",
     "diff_trans",
+    "emission",
 )
 """The material parameters a texture can give, in slot order (``slot[m, s]``); ``normal_map`` is
 a raw bitmap of tangent-space normals (``wrt.kernels.hit.perturbed_normal``), not a BSDF parameter;
@@ -89,7 +91,8 @@ property of its volume; whitted's filtered shadow rays, which compute no uv, tak
 ``roughness_v`` an anisotropic material's alpha along the bitangent (``roughness`` the one along the
 tangent); ``weight`` a blend's (its second material's share); ``bump_map`` a height field, whose
 gradient (``texture_float_grad``) tilts the shading normal (``wrt.kernels.hit.bumped_normal``);
-``metallic`` to ``diff_trans`` a principled material's numbers (``wrt.kernels.materials.principled``)."""
+``metallic`` to ``diff_trans`` a principled material's numbers (``wrt.kernels.materials.principled``);
+``emission`` the radiance (W/(m^2 sr)) any material emits from its front (``material_emission``)."""
 
 
 @wp.struct

@@ -78,7 +78,7 @@ from .record import REFLECTED, REFRACTED, STRAIGHT, TOTAL_INTERNAL, RayRecord
 from .sampling import Sampler
 from .shadow import make_shadow_ray
 from .spawn import past_hit, spawn_origin
-from .textures import ALBEDO, material_rgb
+from .textures import ALBEDO, EMISSION, material_rgb
 from .traverse import NO_HIT, GeometryData, Traversal, ray_hit, traversal
 
 BRANCHES = 32  # pending branches per camera ray
@@ -251,7 +251,10 @@ def make_whitted_radiance(record: bool, features: Features = ALL, inline: bool |
                 # Emission at the front of what was hit
                 hit = surface_hit(geometry, materials, ray_hit(o, d, ray.time, t, prim, inst))
                 if hit.front:
-                    radiance += wp.cw_mul(throughput, materials.emission[hit.material])
+                    emission = materials.emission[hit.material]
+                    if wp.static(features.textures):
+                        emission = material_rgb(materials.textures, hit.material, EMISSION, hit.tex, emission)
+                    radiance += wp.cw_mul(throughput, emission)
                 flags = bsdf_flags_from(materials, hit.material, hit.front)
 
                 # Local shading at non-specular surfaces: ambient plus the delta lights

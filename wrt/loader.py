@@ -348,6 +348,8 @@ def _slot_range(key: str) -> tuple[float, float]:
     """The range a textured parameter's values must stay in."""
     if key == "diff_trans":
         return (0.0, 2.0)
+    if key == "emission":
+        return (0.0, MAX_MAGNITUDE)
     return (1e-3, 1.0) if key in ("roughness", "roughness_v") else (0.0, 1.0)
 
 
@@ -417,7 +419,13 @@ def _normal_map(t: _Table, scene_dir: str) -> Bitmap | Constant:
 def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
     t = _Table(file, f"material[{index}]", data)
     kind = t.string("type", "diffuse", MATERIAL_TYPES)
-    values = {"name": t.string("name"), "type": kind, "emission": t.vec3("emission", Material.emission, lo=0.0)}
+    values = {"name": t.string("name"), "type": kind}
+    textures = []
+    if isinstance(t.data.get("emission"), Mapping):
+        texture, values["emission"] = _texture(t, "emission", scene_dir)
+        textures.append(("emission", texture))
+    else:
+        values["emission"] = t.vec3("emission", Material.emission, lo=0.0)
     readers = {
         "albedo": lambda: t.vec3("albedo", Material.albedo, lo=0.0, hi=1.0),
         "specular": lambda: t.vec3("specular", Material.specular, lo=0.0, hi=1.0),
@@ -447,7 +455,6 @@ def _material(file: str, index: int, data, scene_dir: str = ".") -> Material:
     }
     if kind in ("principled", "principled_thin"):  # Burley's roughness, 0 allowed (its alpha is at least 0.001)
         readers["roughness"] = lambda: t.number("roughness", Material.roughness, lo=0.0, hi=1.0)
-    textures = []
     for key in TYPES[kind].keys:
         if isinstance(t.data.get(key), Mapping):
             if key not in SLOTS or (key == "transmittance" and kind != "thin_dielectric"):

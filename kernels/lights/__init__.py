@@ -143,7 +143,7 @@ class Lighting(NamedTuple):
 
 def lighting_for(features) -> Lighting:
     """The light interface of a scene of ``features``."""
-    options = Options(features.environment_map, features.emissive_shapes, features.smooth)
+    options = Options(features.environment_map, features.emissive_shapes, features.smooth, features.textures)
     return make_lighting(families_for(features), options)
 
 

@@ -14,10 +14,20 @@ import warp as wp
 from ..materials import MaterialData
 from ..sample_warps import cosine_hemisphere, find_interval
 from ..sampling import Sampler, sample_1d, sample_2d
-from ..traverse import KIND_BITS, KIND_MASK, POLYGON, SPHERE, TRIANGLE, GeometryData, shading_normal
+from ..textures import EMISSION, texture_rgb
+from ..traverse import (
+    KIND_BITS,
+    KIND_MASK,
+    POLYGON,
+    SPHERE,
+    TRIANGLE,
+    GeometryData,
+    make_texture_context,
+    shading_normal,
+)
 from .data import EmissionSample, LightData, LightSample, surface_emission, surface_sample
 from .interface import Family, Functions, Options
-from .sphere import emit_sphere, sample_sphere_cone, sphere_solid_angle
+from .sphere import sample_sphere_cone, sphere_point, sphere_solid_angle
 
 EMITTING = wp.constant(8)  # not a row's type: the pool, light ``lights.type.shape[0]``
 
@@ -105,11 +115,78 @@ def polygon_triangle(lights: LightData, e: wp.int32, x: float) -> wp.int32:
 
 
 @functools.cache
-def make_sample_emitting(smooth: bool, shapes: bool):
+def make_emission_at(textures: bool):
+    """``emission_at``; with ``textures``, an emission texture is looked up (else the constant)."""
+    texture_context = make_texture_context(False)  # disks and cylinders are not in the pool
+
+    @wp.func
+    def emission_at(
+        geometry: GeometryData, materials: MaterialData, shape: wp.int32, prim: wp.int32, q: wp.vec3, time: float
+    ) -> wp.vec3:
+        """Radiance (W/(m^2 sr)) that shape ``shape``'s material emits at point ``q`` of packed
+        primitive ``prim``: its emission texture's value at ``q``'s uv, else its constant."""
+        m = materials.shape_material[shape]
+        if wp.static(textures):
+            t = materials.textures.slot[m, EMISSION]
+            if t >= 0:
+                return texture_rgb(materials.textures, t, texture_context(geometry, prim, -1, q, time))
+        return materials.emission[m]
+
+    return emission_at
+
+
+@functools.cache
+def make_emitting_point(smooth: bool, shapes: bool):
+    """``emitting_point``; with ``smooth``, a smooth-shaded triangle's normal is its interpolated
+    one; with ``shapes``, polygons are in the pool too (else triangles only)."""
+
+    @wp.func
+    def emitting_point(geometry: GeometryData, lights: LightData, e: wp.int32, x: float, u: wp.vec2, time: float):
+        """A uniform point on emitting triangle or polygon ``e`` by ``u`` (a polygon's triangle chosen
+        by area with ``x`` in [0, 1)): ``(q, its emitting normal, its shape, its packed primitive id)``."""
+        i = lights.emit_prim[e]
+        kind = int(TRIANGLE)
+        if wp.static(shapes):
+            kind = lights.emit_kind[e]
+        a = wp.vec3(0.0)
+        b = wp.vec3(0.0)
+        c = wp.vec3(0.0)
+        shape = int(0)
+        if kind == TRIANGLE:
+            a = geometry.tri_verts[3 * i]
+            b = geometry.tri_verts[3 * i + 1]
+            c = geometry.tri_verts[3 * i + 2]
+            shape = geometry.tri_shape[i]
+        if wp.static(shapes):
+            if kind == POLYGON:
+                k = polygon_triangle(lights, e, x)
+                a = lights.emit_corner[3 * k]
+                b = lights.emit_corner[3 * k + 1]
+                c = lights.emit_corner[3 * k + 2]
+                shape = geometry.poly_shape[i]
+        su = wp.sqrt(u[0])
+        q = a + su * (1.0 - u[1]) * (b - a) + su * u[1] * (c - a)
+        prim = (i << KIND_BITS) | kind
+        ns = wp.normalize(wp.cross(b - a, c - a))
+        if wp.static(shapes):
+            if kind == POLYGON:
+                ns = geometry.poly_normal[i]
+        if wp.static(smooth):
+            if kind == TRIANGLE:
+                ns = shading_normal(geometry, prim, -1, q, ns, time)
+        return q, ns, shape, prim
+
+    return emitting_point
+
+
+@functools.cache
+def make_sample_emitting(smooth: bool, shapes: bool, textures: bool):
     """``sample_emitting``; with ``smooth``, the emitting side of a smooth-shaded triangle is its
     interpolated shading normal's, as for a path that hits it; with ``shapes``, polygons and
-    spheres are in the pool too (else triangles only)."""
+    spheres are in the pool too (else triangles only); with ``textures``, emission textures."""
     emitting_pdf = make_emitting_pdf(shapes, smooth)
+    emitting_point = make_emitting_point(smooth, shapes)
+    emission_at = make_emission_at(textures)
 
     @wp.func
     def sample_emitting(
@@ -128,65 +205,44 @@ def make_sample_emitting(smooth: bool, shapes: bool):
         left of ``uc``, toward a sphere a direction uniform in its cone (none from inside);
         radiance zero where a back faces ``p``."""
         e = find_interval(lights.emit_cdf, 0, lights.emit_cdf.shape[0], uc)
-        i = lights.emit_prim[e]
-        kind = int(TRIANGLE)
+        below = lights.emit_cdf[e]
+        selection = lights.emit_cdf[e + 1] - below
         if wp.static(shapes):
-            kind = lights.emit_kind[e]
-            if kind == SPHERE:
+            if lights.emit_kind[e] == SPHERE:
+                i = lights.emit_prim[e]
                 wi, dist, solid_angle = sample_sphere_cone(
                     geometry.sphere_center[i], geometry.sphere_radius[i], p, u1, u2
                 )
                 if solid_angle == 0.0:
                     return wi, dist, wp.vec3(0.0), 0.0
-                radiance = materials.emission[materials.shape_material[geometry.sphere_shape[i]]]
-                selection = lights.emit_cdf[e + 1] - lights.emit_cdf[e]
+                q = p + dist * wi
+                radiance = emission_at(
+                    geometry, materials, geometry.sphere_shape[i], (i << KIND_BITS) | SPHERE, q, time
+                )
                 return wi, dist, radiance, selection / solid_angle
-        a = wp.vec3(0.0)
-        b = wp.vec3(0.0)
-        c = wp.vec3(0.0)
-        shape = int(0)
-        if kind == TRIANGLE:
-            a = geometry.tri_verts[3 * i]
-            b = geometry.tri_verts[3 * i + 1]
-            c = geometry.tri_verts[3 * i + 2]
-            shape = geometry.tri_shape[i]
-        if wp.static(shapes):
-            if kind == POLYGON:
-                below = lights.emit_cdf[e]
-                x = wp.clamp((uc - below) / (lights.emit_cdf[e + 1] - below), 0.0, 1.0)
-                k = polygon_triangle(lights, e, x)
-                a = lights.emit_corner[3 * k]
-                b = lights.emit_corner[3 * k + 1]
-                c = lights.emit_corner[3 * k + 2]
-                shape = geometry.poly_shape[i]
-        su = wp.sqrt(u1)
-        q = a + su * (1.0 - u2) * (b - a) + su * u2 * (c - a)
+        x = wp.clamp((uc - below) / selection, 0.0, 1.0)
+        q, ns, shape, prim = emitting_point(geometry, lights, e, x, wp.vec2(u1, u2), time)
         to_q = q - p
         dist2 = wp.dot(to_q, to_q)
         if dist2 == 0.0:
             return wp.vec3(0.0, 0.0, 1.0), 0.0, wp.vec3(0.0), 0.0
         dist = wp.sqrt(dist2)
         wi = to_q / dist
-        ns = wp.vec3(0.0)
-        if kind == TRIANGLE:
-            ns = wp.normalize(wp.cross(b - a, c - a))
-            if wp.static(smooth):
-                ns = shading_normal(geometry, (i << KIND_BITS) | TRIANGLE, -1, q, ns, time)
-        if wp.static(shapes):
-            if kind == POLYGON:
-                ns = geometry.poly_normal[i]
         if wp.dot(wi, ns) >= 0.0:
             return wi, dist, wp.vec3(0.0), 0.0
-        radiance = materials.emission[materials.shape_material[shape]]
+        radiance = emission_at(geometry, materials, shape, prim, q, time)
         return wi, dist, radiance, emitting_pdf(geometry, lights, e, p, wi, dist)
 
     return sample_emitting
 
 
 @functools.cache
-def make_emit_emitting(smooth: bool, shapes: bool):
+def make_emit_emitting(smooth: bool, shapes: bool, textures: bool):
     """``emit_emitting``; with ``smooth``, a smooth-shaded triangle emits about its interpolated
-    normal; with ``shapes``, polygons and spheres are in the pool too (else triangles only)."""
+    normal; with ``shapes``, polygons and spheres are in the pool too (else triangles only); with
+    ``textures``, emission textures."""
+    emitting_point = make_emitting_point(smooth, shapes)
+    emission_at = make_emission_at(textures)
 
     @wp.func
     def emit_emitting(
@@ -202,47 +258,20 @@ def make_emit_emitting(smooth: bool, shapes: bool):
         uniform point on it (a polygon's triangle chosen by area with what is left of ``uc``), a
         cosine-weighted direction about its emitting normal."""
         e = find_interval(lights.emit_cdf, 0, lights.emit_cdf.shape[0], uc)
-        i = lights.emit_prim[e]
-        selection = lights.emit_cdf[e + 1] - lights.emit_cdf[e]
+        below = lights.emit_cdf[e]
+        selection = lights.emit_cdf[e + 1] - below
         local = cosine_hemisphere(u_dir[0], u_dir[1])
-        kind = int(TRIANGLE)
         if wp.static(shapes):
-            kind = lights.emit_kind[e]
-            if kind == SPHERE:
-                radiance = materials.emission[materials.shape_material[geometry.sphere_shape[i]]]
-                es = emit_sphere(geometry.sphere_center[i], geometry.sphere_radius[i], radiance, u_pos, u_dir)
-                es.weight = es.weight / selection
-                es.pdf_area = es.pdf_area * selection
-                return es
-        a = wp.vec3(0.0)
-        b = wp.vec3(0.0)
-        c = wp.vec3(0.0)
-        shape = int(0)
-        if kind == TRIANGLE:
-            a = geometry.tri_verts[3 * i]
-            b = geometry.tri_verts[3 * i + 1]
-            c = geometry.tri_verts[3 * i + 2]
-            shape = geometry.tri_shape[i]
-        if wp.static(shapes):
-            if kind == POLYGON:
-                below = lights.emit_cdf[e]
-                x = wp.clamp((uc - below) / selection, 0.0, 1.0)
-                k = polygon_triangle(lights, e, x)
-                a = lights.emit_corner[3 * k]
-                b = lights.emit_corner[3 * k + 1]
-                c = lights.emit_corner[3 * k + 2]
-                shape = geometry.poly_shape[i]
-        su = wp.sqrt(u_pos[0])
-        q = a + su * (1.0 - u_pos[1]) * (b - a) + su * u_pos[1] * (c - a)
-        ns = wp.vec3(0.0)
-        if kind == TRIANGLE:
-            ns = wp.normalize(wp.cross(b - a, c - a))
-            if wp.static(smooth):
-                ns = shading_normal(geometry, (i << KIND_BITS) | TRIANGLE, -1, q, ns, time)
-        if wp.static(shapes):
-            if kind == POLYGON:
-                ns = geometry.poly_normal[i]
-        radiance = materials.emission[materials.shape_material[shape]]
+            if lights.emit_kind[e] == SPHERE:
+                i = lights.emit_prim[e]
+                q, n, area = sphere_point(geometry.sphere_center[i], geometry.sphere_radius[i], u_pos)
+                radiance = emission_at(
+                    geometry, materials, geometry.sphere_shape[i], (i << KIND_BITS) | SPHERE, q, time
+                )
+                return surface_emission(q, n, radiance, selection / area, local)
+        x = wp.clamp((uc - below) / selection, 0.0, 1.0)
+        q, ns, shape, prim = emitting_point(geometry, lights, e, x, u_pos, time)
+        radiance = emission_at(geometry, materials, shape, prim, q, time)
         return surface_emission(q, ns, radiance, selection / lights.emit_area[e], local)
 
     return emit_emitting
@@ -252,8 +281,8 @@ def make_emit_emitting(smooth: bool, shapes: bool):
 def make(options: Options) -> Functions:
     emitting_index = make_emitting_index(options.emissive_shapes)
     emitting_pdf = make_emitting_pdf(options.emissive_shapes, options.smooth)
-    sample_emitting = make_sample_emitting(options.smooth, options.emissive_shapes)
-    emit_emitting = make_emit_emitting(options.smooth, options.emissive_shapes)
+    sample_emitting = make_sample_emitting(options.smooth, options.emissive_shapes, options.textures)
+    emit_emitting = make_emit_emitting(options.smooth, options.emissive_shapes, options.textures)
 
     @wp.func
     def owns(light_type: wp.int32) -> bool:

@@ -46,6 +46,7 @@ class Options(NamedTuple):
     environment_map: bool = True  # an environment light with a map
     emissive_shapes: bool = True  # emissive polygons and spheres (else emissive triangles only)
     smooth: bool = True  # smooth-shaded triangles (their emitting side is the shading normal's)
+    textures: bool = True  # textured materials (an emissive primitive's emission may be a texture)
 
 
 class Functions(NamedTuple):

@@ -63,18 +63,17 @@ def sphere_pdf(lights: LightData, i: wp.int32, p: wp.vec3, wi: wp.vec3, dist: fl
 
 
 @wp.func
-def emit_sphere(center: wp.vec3, r: float, radiance: wp.vec3, u_pos: wp.vec2, u_dir: wp.vec2) -> EmissionSample:
-    """A ray leaving a sphere emitting ``radiance`` outward: a uniform point on it, a
-    cosine-weighted direction (emissive spheres share it)."""
-    n = uniform_sphere(u_pos[0], u_pos[1])
-    area = 4.0 * wp.pi * r * r
-    return surface_emission(center + r * n, n, radiance, 1.0 / area, cosine_hemisphere(u_dir[0], u_dir[1]))
+def sphere_point(center: wp.vec3, r: float, u: wp.vec2):
+    """A uniform point on a sphere (emissive spheres share it): ``(q, outward unit normal, area)``."""
+    n = uniform_sphere(u[0], u[1])
+    return center + r * n, n, 4.0 * wp.pi * r * r
 
 
 @wp.func
 def emit_sphere_light(lights: LightData, i: wp.int32, u_pos: wp.vec2, u_dir: wp.vec2) -> EmissionSample:
-    """A ray leaving sphere light ``i`` (``emit_sphere``)."""
-    return emit_sphere(lights.position[i], lights.radius[i], lights.power[i], u_pos, u_dir)
+    """A ray leaving sphere light ``i``: a uniform point on it, a cosine-weighted direction outward."""
+    q, n, area = sphere_point(lights.position[i], lights.radius[i], u_pos)
+    return surface_emission(q, n, lights.power[i], 1.0 / area, cosine_hemisphere(u_dir[0], u_dir[1]))
 
 
 def row(light) -> dict:

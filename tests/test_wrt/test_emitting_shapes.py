@@ -27,7 +27,7 @@ ELL = {
 }
 CENTER, RADIUS = (0.0, 2.0, 0.0), 0.5
 BALL = {"type": "sphere", "center": list(CENTER), "radius": RADIUS, "material": "lamp"}
-sample_emitting = make_sample_emitting(False, True)
+sample_emitting = make_sample_emitting(False, True, False)
 emitting_pdf = make_emitting_pdf(True, False)
 DOWN = {"origin": [0, 0.5, 0.0], "look_at": [0, 0, 0], "up": [0, 0, 1], "fov": 1.0}
 
@@ -173,7 +173,7 @@ def test_mis_matches_bsdf_sampling_alone_with_far_less_noise():
     assert abs(a.mean() - b.mean()) < 4 * se + 1e-4
 
 
-sample_smooth = make_sample_emitting(True, True)
+sample_smooth = make_sample_emitting(True, True, False)
 emitting_pdf_smooth = make_emitting_pdf(True, True)
 
 
