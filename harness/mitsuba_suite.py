@@ -1,11 +1,13 @@
 """Scenes judged by Mitsuba 3's render-test criterion against stored Mitsuba references, as
 Mitsuba's own suite stores its references.
 
-Three suites (``SUITES``): ``suite`` (``examples/mitsuba/suite``: scenes written the way Mitsuba's
+Four suites (``SUITES``): ``suite`` (``examples/mitsuba/suite``: scenes written the way Mitsuba's
 render tests write theirs, 32 x 32), ``participating_media`` (``examples/mitsuba/
 participating_media``: the scenes of Mitsuba 3's participating-media render tests, 48 x 48, their
-own resolution) and ``bsdf_spheres`` (``examples/mitsuba/bsdf_spheres``: its textured principled
-BSDF tests, 48 x 48, their films fixed at that size). Each scene is rendered by wrt at the suite's
+own resolution), ``bsdf_spheres`` (``examples/mitsuba/bsdf_spheres``: its textured principled
+BSDF tests, 48 x 48, their films fixed at that size) and ``various_emitters`` (``examples/mitsuba/
+various_emitters``: its two scenes of every emitter kind, 512 x 64, their own size: one rendered by
+wrt's path tracer, one by its light tracer). Each scene is rendered by wrt at the suite's
 budget of 2e6 samples an image (``Suite.spp`` per pixel) and judged by
 `wrt_harness.mitsuba_peer.mitsuba_z_test` against Mitsuba's render of the same file through a
 ``moment`` integrator at ``Suite.reference_spp`` (mean and per-sample variance in CIE XYZ), stored
@@ -47,19 +49,29 @@ SEED = 7
 
 @dataclass(frozen=True)
 class Suite:
+    """A folder of scenes whose films are ``width`` x ``height``, set by the XML parameters ``film``
+    (``{"res": 32}``; none for scenes whose film is fixed). Mitsuba renders each reference with
+    ``reference_params`` too (the light tracer's scenes: ``integrator = path``, which its
+    ``moment`` integrator can wrap, as Mitsuba's suite makes their references); wrt renders scene
+    ``name`` with the integrator ``integrators[name]`` where given, else the scene's own."""
+
     name: str
-    res: int
+    width: int
+    height: int
     scenes: tuple[str, ...]
     failing: dict[str, str] = field(default_factory=dict)
-    res_param: bool = True  # the scenes size their film by $res (Mitsuba's bsdf_spheres scenes: a fixed one)
+    film: dict[str, int] = field(default_factory=dict)
+    reference_params: dict[str, str] = field(default_factory=dict)
+    integrators: dict[str, str] = field(default_factory=dict)
+    reference_factor: int = 4  # the references' samples per pixel over the test's
 
     @property
     def spp(self) -> int:
-        return SAMPLES // (self.res * self.res)
+        return SAMPLES // (self.width * self.height)
 
     @property
     def reference_spp(self) -> int:
-        return 4 * self.spp
+        return self.reference_factor * self.spp
 
     def scene_path(self, name: str) -> Path:
         return EXAMPLES / self.name / f"{name}.xml"
@@ -77,7 +89,7 @@ class Suite:
         import mitsuba
 
         spp = spp or self.reference_spp
-        params = {"res": self.res} if self.res_param else {}
+        params = {**self.film, **self.reference_params}
         mean, var = render_mitsuba_moments(self.scene_path(name), spp, seed=SEED, **params)
         buffer = io.BytesIO()
         np.savez_compressed(
@@ -100,11 +112,12 @@ SUITES = {
         Suite(
             "bsdf_spheres",
             48,
+            48,
             ("test_texturedprincipled1", "test_texturedprincipled2", "test_texturedprincipledthin"),
-            res_param=False,
         ),
         Suite(
             "suite",
+            32,
             32,
             (
                 "envmap_path",
@@ -117,9 +130,21 @@ SUITES = {
                 "test_mesh_attributes_3_face_direct",
                 "test_mesh_attributes_3_vertex_direct",
             ),
+            film={"res": 32},
+        ),
+        Suite(
+            "various_emitters",
+            512,
+            64,
+            ("test_various_emitters", "test_various_emitters_ptracer"),
+            film={"resx": 512, "resy": 64},
+            reference_params={"integrator": "path"},
+            integrators={"test_various_emitters": "path"},
+            reference_factor=32,  # Mitsuba's path tracer sparkles on the back wall: at 4x its noise failed wrt
         ),
         Suite(
             "participating_media",
+            48,
             48,
             (
                 "test_hetero_sigmat",
@@ -143,6 +168,7 @@ SUITES = {
                 " in the fog sphere's shadow was the smooth-shaded emitter cube's light-sampling cosine, now Mitsuba's"
                 " (wrt.kernels.lights.emitting)",
             },
+            film={"res": 48},
         ),
     )
 }

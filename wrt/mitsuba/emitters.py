@@ -111,12 +111,13 @@ def environment_map(doc: Document, p: Plugin, matrix: np.ndarray) -> dict:
     return light
 
 
-def area_radiance(doc: Document, element: Element) -> list[float]:
-    """The radiance of an emitter attached to a shape (an ``area`` emitter)."""
+def area_radiance(doc: Document, element: Element) -> list[float] | dict:
+    """The radiance of an emitter attached to a shape (an ``area`` emitter): an RGB list, or the
+    texture table of a textured one (looked up at the shape's uv)."""
     p = Plugin(doc, element)
     if p.type != "area":
         doc.warn(element, "only area emitters can be attached to shapes: converted as area")
-    radiance = p.color("radiance", 1.0, emission=True)
+    radiance = textured_color(p, "radiance", 1.0, emission=True)
     p.finish()
     return radiance
 

@@ -54,7 +54,8 @@ def shape(
     front = -1.0 if p.boolean("flip_normals", False) else 1.0
     mirrored = mirrors(matrix[:3, :3]) != (front < 0)  # winding must be reversed to keep Mitsuba's front
     params = materials.of(bsdfs[0] if bsdfs else None).params
-    textured = any(isinstance(v, dict) for v in params.values())
+    radiance = area_radiance(doc, emitters[0]) if emitters else None
+    textured = any(isinstance(v, dict) for v in (*params.values(), radiance))
     anisotropic = "roughness_v" in params or params.get("anisotropy", 0.0) != 0.0
     oriented = textured or anisotropic  # its uv parametrisation shows: textures, an anisotropic tangent
 
@@ -110,14 +111,9 @@ def shape(
     material = materials.of(bsdf)
 
     if emitters:
-        radiance = area_radiance(doc, emitters[0])
-        if p.type in ("rectangle", "sphere"):
-            if material.reflects():
-                doc.warn(
-                    bsdfs[0] if bsdfs else element,
-                    "wrt's area lights reflect no light, but this emitter's "
-                    "BSDF reflects in Mitsuba (set its reflectance to 0 to compare)",
-                )
+        if p.type in ("rectangle", "sphere") and not material.reflects() and not isinstance(radiance, dict):
+            # a light of its own (sampled directly, reflecting nothing); an emitter that reflects or
+            # whose radiance is a texture is an emissive shape below (sampled in the pool as well)
             if bounds:
                 doc.warn(element, "an area-emitting rectangle or sphere that bounds a medium: its media are ignored")
             light = surface_light(tables[0], radiance)
@@ -126,8 +122,8 @@ def shape(
             lights.append(light)
             p.finish()
             return
-        # emission of the material, from the front side as Mitsuba's area emitter: the same expected
-        # image (wrt finds it by BSDF sampling only, with more noise)
+        # emission of the material, from the front side as Mitsuba's area emitter (next-event
+        # estimation samples it among the emissive primitives where the pool holds its kind)
         base = bsdfs[0].attrs.get("id", material.params["type"]) if bsdfs else "default"
         name = materials.add(
             f"{base}+emission@{emitters[0].line}", {**material.table, "emission": radiance}, emitters[0]
