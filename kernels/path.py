@@ -55,7 +55,6 @@ from .lights import LightData, lighting_for
 from .materials import (
     BSDF_SPECULAR,
     BSDF_THIN,
-    BSDF_TOTAL_INTERNAL,
     BSDF_TRANSMISSION,
     NULL,
     THIN_DIELECTRIC,
@@ -75,15 +74,7 @@ from .media import (
     medium_transmittance,
     no_interface,
 )
-from .record import (
-    REFLECTED,
-    REFRACTED,
-    SCATTERED,
-    STRAIGHT,
-    TOTAL_INTERNAL,
-    RayRecord,
-    end_in_medium,
-)
+from .record import SCATTERED, STRAIGHT, RayRecord, bounce_kind, end_in_medium
 from .sample_warps import power_heuristic
 from .sampling import Sampler, sample_1d, sample_2d
 from .shadow import make_shadow_ray
@@ -545,21 +536,19 @@ def make_path_radiance(record: bool, features: Features = ALL, inline: bool | No
                     passed = materials.type[hit.material] == NULL or materials.type[hit.material] == THIN_DIELECTRIC
                     if not (null_event and passed):
                         path.specular = True
-                    path.segment_kind = wp.where((bs.flags & BSDF_TOTAL_INTERNAL) != 0, TOTAL_INTERNAL, REFLECTED)
                     if (bs.flags & BSDF_TRANSMISSION) != 0:
                         path.media = interface.media
                         path.n_media = interface.n_media
                         straight = interface.eta == 1.0  # index-matched: straight on
-                        path.segment_kind = wp.where(straight, STRAIGHT, REFRACTED)
                 else:
                     path.prev_pdf = bs.pdf
                     path.prev_p = hit.p
                     path.specular = False
-                    path.segment_kind = SCATTERED
                     if wp.static(features.rough_dielectric):
                         if (bs.flags & BSDF_TRANSMISSION) != 0:  # refracted through a rough dielectric
                             path.media = interface.media
                             path.n_media = interface.n_media
+                path.segment_kind = bounce_kind(bs.flags, straight)
                 if wp.static(features.media):
                     if volumetric:  # the medium on the side the path leaves to, where the shape bounds media
                         path.medium = boundary_medium(

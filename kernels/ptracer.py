@@ -62,7 +62,7 @@ from .camera import (
 from .features import ALL, Features
 from .film import Film, write_aovs
 from .hit import Hit, make_surface_hit_for, normal_map_shadowing
-from .integrator import IntegratorSettings, RenderPass
+from .integrator import CameraRay, IntegratorSettings, RenderPass, make_trace_segment
 from .lights import SHADOW_MARGIN, LightData, lighting_for
 from .materials import (
     BSDF_SPECULAR,
@@ -84,7 +84,7 @@ from .media import (
     no_interface,
 )
 from .path import RR_DEPTH
-from .record import RayRecord
+from .record import CAMERA, EMITTED, STRAIGHT, RayRecord, bounce_kind
 from .sample_warps import concentric_disk
 from .sampling import Sampler, sample_1d, sample_2d
 from .shadow import make_shadow_ray
@@ -265,9 +265,21 @@ def shading_correction(n_s: wp.vec3, n_g: wp.vec3, wo: wp.vec3, wi: wp.vec3) -> 
     return wp.abs(o_s * i_g / (i_s * o_g))
 
 
+@wp.func
+def slot_sample(slot: wp.int32, s: wp.int32, time: float) -> CameraRay:
+    """What the recording of sample ``s`` of ``slot`` at ray time ``time`` is keyed by (a
+    ``CameraRay`` of that pixel, sample and time; its other fields unused)."""
+    who = CameraRay()
+    who.pixel = slot
+    who.sample = s
+    who.time = time
+    return who
+
+
 def make_ptracer_kernel(
     *,
     module: str,
+    record: bool = False,
     features: Features = ALL,
     options: dict | None = None,
     inline: bool | None = None,
@@ -277,9 +289,13 @@ def make_ptracer_kernel(
     traversal's and the BSDF interface's inline hint. It takes a render kernel's arguments (its
     ``RenderPass``'s pixels are the slots) with a ``LightTracing`` before the film, whose
     ``rejected`` counts the slots' dropped splats; the first pass writes the AOVs as the other
-    integrators do (the pixel-centre ray)."""
+    integrators do (the pixel-centre ray). Its last argument is a ``RayRecord``: where ``record``,
+    every ray a slot traces is appended to it (``wrt.kernels.record``: each light path from its
+    ``EMITTED`` ray, its connections to the camera, the slot's camera rays toward the sky), else
+    it is empty and untouched."""
     trace = traversal(features, inline)
-    shadow_ray = make_shadow_ray(False, trace, False)
+    trace_segment = make_trace_segment(record, trace)
+    shadow_ray = make_shadow_ray(record, trace, False, to_camera=True)
     lighting = lighting_for(features)
     bsdf = make_bsdf(families_for(features), features.textures, inline, features.beckmann, features.anisotropic)
     surface_hit = make_surface_hit_for(features)
@@ -293,7 +309,10 @@ def make_ptracer_kernel(
         materials: MaterialData,
         tracing: LightTracing,
         cam: CameraData,
-        time: float,
+        who: CameraRay,
+        rec: RayRecord,
+        depth: wp.int32,
+        parent: wp.int32,
         link: CameraLink,
         p: wp.vec3,
         n: wp.vec3,
@@ -303,7 +322,9 @@ def make_ptracer_kernel(
     ) -> wp.int32:
         """Splat ``value`` (before the camera's importance) along ``link`` from point ``p`` (geometric
         normal ``n``, offset bound ``err``) where nothing blocks it, the shadow ray crossing a
-        dielectric of absorption ``sigma``; the count of dropped splats."""
+        dielectric of absorption ``sigma``; the count of dropped splats. The shadow ray is
+        recorded as segment ``depth`` of slot ``who.pixel``'s sample ``who.sample``, child of
+        record ``parent`` (at ``who.time``)."""
         if max_component(value) <= 0.0:
             return 0
         o = spawn_origin(p, n, err, link.wc)
@@ -314,14 +335,14 @@ def make_ptracer_kernel(
             o,
             link.wc,
             link.length * (1.0 - SHADOW_MARGIN),
-            time,
+            who.time,
             sigma,
-            RayRecord(),
-            0,
-            0,
-            0,
-            -1,
-            wp.vec3(0.0),
+            rec,
+            who.pixel,
+            who.sample,
+            depth,
+            parent,
+            value * link.importance,
         )
         if max_component(visible) <= 0.0:
             return 0
@@ -333,7 +354,10 @@ def make_ptracer_kernel(
         materials: MaterialData,
         tracing: LightTracing,
         cam: CameraData,
-        time: float,
+        who: CameraRay,
+        rec: RayRecord,
+        depth: wp.int32,
+        parent: wp.int32,
         link: CameraLink,
         hit: Hit,
         n_g: wp.vec3,
@@ -349,7 +373,7 @@ def make_ptracer_kernel(
         ``flags``, ``interface`` to the media beyond) sends along ``link`` of the light that arrived
         with ``throughput`` from ``hit.wo``; the count of dropped splats. The camera may be seen
         through a surface with glossy transmission (then the importance scaling of a transmission
-        applies, and the shadow ray crosses the medium beyond).
+        applies, and the shadow ray crosses the medium beyond). Recorded as ``connect``'s.
 
         A normal- or bump-mapped surface's frame depends on the side it is seen from
         (``wrt.kernels.hit``): seen from the camera's side, it is evaluated as the path integrator
@@ -360,7 +384,7 @@ def make_ptracer_kernel(
             sigma = medium_sigma(materials, media, n_media)
         if wp.static(features.normal_map):
             if not (hit.n_unmapped == hit.n_facing) and wp.dot(n_g, link.wc) > 0.0:
-                seen = surface_hit(geometry, materials, ray_hit(hit.p + link.wc, -link.wc, time, 1.0, prim, inst))
+                seen = surface_hit(geometry, materials, ray_hit(hit.p + link.wc, -link.wc, who.time, 1.0, prim, inst))
                 cos_l = wp.dot(seen.n_facing, hit.wo)
                 if cos_l <= 0.0:
                     return 0
@@ -369,7 +393,22 @@ def make_ptracer_kernel(
                 )
                 f = f * (normal_map_shadowing(seen, hit.wo) * cos_l * wp.dot(n_g, link.wc) / wp.dot(n_g, hit.wo))
                 value = wp.cw_mul(throughput, f)
-                return connect(geometry, materials, tracing, cam, time, link, hit.p, hit.n, hit.err, value, sigma)
+                return connect(
+                    geometry,
+                    materials,
+                    tracing,
+                    cam,
+                    who,
+                    rec,
+                    depth,
+                    parent,
+                    link,
+                    hit.p,
+                    hit.n,
+                    hit.err,
+                    value,
+                    sigma,
+                )
         shadowing = float(1.0)
         if wp.static(features.normal_map):
             shadowing = normal_map_shadowing(hit, hit.wo)
@@ -389,7 +428,9 @@ def make_ptracer_kernel(
                 sigma = medium_sigma(materials, interface.media, interface.n_media)
                 scale = importance_scale(BSDF_TRANSMISSION, interface.eta)
         value = wp.cw_mul(throughput, f) * (wp.abs(cos_s) * correction * scale * shadowing)
-        return connect(geometry, materials, tracing, cam, time, link, hit.p, hit.n, hit.err, value, sigma)
+        return connect(
+            geometry, materials, tracing, cam, who, rec, depth, parent, link, hit.p, hit.n, hit.err, value, sigma
+        )
 
     @wp.func
     def trace_light_path(
@@ -400,15 +441,18 @@ def make_ptracer_kernel(
         cam: CameraData,
         sampler: Sampler,
         tracing: LightTracing,
+        rec: RayRecord,
         slot: wp.int32,
         s: wp.int32,
     ) -> wp.int32:
-        """Light path ``s`` of ``slot``: its splats added; returns how many were dropped."""
+        """Light path ``s`` of ``slot``: its splats added (and its rays recorded); returns how many
+        were dropped."""
         dropped = int(0)
         time = shutter_time(cam, 0.5)
         if wp.static(features.motion):
             if sampler.spp > 1:
                 time = shutter_time(cam, sample_1d(sampler, slot, s, 0))
+        who = slot_sample(slot, s, time)
         n_lights = wp.static(lighting.count)(lights)
         if n_lights == 0:
             return 0
@@ -437,7 +481,7 @@ def make_ptracer_kernel(
                     value = es.radiance * (cos_light * selection / es.pdf_area)
                     err = point_error(es.o, 0.0)
                     dropped += connect(
-                        geometry, materials, tracing, cam, time, link, es.o, es.n, err, value, wp.vec3(0.0)
+                        geometry, materials, tracing, cam, who, rec, 1, -1, link, es.o, es.n, err, value, wp.vec3(0.0)
                     )
 
         throughput = es.weight * selection
@@ -454,10 +498,17 @@ def make_ptracer_kernel(
         vertex = int(0)
         media = Media()
         n_media = int(0)
+        kind = int(EMITTED)  # recording: how the segment being traced was spawned
+        parent = int(-1)  # recording: the record of the segment that ended where it starts
         for _segment in range(4 * settings.max_depth + 16):
             if depth + 1 > settings.max_depth:  # no connection of this segment's end would count
                 break
-            t, prim, inst = trace.closest_hit(geometry, o, d, time, t_from, wp.inf)
+            found, parent = trace_segment(
+                geometry, rec, who, kind, o, d, t_from, wp.inf, t_last, throughput, depth, parent
+            )
+            t = found.t
+            prim = found.prim
+            inst = found.inst
             if prim == NO_HIT:
                 break
             if wp.static(features.dielectric):
@@ -479,6 +530,7 @@ def make_ptracer_kernel(
                     n_media = interface.n_media
                     t_from = past_hit(o, hit.p, t)
                     t_last = t
+                    kind = STRAIGHT
                     continue
             n_g = wp.where(wp.dot(hit.n, hit.wo) < 0.0, -hit.n, hit.n)  # the geometric normal on the light's side
             shadowing = float(1.0)
@@ -495,7 +547,10 @@ def make_ptracer_kernel(
                         materials,
                         tracing,
                         cam,
-                        time,
+                        who,
+                        rec,
+                        depth + 1,
+                        parent,
                         link,
                         hit,
                         n_g,
@@ -527,11 +582,13 @@ def make_ptracer_kernel(
             depth += 1
             vertex += 1
             straight = bool(False)
+            kind = bounce_kind(bs.flags, False)
             if (bs.flags & BSDF_TRANSMISSION) != 0:
                 if wp.static(features.dielectric):
                     media = interface.media
                     n_media = interface.n_media
                 straight = (bs.flags & BSDF_SPECULAR) != 0 and interface.eta == 1.0  # index-matched: straight on
+                kind = bounce_kind(bs.flags, straight)
             if straight:
                 t_from = past_hit(o, hit.p, t)
                 t_last = t
@@ -551,19 +608,19 @@ def make_ptracer_kernel(
         geometry: GeometryData,
         lights: LightData,
         cam: CameraData,
-        sampler: Sampler,
         tracing: LightTracing,
-        slot: wp.int32,
-        s: wp.int32,
+        rec: RayRecord,
+        who: CameraRay,
         o: wp.vec3,
         d: wp.vec3,
-        time: float,
     ) -> wp.int32:
         """The environment seen directly along the slot's camera ray ``o + s d`` (before
-        clipping), added to the slot's pixel; 1 if it was dropped."""
+        clipping; its slot, sample and time ``who``'s), added to the slot's pixel (and the ray
+        recorded); 1 if it was dropped."""
+        slot = who.pixel
         o, t_max = clip_ray(cam, o, d)
-        t, prim, inst = trace.closest_hit(geometry, o, d, time, 0.0, t_max)
-        if prim != NO_HIT:  # reaching the far clip plane is leaving the scene too
+        found, _index = trace_segment(geometry, rec, who, CAMERA, o, d, 0.0, t_max, 0.0, wp.vec3(1.0), 1, -1)
+        if found.prim != NO_HIT:  # reaching the far clip plane is leaving the scene too
             return 0
         value = wp.static(lighting.environment_radiance)(lights, d, 0.0, True)
         if not wp.isfinite(value) or max_component(value) > SPLAT_LIMIT:
@@ -582,6 +639,7 @@ def make_ptracer_kernel(
         launch: RenderPass,
         tracing: LightTracing,
         film: Film,
+        rec: RayRecord,
     ):
         slot = launch.first_pixel + wp.tid()
         x = slot % cam.width
@@ -608,8 +666,8 @@ def make_ptracer_kernel(
                         o, d = thin_lens_ray(cam, o, d, concentric_disk(lens[0], lens[1]))
                     if wp.static(features.motion):
                         time = shutter_time(cam, sample_1d(sampler, slot, s, 0))
-                dropped += sky_seen(geometry, lights, cam, sampler, tracing, slot, s, o, d, time)
-            dropped += trace_light_path(geometry, materials, lights, settings, cam, sampler, tracing, slot, s)
+                dropped += sky_seen(geometry, lights, cam, tracing, rec, slot_sample(slot, s, time), o, d)
+            dropped += trace_light_path(geometry, materials, lights, settings, cam, sampler, tracing, rec, slot, s)
         film.rejected[slot] = dropped
 
     wp.set_module_options({**MODULE_OPTIONS, **(options or {})}, module=module)

@@ -13,7 +13,8 @@ field      type      meaning
 pixel      int32     pixel index ``y * width + x`` (row 0 at the top)
 sample     int32     sample index within the pixel (0 with ``spp = 1``: the pixel centre)
 kind       int32     how the ray was spawned: ``CAMERA``, ``SHADOW_LIT``, ``SHADOW_BLOCKED``,
-                     ``REFLECTED``, ``REFRACTED``, ``TOTAL_INTERNAL``, ``STRAIGHT``, ``SCATTERED``
+                     ``REFLECTED``, ``REFRACTED``, ``TOTAL_INTERNAL``, ``STRAIGHT``, ``SCATTERED``,
+                     ``EMITTED``, ``TO_CAMERA``, ``TO_CAMERA_BLOCKED``
 flags      int32     ``HIT``: ends on a surface; ``ENTERING``: hits it from its front side (against
                      ``normal``); ``ESCAPED``: left the scene (a miss, or a shadow ray toward a
                      directional light): ``end = origin + direction``, unit length;
@@ -37,7 +38,12 @@ parent     int32     buffer index of the segment whose end this one starts from,
 Kinds: ``STRAIGHT`` is a ray continuing unbent through a false interface (the surface of a
 dielectric that does not own the space, see ``wrt.kernels.whitted``); ``TOTAL_INTERNAL`` is a
 reflection at a dielectric past the critical angle. ``SCATTERED`` is a direction drawn from a
-diffuse, Phong or glossy BSDF (the path integrator). Later integrators add kinds at the end.
+diffuse, Phong or glossy BSDF (the path integrator). The light tracer (``wrt.kernels.ptracer``)
+records its paths from the lights: ``EMITTED`` the ray leaving a light (no parent), then the
+bounces' kinds, and at each vertex its connection to the camera, ``TO_CAMERA`` up to the lens
+(carrying what it splats onto the film, the camera's importance included) or
+``TO_CAMERA_BLOCKED`` ending at the surface that stopped it; its ``pixel`` is the slot that traced
+it, not the pixel the light reaches. Later integrators add kinds at the end.
 
 Capacity: ``count[0]`` counts every append, stored or not; segments beyond ``segments.shape[0]``
 are dropped (a truncated recording), and their children still name them as parents.
@@ -45,6 +51,7 @@ are dropped (a truncated recording), and their children still name them as paren
 
 import warp as wp
 
+from .materials.interface import BSDF_SPECULAR, BSDF_TOTAL_INTERNAL, BSDF_TRANSMISSION
 from .traverse import NO_HIT, GeometryData, RayHit, hit_point, hit_shape
 
 CAMERA = wp.constant(0)
@@ -55,6 +62,9 @@ REFRACTED = wp.constant(4)
 TOTAL_INTERNAL = wp.constant(5)
 STRAIGHT = wp.constant(6)
 SCATTERED = wp.constant(7)
+EMITTED = wp.constant(8)
+TO_CAMERA = wp.constant(9)
+TO_CAMERA_BLOCKED = wp.constant(10)
 KIND_NAMES = (
     "camera",
     "shadow to light",
@@ -64,7 +74,23 @@ KIND_NAMES = (
     "total internal reflection",
     "straight through",
     "scattered",
+    "emitted",
+    "to camera",
+    "to camera blocked",
 )
+
+
+@wp.func
+def bounce_kind(flags: wp.int32, straight: bool) -> wp.int32:
+    """The kind of the segment a BSDF sample of lobe ``flags`` spawns: ``SCATTERED`` off a
+    non-specular lobe; off a specular one ``REFLECTED`` (``TOTAL_INTERNAL`` past the critical
+    angle), ``REFRACTED``, or ``STRAIGHT`` where it goes on unbent (``straight``: index-matched)."""
+    if (flags & BSDF_SPECULAR) == 0:
+        return SCATTERED
+    if (flags & BSDF_TRANSMISSION) != 0:
+        return wp.where(straight, STRAIGHT, REFRACTED)
+    return wp.where((flags & BSDF_TOTAL_INTERNAL) != 0, TOTAL_INTERNAL, REFLECTED)
+
 
 HIT = wp.constant(1)
 ENTERING = wp.constant(2)

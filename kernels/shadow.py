@@ -37,7 +37,7 @@ from .materials import (
     thin_transmittance,
 )
 from .media import beer_lambert, max_component
-from .record import SHADOW_BLOCKED, SHADOW_LIT, RayRecord, record_ray
+from .record import SHADOW_BLOCKED, SHADOW_LIT, TO_CAMERA, TO_CAMERA_BLOCKED, RayRecord, record_ray
 from .sampling import pcg_hash
 from .spawn import spawn_origin
 from .traverse import (
@@ -56,9 +56,11 @@ from .volumes import boundary_medium, has_media, volume_transmittance
 SHADOW_CROSSINGS = wp.constant(16)  # dielectric surfaces a filtered shadow ray may pass
 
 
-def make_shadow_ray(record: bool, trace: Traversal, media: bool = False):
-    """``shadow_ray`` over the traversal ``trace``, recording when ``record`` and through
+def make_shadow_ray(record: bool, trace: Traversal, media: bool = False, to_camera: bool = False):
+    """``shadow_ray`` over the traversal ``trace``, recording when ``record`` (as ``TO_CAMERA`` and
+    ``TO_CAMERA_BLOCKED`` where ``to_camera``: the light tracer's connections) and through
     participating media and null surfaces when ``media`` (each compiled out otherwise)."""
+    lit, blocked = (TO_CAMERA, TO_CAMERA_BLOCKED) if to_camera else (SHADOW_LIT, SHADOW_BLOCKED)
     surface_point = make_surface_point(trace.features.disks or trace.features.cylinders)
     smooth = trace.features.smooth
 
@@ -221,7 +223,7 @@ def make_shadow_ray(record: bool, trace: Traversal, media: bool = False):
                     geometry,
                     pixel,
                     sample,
-                    SHADOW_LIT,
+                    wp.static(lit),
                     ray_hit(o, w, time, t_max, NO_HIT, -1),
                     wp.cw_mul(throughput, visible),
                     depth,
@@ -235,7 +237,7 @@ def make_shadow_ray(record: bool, trace: Traversal, media: bool = False):
                     geometry,
                     pixel,
                     sample,
-                    SHADOW_BLOCKED,
+                    wp.static(blocked),
                     ray_hit(o, w, time, t_stop, prim_stop, inst_stop),
                     wp.vec3(0.0),
                     depth,

@@ -25,8 +25,9 @@ from .integrator import make_render_kernel
 from .materials import MATERIAL_FLAGS
 
 INTEGRATORS = ("raycast", "whitted", "path", "ptracer")
-RECORDING = ("raycast", "whitted", "path")
-"""The integrators with recording kernels (``wrt.rays``): the light tracer's paths belong to no pixel."""
+RECORDING = INTEGRATORS
+"""The integrators with recording kernels (``wrt.rays``): all (the light tracer records the light
+paths of the slots asked for, ``wrt.kernels.ptracer``)."""
 
 
 CUDA_INLINE = False
@@ -115,9 +116,7 @@ def all_features_kernel(integrator: str, record: bool = False, cuda: bool = Fals
     either); built on first use."""
     module = f"wrt_{integrator}_{'record' if record else 'all'}{'_cuda' if cuda else ''}"
     if integrator == "ptracer":
-        if record:
-            raise ValueError("the light tracer has no recording kernel (RECORDING)")
-        return _light_tracer(ALL, module, cuda)
+        return _light_tracer(ALL, module, cuda, record)
     return make_render_kernel(
         _radiance(integrator, ALL, record, cuda),
         module=module,
@@ -142,8 +141,11 @@ def _kernel(integrator: str, features: Features, cuda: bool = False):
     )
 
 
-def _light_tracer(features: Features, module: str, cuda: bool):
-    """The light tracer's kernel for ``features`` in Warp module ``module`` (``wrt.kernels.ptracer``)."""
+def _light_tracer(features: Features, module: str, cuda: bool, record: bool = False):
+    """The light tracer's kernel for ``features`` in Warp module ``module`` (``wrt.kernels.ptracer``),
+    recording where ``record``."""
     from .ptracer import make_ptracer_kernel
 
-    return make_ptracer_kernel(module=module, features=features, options=OPTIONS["ptracer"], inline=_inline(cuda))
+    return make_ptracer_kernel(
+        module=module, record=record, features=features, options=OPTIONS["ptracer"], inline=_inline(cuda)
+    )

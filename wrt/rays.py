@@ -4,6 +4,9 @@ The rays come from the render kernels themselves, in their recording variant
 (``wrt.kernels.variants.all_features_kernel(integrator, record=True)``, see
 ``wrt.kernels.record``), launched over the chosen pixels with the same set-up as ``wrt.render``:
 same camera rays, same samples for the same seed, same decisions. Nothing is re-implemented in Python.
+The light tracer's (``integrator = "ptracer"``) are the light paths the chosen pixels' slots trace
+(one a sample, each from a light, with its connections to the camera; ``wrt.kernels.record``),
+which reach the film anywhere, not only at those pixels.
 
 >>> import wrt
 >>> from wrt.rays import trace_rays
@@ -19,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import warp as wp
 
+from wrt.kernels.ptracer import FIXED_POINT
 from wrt.kernels.record import (
     ENTERING,
     ESCAPED,
@@ -27,6 +31,8 @@ from wrt.kernels.record import (
     KIND_NAMES,
     SHADOW_BLOCKED,
     SHADOW_LIT,
+    TO_CAMERA,
+    TO_CAMERA_BLOCKED,
     RayRecord,
     Segment,
 )
@@ -38,9 +44,11 @@ from .bvh import node_bounds
 from .device import resolve_device
 from .errors import WrtError
 from .loader import override_render
-from .renderer import prepare
+from .renderer import light_tracing, prepare
 from .scene import Scene
 
+SHADOW_KINDS = (SHADOW_LIT, SHADOW_BLOCKED, TO_CAMERA, TO_CAMERA_BLOCKED)
+"""The kinds of shadow rays (any-hit queries toward a light or the camera)."""
 DEFAULT_CAPACITY = 1 << 18  # segments (about 30 MB); a whitted camera ray is at most 512 plus its shadow rays
 MAX_VISITS = 512  # BVH nodes logged per replayed ray (--show-bvh)
 
@@ -51,7 +59,8 @@ class RayTree:
 
     One row per ray segment, in the order each pixel's thread traced them (depth first), pixels
     in the order asked, samples in order. ``parent[i]`` is the row whose end segment ``i`` starts
-    from (-1 for a camera ray), so the tree of each (pixel, sample) is recoverable.
+    from (-1 for a camera ray, and for the light tracer's rays leaving a light and its connections
+    of a light to the camera), so the tree of each (pixel, sample) is recoverable.
 
     Attributes
     ----------
@@ -61,7 +70,9 @@ class RayTree:
         The pixels asked for, (x, y), row 0 at the top.
     rgb : (P, 3) float32
         Their radiance (W/(m^2 sr)) from the recording launch: what ``wrt.render`` gives with
-        ``spp = samples``.
+        ``spp = samples``. The light tracer's (``integrator = "ptracer"``): what the recorded light
+        paths splatted onto them, a part of their value only (their light comes from every slot's
+        paths).
     position : (P, 3) float32
         Their ``position`` AOV (pixel-centre ray; 0 on a miss).
     samples : int
@@ -195,11 +206,7 @@ def trace_rays(
         raise WrtError(f"samples must be >= 1, got {samples}")
     if capacity < 1:
         raise WrtError(f"capacity must be >= 1, got {capacity}")
-    if scene.render.integrator not in RECORDING:
-        raise WrtError(
-            f"{scene.path}: render.integrator = {scene.render.integrator}: its light paths belong to no pixel, so none "
-            'is recorded; set [render] integrator = "path" to see its camera paths'
-        )
+    assert scene.render.integrator in RECORDING
     dev = resolve_device(device)
     kernel = all_features_kernel(scene.render.integrator, record=True, cuda=dev.is_cuda)
     load(kernel.module, dev)
@@ -207,8 +214,9 @@ def trace_rays(
     rec = RayRecord()
     rec.count = wp.zeros(1, dtype=wp.int32, device=dev)
     rec.segments = wp.zeros(capacity, dtype=Segment, device=dev)
+    tracing = light_tracing(scene, w * h, dev) if scene.render.integrator == "ptracer" else None
     for x, y in chosen:  # one thread per launch: each pixel's segments stay together, in order
-        device_scene.launch(kernel, y * w + x, 1, samples, scene.render.seed, rec)
+        device_scene.launch(kernel, y * w + x, 1, samples, scene.render.seed, rec, tracing=tracing)
     recorded = int(rec.count.numpy()[0])
     seg = rec.segments.numpy()[: min(recorded, capacity)]
     flags = seg["flags"]
@@ -220,6 +228,8 @@ def trace_rays(
         bvh_lo, bvh_hi = node_bounds(device_scene.geometry.nodes.numpy())
     index = np.array([y * w + x for x, y in chosen])
     rgb = device_scene.film.rgb.numpy()[index]
+    if tracing is not None:  # what the recorded light paths splatted there
+        rgb = (tracing.splat.numpy()[index] / (FIXED_POINT * samples)).astype(np.float32)
     position = device_scene.film.position.numpy()[index]
     return RayTree(
         scene=scene,
@@ -254,7 +264,7 @@ def trace_rays(
 def bvh_visits(device_scene, seg: np.ndarray, dev) -> tuple[np.ndarray, np.ndarray]:
     """``(row, node)`` of every BVH node the closest-hit query of each recorded non-shadow segment
     visits, in order: the segments replayed through ``wrt.kernels.traverse.trace_visits``."""
-    rows = np.flatnonzero(~np.isin(seg["kind"], [SHADOW_LIT, SHADOW_BLOCKED]))
+    rows = np.flatnonzero(~np.isin(seg["kind"], SHADOW_KINDS))
     if len(rows) == 0 or device_scene.geometry.nodes.shape[0] == 0:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     log = VisitLog()

@@ -52,7 +52,7 @@ from dataclasses import dataclass
 import numpy as np
 import pyvista as pv
 
-from wrt.kernels.record import CAMERA
+from wrt.kernels.record import CAMERA, EMITTED
 
 from .errors import WrtError
 from .files import atomic_path, check_report_folder, check_writable, report_folder
@@ -75,7 +75,19 @@ from .scene import (
 )
 
 # colour of each kind (indices of wrt.kernels.record.KIND_NAMES)
-KIND_COLORS = ("#1f5fbf", "#f0a202", "#c1121f", "#2a9d3f", "#8e44ad", "#e056b5", "#16a3b8", "#7a5c3e")
+KIND_COLORS = (
+    "#1f5fbf",
+    "#f0a202",
+    "#c1121f",
+    "#2a9d3f",
+    "#8e44ad",
+    "#e056b5",
+    "#16a3b8",
+    "#7a5c3e",
+    "#d4b000",
+    "#4cc9f0",
+    "#6c757d",
+)
 GEOMETRY_OPACITY = 0.25
 PLANE_OPACITY = 0.12  # planes are large: fainter, so they do not veil the rays
 NORMAL_COLOR = "#404040"
@@ -115,30 +127,35 @@ def tree_vertices(tree: RayTree) -> np.ndarray:
     """The vertices of the ray trees, (n, 3) float64, each once: where the camera rays start and
     where a segment ends on a surface (hit points, the blockers of shadow rays). Not the lights
     a shadow ray reaches, nor where an escaped ray is drawn to."""
-    points = np.concatenate([tree.origin[tree.kind == CAMERA], tree.end[tree.hit]]).astype(np.float64)
+    points = np.concatenate([tree.origin[_roots(tree)], tree.end[tree.hit]]).astype(np.float64)
     return np.unique(points, axis=0)
 
 
+def _roots(tree: RayTree) -> np.ndarray:
+    """Where each path starts: its camera rays, and the light tracer's rays leaving a light."""
+    return np.isin(tree.kind, (CAMERA, EMITTED))
+
+
 def _camera_distance(tree: RayTree, rows: np.ndarray) -> np.ndarray:
-    """Distance of the ends of segments ``rows`` from the start of their path's camera ray."""
+    """Distance of the ends of segments ``rows`` from the start of their path (``_roots``)."""
     key = (tree.pixel[:, 1].astype(np.int64) * tree.scene.render.width + tree.pixel[:, 0]) * tree.samples + tree.sample
-    cameras = np.flatnonzero(tree.kind == CAMERA)
+    cameras = np.flatnonzero(_roots(tree))
     order = np.argsort(key[cameras], kind="stable")
     found = cameras[order][np.searchsorted(key[cameras][order], key[rows]).clip(0, max(len(cameras) - 1, 0))]
     return np.linalg.norm(tree.end[rows].astype(np.float64) - tree.origin[found], axis=1)
 
 
 def framed_vertices(tree: RayTree) -> np.ndarray:
-    """The vertices of ``tree_vertices`` that the automatic view frames: the camera rays' starts,
-    and every hit point but the far ones, those more than ``FAR_FACTOR`` times as far from their
-    camera ray's start as the median hit (a ray that grazes the floor and meets it hundreds of
+    """The vertices of ``tree_vertices`` that the automatic view frames: the paths' starts
+    (``_roots``), and every hit point but the far ones, those more than ``FAR_FACTOR`` times as far
+    from their path's start as the median hit (a ray that grazes the floor and meets it hundreds of
     units away, a wall at the horizon). Their segments are still drawn, running out of the
     picture."""
     rows = np.flatnonzero(tree.hit)
-    if len(rows) and (tree.kind == CAMERA).any():
+    if len(rows) and _roots(tree).any():
         distance = _camera_distance(tree, rows)
         rows = rows[distance <= FAR_FACTOR * np.median(distance)]
-    points = np.concatenate([tree.origin[tree.kind == CAMERA], tree.end[rows]]).astype(np.float64)
+    points = np.concatenate([tree.origin[_roots(tree)], tree.end[rows]]).astype(np.float64)
     return np.unique(points, axis=0)
 
 

@@ -204,10 +204,11 @@ class DeviceScene:
         launch.active = self.no_active if active is None else active
         sampler = sampler_data(self.sampler, spp, seed)
         scene = [self.geometry, self.materials, self.lights, self.settings, self.camera]
+        record = [NO_RECORD if rec is None else rec]
         if tracing is not None:
-            inputs = [*scene, sampler, launch, tracing, self.film]
+            inputs = [*scene, sampler, launch, tracing, self.film, *record]
         else:
-            inputs = [*scene, sampler, launch, self.film, NO_RECORD if rec is None else rec]
+            inputs = [*scene, sampler, launch, self.film, *record]
         wp.launch(kernel, dim=count, inputs=inputs, device=self.device)
 
 
@@ -439,6 +440,18 @@ def tiles_of(n: int) -> list[tuple[int, int]]:
     return [(first, min(TILE_PIXELS, n - first)) for first in range(0, n, TILE_PIXELS)]
 
 
+def light_tracing(scene: Scene, pixels: int, dev: wp.context.Device) -> LightTracing:
+    """What the light tracer's kernel reads of ``scene`` besides a render kernel's arguments, with a
+    zeroed splat buffer of ``pixels`` pixels on ``dev``."""
+    center, radius = bounding_sphere(scene)
+    tracing = LightTracing()
+    tracing.splat = wp.zeros((pixels, 3), dtype=wp.int64, device=dev)
+    tracing.center = wp.vec3(*center)
+    tracing.radius = radius
+    tracing.sky = int(any(isinstance(light, EnvironmentLight) for light in scene.lights))
+    return tracing
+
+
 class LightTracerTiles(LocalTiles):
     """The tile executor of a light-tracer render (``integrator = "ptracer"``): its launches take
     slots (one light path per slot and sample, ``wrt.kernels.ptracer``) instead of pixels, and
@@ -450,18 +463,9 @@ class LightTracerTiles(LocalTiles):
     def __init__(self, scene: Scene, **options):
         super().__init__(scene, **options)
         dev, pixels = self.device_scene.device, self.device_scene.width * self.device_scene.height
-        self.buffers = [wp.zeros((pixels, 3), dtype=wp.int64, device=dev) for _ in range(self.threads)]
+        self.tracings = [light_tracing(scene, pixels, dev) for _ in range(self.threads)]
+        self.buffers = [tracing.splat for tracing in self.tracings]
         self.sums = np.zeros((pixels, 3), dtype=np.int64)
-        center, radius = bounding_sphere(scene)
-        sky = int(any(isinstance(light, EnvironmentLight) for light in scene.lights))
-        self.tracings = []
-        for buffer in self.buffers:
-            tracing = LightTracing()
-            tracing.splat = buffer
-            tracing.center = wp.vec3(*center)
-            tracing.radius = radius
-            tracing.sky = sky
-            self.tracings.append(tracing)
 
     def run_pass(self, first_sample: int, pass_spp: int, active: np.ndarray | None) -> bool:
         """See ``TileExecutor.run_pass``; ``active`` must be None (no adaptive sampling)."""

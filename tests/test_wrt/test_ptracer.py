@@ -14,6 +14,7 @@ from conftest import EXAMPLES, make_scene
 import wrt
 from wrt.errors import SceneError, WrtError
 from wrt.loader import override_render
+from wrt.rays import trace_rays
 
 BOX = EXAMPLES / "ptracer" / "cornell_box.toml"
 
@@ -90,3 +91,28 @@ def test_a_light_inside_glass_is_refused():
 def test_adaptive_sampling_is_refused():
     with pytest.raises(WrtError, match="ptracer: adaptive sampling"):
         wrt.render(small(wrt.load_scene(BOX), 8), spp=32, target_error=0.1)
+
+
+def test_the_recorded_light_paths_are_the_ones_the_render_splats():
+    """``wrt rays`` on a light-traced scene records each slot's light paths as the render traces
+    them: every ray leaving a light starts a path, each segment starts where its parent ends,
+    one segment deeper, and each connection ends at the camera; recording every slot of an 8 x 8
+    image at 4 samples, the connections that reach the lens carry, in all, what the render at 4
+    spp splats (the image's sum times its spp, to float32 rounding)."""
+    scene = small(wrt.load_scene(BOX), 8)
+    pixels = [(x, y) for y in range(8) for x in range(8)]
+    tree = trace_rays(scene, pixels, samples=4)
+    assert not tree.truncated
+    kinds = [tree.kind_name(i) for i in range(len(tree))]
+    assert {"emitted", "to camera", "scattered"} <= set(kinds)
+    roots = tree.parent < 0
+    assert all(kinds[i] in ("emitted", "to camera") for i in np.flatnonzero(roots))
+    child = np.flatnonzero(~roots)
+    parent = tree.parent[child]
+    assert np.all(tree.depth[child] == tree.depth[parent] + 1) and tree.depth.max() <= scene.render.max_depth
+    assert np.allclose(tree.origin[child], tree.end[parent], atol=1e-3)  # spawned off the parent's hit
+    lit = np.array([k == "to camera" for k in kinds])
+    # a pinhole, whose lens is a point: reached but for the shadow rays' margin (1e-4 of the length)
+    assert np.allclose(tree.end[lit], scene.camera.origin, atol=1e-3)
+    rendered = wrt.render(scene, spp=4).rgb.astype(np.float64).sum(axis=(0, 1)) * 4
+    np.testing.assert_allclose(tree.throughput[lit].astype(np.float64).sum(axis=0), rendered, rtol=1e-4)
