@@ -166,6 +166,14 @@ def tint(albedo: wp.vec3) -> wp.vec3:
 
 
 @wp.func
+def tinted_schlick(p: PrincipledParameters, eta: float, cos_theta: float) -> wp.vec3:
+    """The Schlick term at ``cos_theta`` of a dielectric of relative ior ``eta`` tinted by the
+    albedo: F0 ``tint(albedo) ((eta - 1) / (eta + 1))^2``."""
+    r0 = (eta - 1.0) / (eta + 1.0)
+    return schlick(tint(p.albedo) * (r0 * r0), cos_theta, p.eta)
+
+
+@wp.func
 def principled_fresnel(p: PrincipledParameters, f_dielectric: float, cos_theta: float, front: bool) -> wp.vec3:
     """The main lobe's Fresnel term at ``cos_theta = wo.h``: on the front side the dielectric's
     ``(1 - metallic)(1 - spec_tint)`` share plus the Schlick terms of the metal (``metallic``, F0 the
@@ -176,9 +184,8 @@ def principled_fresnel(p: PrincipledParameters, f_dielectric: float, cos_theta: 
     eta_it = p.eta
     if cos_theta < 0.0:
         eta_it = 1.0 / p.eta
-    r0 = (eta_it - 1.0) / (eta_it + 1.0)
     f = p.metallic * schlick(p.albedo, cos_theta, p.eta)
-    f += (1.0 - p.metallic) * p.spec_tint * schlick(tint(p.albedo) * (r0 * r0), cos_theta, p.eta)
+    f += (1.0 - p.metallic) * p.spec_tint * tinted_schlick(p, eta_it, cos_theta)
     return f + wp.vec3((1.0 - p.metallic) * (1.0 - p.spec_tint) * f_dielectric)
 
 
@@ -205,6 +212,12 @@ def gtr1_d(h: wp.vec3, alpha: float) -> float:
     if d * h[2] > 1e-20:
         return d
     return 0.0
+
+
+@wp.func
+def clearcoat_alpha(p: PrincipledParameters) -> float:
+    """The clearcoat's GTR1 alpha, ``lerp(0.1, 0.001, clearcoat_gloss)``."""
+    return 0.1 + (0.001 - 0.1) * p.clearcoat_gloss
 
 
 @wp.func
@@ -321,7 +334,7 @@ def principled_eval(p: PrincipledParameters, wo: wp.vec3, wi: wp.vec3) -> wp.vec
                 f += fresnel * (d * g / (4.0 * wp.abs(cos_o) * wp.abs(cos_i)))
             if front and p.clearcoat > 0.0:
                 f_cc = schlick(wp.vec3(0.04), cos_oh, p.eta)[0]
-                d_cc = gtr1_d(h, 0.1 + (0.001 - 0.1) * p.clearcoat_gloss)
+                d_cc = gtr1_d(h, clearcoat_alpha(p))
                 g_cc = clearcoat_masking(wo, h) * clearcoat_masking(wi, h)
                 f += wp.vec3(0.25 * p.clearcoat * f_cc * d_cc * g_cc)
         if front and brdf > 0.0:
@@ -363,8 +376,7 @@ def principled_pdf(p: PrincipledParameters, wo: wp.vec3, wi: wp.vec3) -> float:
         if compatible(h, wo, wi, True):
             pdf += chance[3] * visible_pdf(wo_up, h, p.alpha) * jacobian
             if chance[1] > 0.0:
-                alpha_cc = 0.1 + (0.001 - 0.1) * p.clearcoat_gloss
-                pdf += chance[1] * gtr1_d(h, alpha_cc) * h[2] * jacobian
+                pdf += chance[1] * gtr1_d(h, clearcoat_alpha(p)) * h[2] * jacobian
     elif compatible(h, wo, wi, False):
         pdf = chance[2] * visible_pdf(wo_up, h, p.alpha) * jacobian
     return pdf
@@ -389,7 +401,7 @@ def principled_sample(p: PrincipledParameters, wo: wp.vec3, uc: float, u: wp.vec
         s.wi = cosine_hemisphere(u[0], u[1])
         s.flags = BSDF_REFLECTION | BSDF_DIFFUSE
     elif uc < chance[0] + chance[1]:
-        h = gtr1_sample(0.1 + (0.001 - 0.1) * p.clearcoat_gloss, u)
+        h = gtr1_sample(clearcoat_alpha(p), u)
         s.wi = 2.0 * wp.dot(wo, h) * h - wo
         s.flags = BSDF_REFLECTION | BSDF_GLOSSY
     elif uc < chance[0] + chance[1] + chance[2]:
@@ -453,8 +465,7 @@ def thin_eval(p: PrincipledParameters, wo: wp.vec3, wi: wp.vec3) -> wp.vec3:
     if p.spec_trans > 0.0:
         f_dielectric = dielectric_fresnel(wp.dot(wo, h), p.eta)
         if cos_i > 0.0 and compatible(h, wo, wi, True):
-            r0 = (p.eta - 1.0) / (p.eta + 1.0)
-            tinted = schlick(tint(p.albedo) * (r0 * r0), wp.dot(wo, h), p.eta)
+            tinted = tinted_schlick(p, p.eta, wp.dot(wo, h))
             fresnel = wp.vec3(f_dielectric) + (tinted - wp.vec3(f_dielectric)) * p.spec_tint
             g = masking(wo, h, p.alpha) * masking(wi, h, p.alpha)
             f += fresnel * (p.spec_trans * ggx_d(h, p.alpha) * g / (4.0 * cos_o * cos_i))
