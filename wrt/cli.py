@@ -208,8 +208,8 @@ def _parser(plugins: bool) -> tuple[argparse.ArgumentParser, dict]:
         "rays",
         help="show the rays traced for chosen pixels in 3D",
         description="Trace chosen pixels with the scene's integrator, recording every ray the render kernels trace "
-        "(camera, shadow, reflected, refracted, totally internally reflected; with the light tracer, the light paths of "
-        "the pixels' slots and their connections to the camera), and draw the ray trees with pyvista "
+        "(camera, shadow, reflected, refracted, totally internally reflected; with the light tracer, the light paths "
+        "of the pixels' slots and their connections to the camera), and draw the ray trees with pyvista "
         "over the scene geometry, write them as an interactive web page, or export them as a VTK multiblock. See "
         "docs/rays.md.",
     )
