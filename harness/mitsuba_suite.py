@@ -1,11 +1,13 @@
 """Scenes judged by Mitsuba 3's render-test criterion against stored Mitsuba references, as
 Mitsuba's own suite stores its references.
 
-Four suites (``SUITES``): ``suite`` (``examples/mitsuba/suite``: scenes written the way Mitsuba's
+Five suites (``SUITES``): ``suite`` (``examples/mitsuba/suite``: scenes written the way Mitsuba's
 render tests write theirs, 32 x 32), ``participating_media`` (``examples/mitsuba/
 participating_media``: the scenes of Mitsuba 3's participating-media render tests, 48 x 48, their
 own resolution), ``bsdf_spheres`` (``examples/mitsuba/bsdf_spheres``: its textured principled
-BSDF tests, 48 x 48, their films fixed at that size) and ``various_emitters`` (``examples/mitsuba/
+BSDF tests, 48 x 48, their films fixed at that size), ``bsdf_spheres_lights`` (the same folder's
+twelve spheres and two leaves of every material kind under an area light, a constant sky, an
+environment map and a point light, 128 x 128, fixed) and ``various_emitters`` (``examples/mitsuba/
 various_emitters``: its two scenes of every emitter kind, 512 x 64, their own size: one rendered by
 wrt's path tracer, one by its light tracer). Each scene is rendered by wrt at the suite's
 budget of 2e6 samples an image (``Suite.spp`` per pixel) and judged by
@@ -64,6 +66,7 @@ class Suite:
     reference_params: dict[str, str] = field(default_factory=dict)
     integrators: dict[str, str] = field(default_factory=dict)
     reference_factor: int = 4  # the references' samples per pixel over the test's
+    folder: str = ""  # its scenes' folder of examples/mitsuba, when not its name
 
     @property
     def spp(self) -> int:
@@ -74,7 +77,7 @@ class Suite:
         return self.reference_factor * self.spp
 
     def scene_path(self, name: str) -> Path:
-        return EXAMPLES / self.name / f"{name}.xml"
+        return EXAMPLES / (self.folder or self.name) / f"{name}.xml"
 
     def reference_path(self, name: str) -> Path:
         return REFERENCES / self.name / f"{name}.npz"
@@ -114,6 +117,13 @@ SUITES = {
             48,
             48,
             ("test_texturedprincipled1", "test_texturedprincipled2", "test_texturedprincipledthin"),
+        ),
+        Suite(
+            "bsdf_spheres_lights",
+            128,
+            128,
+            ("test_arealight", "test_constant", "test_envmap", "test_pointlight"),
+            folder="bsdf_spheres",
         ),
         Suite(
             "suite",

@@ -5,7 +5,8 @@ an orthographic sensor, the ``direct`` and ``moment`` integrators) and
 ``examples/mitsuba/participating_media`` (the scenes of Mitsuba 3's participating-media render
 tests: homogeneous and heterogeneous media, null, dielectric, thin dielectric and rough
 (Beckmann) boundaries, chromatic media, ``volpath``), ``examples/mitsuba/bsdf_spheres`` (its
-textured principled BSDF tests) and ``examples/mitsuba/various_emitters`` (every emitter kind, a
+textured principled BSDF tests and its spheres of every material under four kinds of light) and
+``examples/mitsuba/various_emitters`` (every emitter kind, a
 textured area emitter among them, by the path and the light tracer), each imported without
 ``approximate`` and rendered by wrt at the suite's budget of 2e6 samples an image. Needs no
 Mitsuba: the references are in the repository."""
@@ -25,6 +26,7 @@ REJECTED = {
     "suite": "include_path_direct",
     "participating_media": "test_homo_dielectric_envmap",
     "bsdf_spheres": "test_texturedprincipled2",
+    "bsdf_spheres_lights": "test_envmap",
 }
 """The scene of each suite whose render test_the_z_test_rejects_a_brighter_image scales: both tests
 of it run on one xdist worker (one group), which renders it once (``render``'s cache)."""
@@ -68,7 +70,12 @@ def test_scene_passes_mitsubas_z_test(suite, name):
     "suite, name, gain",
     [
         pytest.param(SUITES[s], REJECTED[s], gain, id=s, marks=pytest.mark.xdist_group(f"z_{s}"))
-        for s, gain in (("suite", 1.01), ("participating_media", 1.02), ("bsdf_spheres", 1.01))
+        for s, gain in (
+            ("suite", 1.01),
+            ("participating_media", 1.02),
+            ("bsdf_spheres", 1.01),
+            ("bsdf_spheres_lights", 1.01),
+        )
     ],
 )
 def test_the_z_test_rejects_a_brighter_image(suite, name, gain):

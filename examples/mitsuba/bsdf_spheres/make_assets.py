@@ -1,9 +1,14 @@
-"""Make the meshes and the environment map the scenes of this folder load.
+"""Make the meshes, textures and environment maps the scenes of this folder load.
 
-The scenes are three of Mitsuba 3's render-test suite (mitsuba-data, ``tests/scenes/
-bsdf_spheres``: ``test_texturedprincipled1``, ``test_texturedprincipled2``,
-``test_texturedprincipledthin``, with their ``fragments/single_sphere.xml``), element for element
-but for two changes. Their ``<path>`` is ``../../../common``, the repository's shared assets,
+The scenes are seven of Mitsuba 3's render-test suite (mitsuba-data, ``tests/scenes/
+bsdf_spheres``): ``test_texturedprincipled1``, ``test_texturedprincipled2`` and
+``test_texturedprincipledthin``, with their ``fragments/single_sphere.xml``, element for element
+but for two changes (below); and ``test_arealight``, ``test_constant``, ``test_pointlight`` and
+``test_envmap``, with their ``include/scene.xml`` (twelve spheres and two masked leaves of every
+material kind: diffuse, textured, a diamond, plastics, Beckmann and GGX rough dielectrics,
+Beckmann rough plastics and conductor, a smooth conductor), element for element, under an
+area-emitting OBJ rectangle, a constant sky, a point light and an environment map. The first three's
+changes: Their ``<path>`` is ``../../../common``, the repository's shared assets,
 which are not published with the scene files, so these scenes look in this folder (``<path
 value="."/>``) and the assets are stand-ins of our own, named as the suite names them (below):
 the images are therefore not Mitsuba's stored ones, but Mitsuba's renders of these files. And
@@ -28,6 +33,13 @@ plugin names are case-sensitive).
     counter-clockwise seen from +z (normal +z in Mitsuba), and the ``rectangle`` plugin's uv
     ``((x + 1) / 2, (y + 1) / 2)`` as Mitsuba reads the file (its ``vt`` lines
     ``((x + 1) / 2, (1 - y) / 2)``).
+``textures/wood.jpg``
+    A 64 x 64 8-bit sRGB JPEG of wood grain: brown rings, light and dark, bent by a slow wave.
+``textures/leaf_mask.png``
+    A 64 x 64 8-bit grey PNG, the opacity of the masked leaves: white (opaque) inside a leaf
+    outline (two arcs from stem to tip), black elsewhere, with a black midrib.
+``textures/envmap.exr``
+    The room of ``museum.exr`` (below), turned a quarter about the vertical, 64 x 32, float32 RGB.
 ``textures/museum.exr``
     A 64 x 32 HDR latitude-longitude map (Mitsuba's ``envmap`` layout: row 0 towards +y) of a
     room, float32 RGB: a bright ceiling and a dim warm floor, walls banded in longitude, a
@@ -137,9 +149,47 @@ def write_exr(path, rgb):
 
 def environment_maps():
     (HERE / "textures").mkdir(exist_ok=True)
-    write_exr(HERE / "textures" / "museum.exr", environment_map())
+    room = environment_map()
+    write_exr(HERE / "textures" / "museum.exr", room)
+    write_exr(HERE / "textures" / "envmap.exr", np.ascontiguousarray(np.roll(room, room.shape[1] // 4, axis=1)))
+
+
+def wood(size=64):
+    """The wood grain, ``(size, size, 3)`` uint8 (sRGB), row 0 the top row."""
+    y, x = (np.mgrid[0:size, 0:size] + 0.5) / size
+    rings = 0.5 + 0.5 * np.sin(2 * math.pi * (7.0 * x + 0.6 * np.sin(2 * math.pi * 1.3 * y)))
+    light, dark = np.array([0.78, 0.56, 0.34]), np.array([0.45, 0.27, 0.13])
+    rgb = dark + (light - dark) * rings[..., None]
+    return np.round(255 * rgb).astype(np.uint8)
+
+
+def leaf_mask(size=64):
+    """The leaf's opacity, ``(size, size, 1)`` uint8, row 0 the top row: a leaf from the bottom
+    (stem) to the top (tip), 0 outside it and along its midrib."""
+    y, x = (np.mgrid[0:size, 0:size] + 0.5) / size
+    half_width = 0.38 * np.sin(math.pi * np.clip((0.95 - y) / 0.9, 0.0, 1.0))
+    inside = np.abs(x - 0.5) < half_width
+    midrib = np.abs(x - 0.5) < 0.02
+    return np.where(inside & ~midrib, 255, 0).astype(np.uint8)[..., None]
+
+
+def write_ldr(path, pixels):
+    """An 8-bit image (``pixels``: ``(height, width, channels)`` uint8) in the format of ``path``'s
+    extension."""
+    spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], pixels.shape[2], "uint8")
+    spec.attribute("DateTime", "")
+    out = oiio.ImageOutput.create(str(path))
+    if out is None or not out.open(str(path), spec) or not out.write_image(pixels) or not out.close():
+        raise OSError(f"{path}: {oiio.geterror()}")
+
+
+def textures():
+    (HERE / "textures").mkdir(exist_ok=True)
+    write_ldr(HERE / "textures" / "wood.jpg", wood())
+    write_ldr(HERE / "textures" / "leaf_mask.png", leaf_mask())
 
 
 if __name__ == "__main__":
     meshes()
     environment_maps()
+    textures()
