@@ -1,13 +1,16 @@
 """Scenes judged by Mitsuba 3's render-test criterion against stored Mitsuba references, as
 Mitsuba's own suite stores its references.
 
-Five suites (``SUITES``): ``suite`` (``examples/mitsuba/suite``: scenes written the way Mitsuba's
+Suites (``SUITES``): ``suite`` (``examples/mitsuba/suite``: scenes written the way Mitsuba's
 render tests write theirs, 32 x 32), ``participating_media`` (``examples/mitsuba/
 participating_media``: the scenes of Mitsuba 3's participating-media render tests, 48 x 48, their
 own resolution), ``bsdf_spheres`` (``examples/mitsuba/bsdf_spheres``: its textured principled
 BSDF tests, 48 x 48, their films fixed at that size), ``bsdf_spheres_lights`` (the same folder's
 twelve spheres and two leaves of every material kind under an area light, a constant sky, an
-environment map and a point light, 128 x 128, fixed) and ``various_emitters`` (``examples/mitsuba/
+environment map and a point light, 128 x 128, fixed), six of one film size each over
+``examples/mitsuba/render_tests`` (eight more of Mitsuba's own render tests, named after their
+mitsuba-data folders: ``floating_sphere``, ``spot_light``, ``projector``, ``orthographic_sensor``,
+``instancing``, ``texture_interp``) and ``various_emitters`` (``examples/mitsuba/
 various_emitters``: its two scenes of every emitter kind, 512 x 64, their own size: one rendered by
 wrt's path tracer, one by its light tracer). Each scene is rendered by wrt at the suite's
 budget of 2e6 samples an image (``Suite.spp`` per pixel) and judged by
@@ -142,6 +145,12 @@ SUITES = {
             ),
             film={"res": 32},
         ),
+        Suite("floating_sphere", 48, 48, ("test_directional", "test_directional_direct"), folder="render_tests"),
+        Suite("spot_light", 48, 48, ("test_spot", "test_spot_direct"), folder="render_tests"),
+        Suite("projector", 48, 48, ("test_projector_textured_direct",), folder="render_tests"),
+        Suite("orthographic_sensor", 200, 120, ("test_orthographic",), folder="render_tests"),
+        Suite("instancing", 64, 64, ("test_instancing_path",), folder="render_tests"),
+        Suite("texture_interp", 128, 128, ("test_texture_interp_direct",), folder="render_tests"),
         Suite(
             "various_emitters",
             512,

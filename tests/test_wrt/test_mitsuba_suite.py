@@ -5,7 +5,9 @@ an orthographic sensor, the ``direct`` and ``moment`` integrators) and
 ``examples/mitsuba/participating_media`` (the scenes of Mitsuba 3's participating-media render
 tests: homogeneous and heterogeneous media, null, dielectric, thin dielectric and rough
 (Beckmann) boundaries, chromatic media, ``volpath``), ``examples/mitsuba/bsdf_spheres`` (its
-textured principled BSDF tests and its spheres of every material under four kinds of light) and
+textured principled BSDF tests and its spheres of every material under four kinds of light),
+``examples/mitsuba/render_tests`` (its floating sphere, spot light, textured projector,
+orthographic sensor, instancing and texture wrap and filter scenes) and
 ``examples/mitsuba/various_emitters`` (every emitter kind, a
 textured area emitter among them, by the path and the light tracer), each imported without
 ``approximate`` and rendered by wrt at the suite's budget of 2e6 samples an image. Needs no
@@ -27,6 +29,8 @@ REJECTED = {
     "participating_media": "test_homo_dielectric_envmap",
     "bsdf_spheres": "test_texturedprincipled2",
     "bsdf_spheres_lights": "test_envmap",
+    "spot_light": "test_spot",
+    "texture_interp": "test_texture_interp_direct",
 }
 """The scene of each suite whose render test_the_z_test_rejects_a_brighter_image scales: both tests
 of it run on one xdist worker (one group), which renders it once (``render``'s cache)."""
@@ -75,6 +79,8 @@ def test_scene_passes_mitsubas_z_test(suite, name):
             ("participating_media", 1.02),
             ("bsdf_spheres", 1.01),
             ("bsdf_spheres_lights", 1.01),
+            ("spot_light", 1.02),
+            ("texture_interp", 1.02),
         )
     ],
 )

@@ -1,0 +1,78 @@
+"""Make the textures the scenes of this folder load.
+
+The scenes are eight of Mitsuba 3's render-test suite (mitsuba-data, ``tests/scenes``):
+``floating_sphere/test_directional`` and ``test_directional_direct``,
+``orthographic_sensor/test_orthographic``, ``spot_light/test_spot`` and ``test_spot_direct``,
+``projector/test_projector_textured_direct``, ``instancing/test_instancing_path`` and
+``texture_interp/test_texture_interp_direct``, element for element but their ``<path>``: it is
+``../../../common``, the repository's shared assets, which are not published with the scene
+files, so these scenes look in this folder (``<path value="."/>``) for their textures and, where
+they load meshes, in ``../bsdf_spheres`` too (``<path value="../bsdf_spheres"/>``) for its
+``meshes/sphere.obj`` and ``meshes/rectangle.obj``, the stand-ins its ``make_assets.py`` makes.
+The textures are stand-ins of our own, named as the suite names them: the images are therefore
+not Mitsuba's stored ones, but Mitsuba's renders of these files.
+(``texture_interp/test_texture_interp`` is ``test_texture_interp_direct`` with its texture in the
+scene's own folder: not repeated.)
+
+``textures/de_bruijn_pattern.png``
+    A 64 x 64 8-bit grey PNG of 8 x 8 cells, black or white by a maximal-length binary
+    sequence laid row by row: irregular, so that a texture turned, mirrored or shifted in a spot
+    light's cone shows.
+``textures/carrot.png``
+    A 64 x 64 8-bit sRGB PNG of an orange carrot with green leaves on a pale blue ground, not
+    symmetric, so that the six wrap and filter modes of ``test_texture_interp_direct`` differ.
+
+Run from this folder: ``python make_assets.py`` (deterministic; the committed files are its output).
+"""
+
+from pathlib import Path
+
+import numpy as np
+import OpenImageIO as oiio
+
+HERE = Path(__file__).resolve().parent
+
+
+def de_bruijn(size: int = 64, cells: int = 8) -> np.ndarray:
+    """The binary cell pattern, ``(size, size, 1)`` uint8, row 0 the top row: cell ``(i, j)`` is
+    bit ``(i cells + j) mod 63`` of the maximal-length sequence of x^6 + x + 1."""
+    bits, state = [], 0b000001
+    for _ in range(63):
+        bits.append(state & 1)
+        state = (state >> 1) | ((((state >> 0) ^ (state >> 1)) & 1) << 5)
+    i, j = np.mgrid[0:cells, 0:cells]
+    cell = np.array(bits)[(i * cells + j) % 63]
+    return np.repeat(np.repeat(255 * cell, size // cells, 0), size // cells, 1).astype(np.uint8)[..., None]
+
+
+def carrot(size: int = 64) -> np.ndarray:
+    """The carrot, ``(size, size, 3)`` uint8 (sRGB), row 0 the top row: a root from its shoulder at
+    the upper left to its tip at the lower right, three leaves above it."""
+    y, x = (np.mgrid[0:size, 0:size] + 0.5) / size
+    rgb = np.empty((size, size, 3))
+    rgb[...] = (0.75, 0.85, 0.95)
+    # the root: along the line from (0.3, 0.3) to (0.85, 0.9), narrowing toward the tip
+    a, b = np.array([0.3, 0.3]), np.array([0.85, 0.9])
+    d = b - a
+    s = np.clip(((x - a[0]) * d[0] + (y - a[1]) * d[1]) / d.dot(d), 0.0, 1.0)
+    dist = np.hypot(x - (a[0] + s * d[0]), y - (a[1] + s * d[1]))
+    root = dist < 0.12 * (1.0 - s) + 0.01
+    rings = 0.85 + 0.15 * np.cos(40.0 * s)
+    rgb[root] = np.array([0.95, 0.45, 0.08]) * rings[root][:, None]
+    for cx, cy, r in ((0.2, 0.12, 0.09), (0.32, 0.08, 0.07), (0.12, 0.25, 0.07)):
+        rgb[np.hypot(x - cx, y - cy) < r] = (0.2, 0.6, 0.15)
+    return np.round(255 * rgb).astype(np.uint8)
+
+
+def write_png(path: Path, pixels: np.ndarray) -> None:
+    spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], pixels.shape[2], "uint8")
+    spec.attribute("DateTime", "")
+    out = oiio.ImageOutput.create(str(path))
+    if out is None or not out.open(str(path), spec) or not out.write_image(pixels) or not out.close():
+        raise OSError(f"{path}: {oiio.geterror()}")
+
+
+if __name__ == "__main__":
+    (HERE / "textures").mkdir(exist_ok=True)
+    write_png(HERE / "textures" / "de_bruijn_pattern.png", de_bruijn())
+    write_png(HERE / "textures" / "carrot.png", carrot())
