@@ -5,7 +5,7 @@ Suites (``SUITES``): ``suite`` (``examples/mitsuba/suite``: scenes written the w
 render tests write theirs, 32 x 32), ``participating_media`` (``examples/mitsuba/
 participating_media``: the scenes of Mitsuba 3's participating-media render tests, 48 x 48, their
 own resolution), ``bsdf_spheres`` (``examples/mitsuba/bsdf_spheres``: its textured principled
-BSDF tests, 48 x 48, their films fixed at that size), ``bsdf_spheres_lights`` (the same folder's
+BSDF and normal-map tests, 48 x 48, their films fixed at that size), ``bsdf_spheres_lights`` (the same folder's
 twelve spheres and two leaves of every material kind under an area light, a constant sky, an
 environment map and a point light, 128 x 128, fixed), six of one film size each over
 ``examples/mitsuba/render_tests`` (eight more of Mitsuba's own render tests, named after their
@@ -119,7 +119,14 @@ SUITES = {
             "bsdf_spheres",
             48,
             48,
-            ("test_texturedprincipled1", "test_texturedprincipled2", "test_texturedprincipledthin"),
+            (
+                "test_texturedprincipled1",
+                "test_texturedprincipled2",
+                "test_texturedprincipledthin",
+                "test_normalmap",
+                "test_normalmap_roughconductor_path",
+                "test_normalmap_identity_roughconductor_path",
+            ),
         ),
         Suite(
             "bsdf_spheres_lights",

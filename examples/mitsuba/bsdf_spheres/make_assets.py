@@ -1,9 +1,10 @@
 """Make the meshes, textures and environment maps the scenes of this folder load.
 
-The scenes are seven of Mitsuba 3's render-test suite (mitsuba-data, ``tests/scenes/
-bsdf_spheres``): ``test_texturedprincipled1``, ``test_texturedprincipled2`` and
-``test_texturedprincipledthin``, with their ``fragments/single_sphere.xml``, element for element
-but for two changes (below); and ``test_arealight``, ``test_constant``, ``test_pointlight`` and
+The scenes are ten of Mitsuba 3's render-test suite (mitsuba-data, ``tests/scenes/
+bsdf_spheres``): ``test_texturedprincipled1``, ``test_texturedprincipled2``,
+``test_texturedprincipledthin``, ``test_normalmap``, ``test_normalmap_roughconductor_path`` and
+``test_normalmap_identity_roughconductor_path``, with their ``fragments/single_sphere.xml``,
+element for element but for two changes (below; the normal-map scenes: the first only); and ``test_arealight``, ``test_constant``, ``test_pointlight`` and
 ``test_envmap``, with their ``include/scene.xml`` (twelve spheres and two masked leaves of every
 material kind: diffuse, textured, a diamond, plastics, Beckmann and GGX rough dielectrics,
 Beckmann rough plastics and conductor, a smooth conductor), element for element, under an
@@ -33,6 +34,13 @@ plugin names are case-sensitive).
     counter-clockwise seen from +z (normal +z in Mitsuba), and the ``rectangle`` plugin's uv
     ``((x + 1) / 2, (y + 1) / 2)`` as Mitsuba reads the file (its ``vt`` lines
     ``((x + 1) / 2, (1 - y) / 2)``).
+``textures/floor_tiles.jpg``
+    A 64 x 64 8-bit sRGB JPEG of 4 x 4 terracotta tiles, each a little lighter or darker, with
+    pale grout lines between them.
+``textures/floor_tiles_normalmap.jpg``
+    The tiles' tangent-space normal map (read raw), 64 x 64 8-bit JPEG: ``(n + 1) / 2`` of the
+    normals of a height field that is flat on the tiles and sinks into rounded grooves at the
+    grout, so the normals tilt across each groove.
 ``textures/wood.jpg``
     A 64 x 64 8-bit sRGB JPEG of wood grain: brown rings, light and dark, bent by a slow wave.
 ``textures/leaf_mask.png``
@@ -183,10 +191,39 @@ def write_ldr(path, pixels):
         raise OSError(f"{path}: {oiio.geterror()}")
 
 
+def tile_height(size=64, tiles=4):
+    """The tiles' height field, ``(size, size)`` in [0, 1]: 1 on the tiles, down to 0 in the
+    middle of the grooves between them (a quarter of a tile wide, rounded)."""
+    y, x = (np.mgrid[0:size, 0:size] + 0.5) / size * tiles
+    edge = np.minimum(np.minimum(x % 1.0, 1.0 - x % 1.0), np.minimum(y % 1.0, 1.0 - y % 1.0))
+    return np.sin(0.5 * math.pi * np.clip(edge / 0.125, 0.0, 1.0))
+
+
+def floor_tiles(size=64, tiles=4):
+    """The tiles' colour, ``(size, size, 3)`` uint8 (sRGB): terracotta, grout pale."""
+    i, j = np.mgrid[0:size, 0:size] * tiles // size
+    shade = 0.85 + 0.15 * ((3 * i + 5 * j) % 4) / 3.0
+    rgb = np.array([0.72, 0.36, 0.22]) * shade[..., None]
+    rgb = np.where((tile_height(size, tiles) < 0.5)[..., None], np.array([0.85, 0.82, 0.75]), rgb)
+    return np.round(255 * rgb).astype(np.uint8)
+
+
+def tile_normals(size=64, tiles=4, depth=0.15):
+    """The tiles' normal map, ``(size, size, 3)`` uint8: ``(n + 1) / 2`` of the unit normals of the
+    height field ``depth tile_height`` (in uv units), +z out of the surface."""
+    h = depth * tile_height(size, tiles)
+    dh_dv, dh_du = np.gradient(h, 1.0 / size)
+    n = np.stack([-dh_du, dh_dv, np.ones_like(h)], axis=-1)  # rows run down: v grows downwards
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    return np.round(255 * (n + 1.0) / 2.0).astype(np.uint8)
+
+
 def textures():
     (HERE / "textures").mkdir(exist_ok=True)
     write_ldr(HERE / "textures" / "wood.jpg", wood())
     write_ldr(HERE / "textures" / "leaf_mask.png", leaf_mask())
+    write_ldr(HERE / "textures" / "floor_tiles.jpg", floor_tiles())
+    write_ldr(HERE / "textures" / "floor_tiles_normalmap.jpg", tile_normals())
 
 
 if __name__ == "__main__":
