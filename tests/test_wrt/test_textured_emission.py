@@ -113,14 +113,33 @@ def test_a_textured_area_emitter_imports_as_an_emissive_rectangle_with_its_textu
 
 
 def test_an_area_emitter_that_reflects_imports_as_an_emissive_shape_exactly(tmp_path):
-    """A rectangle emitter whose BSDF reflects (Mitsuba's default diffuse 0.5 does) is an emissive
-    polygon of that BSDF, not a light row that would reflect nothing: imported without a warning."""
+    """A rectangle emitter whose BSDF reflects is an emissive polygon of that BSDF, not a light
+    row that would reflect nothing: imported without a warning."""
     scene, warnings = convert(
         tmp_path,
-        sensor() + '<shape type="rectangle"><emitter type="area"><rgb name="radiance" value="4"/></emitter></shape>',
+        sensor()
+        + """
+    <shape type="rectangle">
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.6"/></bsdf>
+        <emitter type="area"><rgb name="radiance" value="4"/></emitter>
+    </shape>""",
         approximate=False,
     )
     assert warnings == [] and scene["light"] == []
     (shape,) = scene["shape"]
     (material,) = [m for m in scene["material"] if m["name"] == shape["material"]]
-    assert material["emission"] == [4.0, 4.0, 4.0] and material["albedo"] == [0.5, 0.5, 0.5]
+    assert material["emission"] == [4.0, 4.0, 4.0] and material["albedo"] == [0.6, 0.6, 0.6]
+
+
+def test_an_emitters_default_bsdf_is_black_as_mitsubas(tmp_path):
+    """Mitsuba gives a shape with an emitter but no BSDF a black diffuse one (reflectance 0, not
+    the 0.5 of other shapes): such a rectangle is a light row (reflecting nothing), and a cube an
+    emissive mesh of albedo 0. Seen in front of a constant sky, Mitsuba's rectangle shows its
+    radiance alone."""
+    light = '<emitter type="area"><rgb name="radiance" value="2"/></emitter>'
+    scene, warnings = convert(
+        tmp_path, sensor() + f'<shape type="rectangle">{light}</shape><shape type="cube">{light}</shape>'
+    )
+    assert warnings == [] and [row["type"] for row in scene["light"]] == ["area"]
+    (cube,) = [m for m in scene["material"] if "emission" in m]
+    assert cube["albedo"] == [0.0, 0.0, 0.0] and cube["emission"] == [2.0, 2.0, 2.0]

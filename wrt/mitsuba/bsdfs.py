@@ -74,6 +74,9 @@ class Material:
 
 TRANSMITTING = ("dielectric", "rough_dielectric", "thin_dielectric")
 DEFAULT_BSDF = Material({"type": "diffuse", "albedo": [0.5, 0.5, 0.5]}, False)  # Mitsuba's (one-sided)
+EMITTER_DEFAULT_BSDF = Material({"type": "diffuse", "albedo": [0.0, 0.0, 0.0]}, False)
+"""Mitsuba's default BSDF of a shape that carries an emitter: black (its Shape gives an emitter a
+diffuse BSDF of reflectance 0, not 0.5)."""
 
 
 def ior(p: Plugin, name: str, default: str) -> float:
@@ -245,10 +248,11 @@ class Materials:
         self.names: dict[int, str] = {}  # names of those that shapes use
         self.ext_iors: list[tuple[float, Element]] = []
 
-    def of(self, element: Element | None) -> Material:
-        """A BSDF element converted once, however often it is referenced (None: Mitsuba's default BSDF)."""
+    def of(self, element: Element | None, emitter: bool = False) -> Material:
+        """A BSDF element converted once, however often it is referenced (None: Mitsuba's default
+        BSDF, of a shape with an ``emitter`` or not)."""
         if element is None:
-            return DEFAULT_BSDF
+            return EMITTER_DEFAULT_BSDF if emitter else DEFAULT_BSDF
         if id(element) not in self.converted:
             self.converted[id(element)] = self._convert(element)
         return self.converted[id(element)]

@@ -53,7 +53,7 @@ def shape(
         doc.warn(extra, "a shape takes one BSDF and one emitter: ignored")
     front = -1.0 if p.boolean("flip_normals", False) else 1.0
     mirrored = mirrors(matrix[:3, :3]) != (front < 0)  # winding must be reversed to keep Mitsuba's front
-    params = materials.of(bsdfs[0] if bsdfs else None).params
+    params = materials.of(bsdfs[0] if bsdfs else None, emitter=bool(emitters)).params
     radiance = area_radiance(doc, emitters[0]) if emitters else None
     textured = any(isinstance(v, dict) for v in (*params.values(), radiance))
     anisotropic = "roughness_v" in params or params.get("anisotropy", 0.0) != 0.0
@@ -108,7 +108,7 @@ def shape(
         doc.warn(element, "shape type not supported: ignored")
         return
     bsdf = bsdfs[0] if bsdfs else None  # None: Mitsuba's default BSDF
-    material = materials.of(bsdf)
+    material = materials.of(bsdf, emitter=bool(emitters))
 
     if emitters:
         if p.type in ("rectangle", "sphere") and not material.reflects() and not isinstance(radiance, dict):
