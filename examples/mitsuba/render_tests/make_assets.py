@@ -1,10 +1,11 @@
 """Make the textures the scenes of this folder load.
 
-The scenes are eight of Mitsuba 3's render-test suite (mitsuba-data, ``tests/scenes``):
+The scenes are nine of Mitsuba 3's render-test suite (mitsuba-data, ``tests/scenes``):
 ``floating_sphere/test_directional`` and ``test_directional_direct``,
 ``orthographic_sensor/test_orthographic``, ``spot_light/test_spot`` and ``test_spot_direct``,
-``projector/test_projector_textured_direct``, ``instancing/test_instancing_path`` and
-``texture_interp/test_texture_interp_direct``, element for element but their ``<path>``: it is
+``projector/test_projector_textured_direct``, ``instancing/test_instancing_path``,
+``texture_interp/test_texture_interp_direct`` and ``mesh_tangents/test_tangent_pole_path``, element
+for element but the ``<path>`` of those that have one: it is
 ``../../../common``, the repository's shared assets, which are not published with the scene
 files, so these scenes look in this folder (``<path value="."/>``) for their textures and, where
 they load meshes, in ``../bsdf_spheres`` too (``<path value="../bsdf_spheres"/>``) for its
@@ -21,16 +22,32 @@ scene's own folder: not repeated.)
 ``textures/carrot.png``
     A 64 x 64 8-bit sRGB PNG of an orange carrot with green leaves on a pale blue ground, not
     symmetric, so that the six wrap and filter modes of ``test_texture_interp_direct`` differ.
+``meshes/uv_sphere.obj``
+    ``test_tangent_pole_path`` has no ``<path>``: its mesh is in this folder. A coarse unit UV
+    sphere, 8 rings by 16 segments, its poles on z (the camera looks down the one at +z), made
+    as ``../bsdf_spheres``' finer ``sphere.obj`` is (``uv_sphere``: split seam and poles, exact
+    normals), so the tangents sweep a full turn around the pole.
 
 Run from this folder: ``python make_assets.py`` (deterministic; the committed files are its output).
 """
 
+import importlib.util
 from pathlib import Path
 
 import numpy as np
 import OpenImageIO as oiio
 
 HERE = Path(__file__).resolve().parent
+
+
+def sphere_maker():
+    """``../bsdf_spheres/make_assets.py``, loaded as a module (its ``uv_sphere`` and ``write_obj``)."""
+    spec = importlib.util.spec_from_file_location(
+        "bsdf_spheres_assets", HERE.parent / "bsdf_spheres" / "make_assets.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def de_bruijn(size: int = 64, cells: int = 8) -> np.ndarray:
@@ -73,6 +90,10 @@ def write_png(path: Path, pixels: np.ndarray) -> None:
 
 
 if __name__ == "__main__":
+    (HERE / "meshes").mkdir(exist_ok=True)
+    spheres = sphere_maker()
+    vertices, faces, uvs = spheres.uv_sphere(rings=8, segments=16)
+    spheres.write_obj(HERE / "meshes" / "uv_sphere.obj", vertices, faces, uvs, normals=vertices)
     (HERE / "textures").mkdir(exist_ok=True)
     write_png(HERE / "textures" / "de_bruijn_pattern.png", de_bruijn())
     write_png(HERE / "textures" / "carrot.png", carrot())
