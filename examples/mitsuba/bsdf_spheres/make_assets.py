@@ -1,18 +1,19 @@
 """Make the meshes, textures and environment maps the scenes of this folder load.
 
 The scenes are ten of Mitsuba 3's render-test suite (mitsuba-data, ``tests/scenes/
-bsdf_spheres``): ``test_texturedprincipled1``, ``test_texturedprincipled2``,
+bsdf_spheres``). ``test_texturedprincipled1``, ``test_texturedprincipled2``,
 ``test_texturedprincipledthin``, ``test_normalmap``, ``test_normalmap_roughconductor_path`` and
-``test_normalmap_identity_roughconductor_path``, with their ``fragments/single_sphere.xml``,
-element for element but for two changes (below; the normal-map scenes: the first only); and ``test_arealight``, ``test_constant``, ``test_pointlight`` and
-``test_envmap``, with their ``include/scene.xml`` (twelve spheres and two masked leaves of every
-material kind: diffuse, textured, a diamond, plastics, Beckmann and GGX rough dielectrics,
-Beckmann rough plastics and conductor, a smooth conductor), element for element, under an
-area-emitting OBJ rectangle, a constant sky, a point light and an environment map. The first three's
-changes: Their ``<path>`` is ``../../../common``, the repository's shared assets,
-which are not published with the scene files, so these scenes look in this folder (``<path
-value="."/>``) and the assets are stand-ins of our own, named as the suite names them (below):
-the images are therefore not Mitsuba's stored ones, but Mitsuba's renders of these files. And
+``test_normalmap_identity_roughconductor_path``, with their ``fragments/single_sphere.xml``, are
+element for element but their ``<path>`` (and the thin one's rectangle, below); ``test_arealight``,
+``test_constant``, ``test_pointlight`` and ``test_envmap``, with their ``include/scene.xml``
+(twelve spheres and two masked leaves of every material kind: diffuse, textured, a diamond,
+plastics, Beckmann and GGX rough dielectrics, Beckmann rough plastics and conductor, a smooth
+conductor, under an area-emitting OBJ rectangle, a constant sky, a point light and an environment
+map), element for element. The ``<path>`` of the first six is ``../../../common``, the
+repository's shared assets, which are not published with the scene files, so these scenes look in
+this folder (``<path value="."/>``); every asset is a stand-in of our own, named as the suite names
+it (below): the images are therefore not Mitsuba's stored ones, but Mitsuba's renders of these
+files. And
 ``test_texturedprincipledthin``'s rectangle is ``<shape type="rectangle">``, where mitsuba-data
 writes ``type="Rectangle"``, which Mitsuba 3.9.1 refuses (``Plugin "Rectangle" not found``: its
 plugin names are case-sensitive).
