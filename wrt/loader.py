@@ -711,7 +711,7 @@ def _mesh(t: _Table, scene_dir: str, material: int, textured: tuple | None) -> M
             )
         index = t.number("shape_index", integer=True, lo=0, hi=2**31 - 1)
     try:
-        read_all = smooth or textured  # an OBJ file is then read as Mitsuba 3 numbers its vertices
+        read_all = smooth or textured is not None  # an OBJ file is then read as Mitsuba 3 numbers its vertices
         vertices, faces, normals, uvs = (
             load_mesh(path, return_normals=True, return_uvs=True, shape_index=index)
             if read_all

@@ -452,6 +452,30 @@ def test_mesh_file_uvs(tmp_path):
     assert load_mesh(tmp_path / "quad.ply", return_uvs=True)[2] is None
 
 
+@pytest.mark.parametrize("shading", ["flat", "smooth"])
+@pytest.mark.parametrize(
+    "material",
+    [
+        {"albedo": {"texture": "checkerboard", "color0": [0.9, 0.9, 0.9], "color1": [0.1, 0.1, 0.1]}},
+        {"type": "conductor", "metal": "Au", "roughness": 0.3, "roughness_v": 0.05},  # anisotropic: tangent dp/du
+    ],
+    ids=["textured", "anisotropic"],
+)
+def test_a_mesh_keeps_its_files_uvs_where_its_material_needs_them(tmp_path, shading, material):
+    """A mesh of a textured or anisotropic material gets its file's texture coordinates, flat-shaded
+    (the default) or smooth: an untextured anisotropic material once left a flat mesh without them
+    (its dp/du then the triangle's first edge, its highlights turned 90 degrees on a coarse UV
+    sphere against Mitsuba's), for its uses of mesh attributes were an empty tuple, taken as none."""
+    write_meshes(tmp_path)
+    doc = {
+        "camera": {"origin": [0, 0, 3], "look_at": [0, 0, 0]},
+        "material": [{"name": "m", **material}],
+        "shape": [{"type": "mesh", "file": "quad.obj", "shading": shading, "material": "m"}],
+    }
+    (mesh,) = parse_scene(doc, scene_dir=str(tmp_path)).shapes
+    np.testing.assert_allclose(mesh.uvs, [[0.1, 0.8], [0.9, 0.7], [0.8, 0.05], [0.05, 0.3]])
+
+
 def test_planar_uv_closed_form(tmp_path):
     """A polygon's default uv is the affine map taking vertices 0, 1, 2 to (0, 0), (1, 0), (1, 1):
     at ``v0 + a (v1 - v0) + b (v3 - v0)`` of a parallelogram it is (a, b); a plane's is the
