@@ -665,6 +665,20 @@ def test_unsupported_input_is_refused_or_approximated(tmp_path):
         convert(tmp_path, body, approximate=False)
 
 
+def test_an_animated_transform_is_refused_by_name(tmp_path):
+    """Mitsuba's ``<animation>`` (keyframed ``to_world`` of a shape, an instance or a sensor) is
+    refused with what it is, not as an unknown element, even with ``approximate``."""
+    body = """
+    <shape type="sphere">
+        <animation name="to_world">
+            <transform time="0"><translate x="-1"/></transform>
+            <transform time="1"><translate x="1"/></transform>
+        </animation>
+    </shape>"""
+    with pytest.raises(WrtError, match=r'scene.xml:3: <animation name="to_world">: an animated transform .*velocity'):
+        convert(tmp_path, body)
+
+
 def test_one_approximation_per_cause(tmp_path):
     spheres = '<shape type="sphere"><float name="foo" value="1"/></shape>\n' * 3
     _, warnings = convert(tmp_path, spheres + '<shape type="linearcurve"/>')

@@ -214,6 +214,10 @@ def check_elements(root: Element) -> None:
             return WrtError(f"{element.file}:{element.line}: {element.describe()}: {problem}")
 
         is_object = tag in OBJECT_TAGS or (tag == "spectrum" and "type" in attrs)
+        if tag == "animation":
+            raise refuse(
+                "an animated transform (keyframes over the shutter): not supported (shapes move by a velocity)"
+            )
         if not is_object and tag not in ATTRIBUTES:
             raise refuse("not an element of Mitsuba's scene format")
         if parent is None:
