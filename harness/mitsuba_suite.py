@@ -7,10 +7,10 @@ participating_media``: the scenes of Mitsuba 3's participating-media render test
 own resolution), ``bsdf_spheres`` (``examples/mitsuba/bsdf_spheres``: its textured principled
 BSDF and normal-map tests, 48 x 48, their films fixed at that size), ``bsdf_spheres_lights`` (the same folder's
 twelve spheres and two leaves of every material kind under an area light, a constant sky, an
-environment map and a point light, 128 x 128, fixed), seven of one film size each over
-``examples/mitsuba/render_tests`` (nine more of Mitsuba's own render tests, named after their
+environment map and a point light, 128 x 128, fixed), eight of one film size each over
+``examples/mitsuba/render_tests`` (ten more of Mitsuba's own render tests, named after their
 mitsuba-data folders: ``floating_sphere``, ``spot_light``, ``projector``, ``orthographic_sensor``,
-``instancing``, ``texture_interp``, ``mesh_tangents``) and ``various_emitters`` (``examples/mitsuba/
+``instancing``, ``texture_interp``, ``mesh_tangents``, ``various_shapes``) and ``various_emitters`` (``examples/mitsuba/
 various_emitters``: its two scenes of every emitter kind, 512 x 64, their own size: one rendered by
 wrt's path tracer, one by its light tracer). Each scene is rendered by wrt at the suite's
 budget of 2e6 samples an image (``Suite.spp`` per pixel) and judged by
@@ -159,6 +159,7 @@ SUITES = {
         Suite("instancing", 64, 64, ("test_instancing_path",), folder="render_tests"),
         Suite("texture_interp", 128, 128, ("test_texture_interp_direct",), folder="render_tests"),
         Suite("mesh_tangents", 256, 256, ("test_tangent_pole_path",), folder="render_tests"),
+        Suite("various_shapes", 480, 480, ("test_various_shapes",), folder="render_tests/tests/scenes/various_shapes"),
         Suite(
             "various_emitters",
             512,

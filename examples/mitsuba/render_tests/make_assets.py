@@ -4,8 +4,9 @@ The scenes are nine of Mitsuba 3's render-test suite (mitsuba-data, ``tests/scen
 ``floating_sphere/test_directional`` and ``test_directional_direct``,
 ``orthographic_sensor/test_orthographic``, ``spot_light/test_spot`` and ``test_spot_direct``,
 ``projector/test_projector_textured_direct``, ``instancing/test_instancing_path``,
-``texture_interp/test_texture_interp_direct`` and ``mesh_tangents/test_tangent_pole_path``, element
-for element but the ``<path>`` of those that have one: it is
+``texture_interp/test_texture_interp_direct``, ``mesh_tangents/test_tangent_pole_path`` and
+``various_shapes/test_various_shapes``, element for element but the ``<path>`` of those that have
+one: it is
 ``../../../common``, the repository's shared assets, which are not published with the scene
 files, so these scenes look in this folder (``<path value="."/>``) for their textures and, where
 they load meshes, in ``../bsdf_spheres`` too (``<path value="../bsdf_spheres"/>``) for its
@@ -22,6 +23,12 @@ scene's own folder: not repeated.)
 ``textures/carrot.png``
     A 64 x 64 8-bit sRGB PNG of an orange carrot with green leaves on a pale blue ground, not
     symmetric, so that the six wrap and filter modes of ``test_texture_interp_direct`` differ.
+``tests/{serialized,obj,ply}/rectangle_normals_uv.*``
+    ``test_various_shapes`` (in ``tests/scenes/various_shapes``, mitsuba-data's own layout, so
+    that its ``../../serialized/...`` names these files unchanged) loads Mitsuba's rectangle
+    ([-1, 1]^2 at z = 0, two triangles) with normals (+z) and texture coordinates in three
+    formats: a ``.serialized`` (version 4, single precision), an OBJ and a binary PLY, each read
+    by Mitsuba as uv ``((x + 1) / 2, (y + 1) / 2)``.
 ``meshes/uv_sphere.obj``
     ``test_tangent_pole_path`` has no ``<path>``: its mesh is in this folder. A coarse unit UV
     sphere, 8 rings by 16 segments, its poles on z (the camera looks down the one at +z), made
@@ -32,6 +39,8 @@ Run from this folder: ``python make_assets.py`` (deterministic; the committed fi
 """
 
 import importlib.util
+import struct
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -81,6 +90,35 @@ def carrot(size: int = 64) -> np.ndarray:
     return np.round(255 * rgb).astype(np.uint8)
 
 
+RECTANGLE = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]])
+RECTANGLE_UV = (RECTANGLE[:, :2] + 1.0) / 2.0
+RECTANGLE_FACES = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32)
+
+
+def write_rectangles(folder: Path) -> None:
+    """``rectangle_normals_uv`` as ``.serialized``, OBJ and PLY below ``folder``."""
+    normals = np.tile([0.0, 0.0, 1.0], (4, 1))
+    for kind in ("serialized", "obj", "ply"):
+        (folder / kind).mkdir(parents=True, exist_ok=True)
+    # Mitsuba 0.5's format, version 4: flags (normals, uvs, single precision), name, counts, arrays
+    body = struct.pack("<I", 0x1 | 0x2 | 0x1000) + b"rectangle\0" + struct.pack("<QQ", 4, 2)
+    body += b"".join(np.asarray(a, "<f4").tobytes() for a in (RECTANGLE, normals, RECTANGLE_UV))
+    stream = struct.pack("<HH", 0x041C, 4) + zlib.compress(body + RECTANGLE_FACES.astype("<u4").tobytes(), 9)
+    (folder / "serialized" / "rectangle_normals_uv.serialized").write_bytes(stream + struct.pack("<QI", 0, 1))
+    lines = [f"v {x:g} {y:g} {z:g}" for x, y, z in RECTANGLE] + [f"vn {x:g} {y:g} {z:g}" for x, y, z in normals]
+    lines += [f"vt {u:g} {1.0 - v:g}" for u, v in RECTANGLE_UV]  # Mitsuba's OBJ reader flips v
+    lines += ["f " + " ".join(f"{i + 1}/{i + 1}/{i + 1}" for i in face) for face in RECTANGLE_FACES]
+    (folder / "obj" / "rectangle_normals_uv.obj").write_text("\n".join(lines) + "\n")
+    header = (
+        "ply\nformat binary_little_endian 1.0\nelement vertex 4\n"
+        + "".join(f"property float {c}\n" for c in ("x", "y", "z", "nx", "ny", "nz", "u", "v"))
+        + "element face 2\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    vertex = np.hstack([RECTANGLE, normals, RECTANGLE_UV]).astype("<f4").tobytes()
+    faces = b"".join(struct.pack("<B3i", 3, *face) for face in RECTANGLE_FACES.tolist())
+    (folder / "ply" / "rectangle_normals_uv.ply").write_bytes(header.encode() + vertex + faces)
+
+
 def write_png(path: Path, pixels: np.ndarray) -> None:
     spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], pixels.shape[2], "uint8")
     spec.attribute("DateTime", "")
@@ -90,6 +128,7 @@ def write_png(path: Path, pixels: np.ndarray) -> None:
 
 
 if __name__ == "__main__":
+    write_rectangles(HERE / "tests")
     (HERE / "meshes").mkdir(exist_ok=True)
     spheres = sphere_maker()
     vertices, faces, uvs = spheres.uv_sphere(rings=8, segments=16)
