@@ -4,16 +4,16 @@ Mitsuba's own suite stores its references.
 Suites (``SUITES``): ``suite`` (``examples/mitsuba/suite``: scenes written the way Mitsuba's
 render tests write theirs, 32 x 32), ``participating_media`` (``examples/mitsuba/
 participating_media``: the scenes of Mitsuba 3's participating-media render tests, 48 x 48, their
-own resolution), ``bsdf_spheres`` (``examples/mitsuba/bsdf_spheres``: its textured principled
-BSDF and normal-map tests, 48 x 48, their films fixed at that size), ``bsdf_spheres_lights`` (the same folder's
-twelve spheres and two leaves of every material kind under an area light, a constant sky, an
-environment map and a point light, 128 x 128, fixed), eight of one film size each over
-``examples/mitsuba/render_tests`` (ten more of Mitsuba's own render tests, named after their
+own resolution), ``bsdf_spheres`` (``examples/mitsuba/bsdf_spheres``: its textured principled BSDF
+and normal-map tests, 48 x 48, their films fixed at that size), ``bsdf_spheres_lights`` (the same
+folder's twelve spheres and two leaves of every material kind under an area light, a constant
+sky, an environment map and a point light, 128 x 128, fixed), nine of one film size each over
+``examples/mitsuba/render_tests`` (eleven more of Mitsuba's own render tests, named after their
 mitsuba-data folders: ``floating_sphere``, ``spot_light``, ``projector``, ``orthographic_sensor``,
-``instancing``, ``texture_interp``, ``mesh_tangents``, ``various_shapes``) and ``various_emitters`` (``examples/mitsuba/
-various_emitters``: its two scenes of every emitter kind, 512 x 64, their own size: one rendered by
-wrt's path tracer, one by its light tracer). Each scene is rendered by wrt at the suite's
-budget of 2e6 samples an image (``Suite.spp`` per pixel) and judged by
+``instancing``, ``texture_interp``, ``mesh_tangents``, ``various_shapes``, ``vertex_tangents``)
+and ``various_emitters`` (``examples/mitsuba/various_emitters``: its two scenes of every emitter
+kind, 512 x 64, their own size: one rendered by wrt's path tracer, one by its light tracer).
+Each scene is rendered by wrt at the suite's budget of 2e6 samples an image (``Suite.spp`` per pixel) and judged by
 `wrt_harness.mitsuba_peer.mitsuba_z_test` against Mitsuba's render of the same file through a
 ``moment`` integrator at ``Suite.reference_spp`` (mean and per-sample variance in CIE XYZ), stored
 in ``reference_images/mitsuba/SUITE/NAME.npz`` with the Mitsuba version, variant, seed and spp that
@@ -160,6 +160,13 @@ SUITES = {
         Suite("texture_interp", 128, 128, ("test_texture_interp_direct",), folder="render_tests"),
         Suite("mesh_tangents", 256, 256, ("test_tangent_pole_path",), folder="render_tests"),
         Suite("various_shapes", 480, 480, ("test_various_shapes",), folder="render_tests/tests/scenes/various_shapes"),
+        Suite(
+            "vertex_tangents",
+            64,
+            48,
+            ("test_anisotropic_tangents_path",),
+            folder="render_tests/tests/scenes/vertex_tangents",
+        ),
         Suite(
             "various_emitters",
             512,

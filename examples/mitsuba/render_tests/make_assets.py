@@ -4,9 +4,9 @@ The scenes are nine of Mitsuba 3's render-test suite (mitsuba-data, ``tests/scen
 ``floating_sphere/test_directional`` and ``test_directional_direct``,
 ``orthographic_sensor/test_orthographic``, ``spot_light/test_spot`` and ``test_spot_direct``,
 ``projector/test_projector_textured_direct``, ``instancing/test_instancing_path``,
-``texture_interp/test_texture_interp_direct``, ``mesh_tangents/test_tangent_pole_path`` and
-``various_shapes/test_various_shapes``, element for element but the ``<path>`` of those that have
-one: it is
+``texture_interp/test_texture_interp_direct``, ``mesh_tangents/test_tangent_pole_path``,
+``various_shapes/test_various_shapes`` and ``vertex_tangents/test_anisotropic_tangents_path``, element
+for element but the ``<path>`` of those in this folder that have one: it is
 ``../../../common``, the repository's shared assets, which are not published with the scene
 files, so these scenes look in this folder (``<path value="."/>``) for their textures and, where
 they load meshes, in ``../bsdf_spheres`` too (``<path value="../bsdf_spheres"/>``) for its
@@ -29,6 +29,13 @@ scene's own folder: not repeated.)
     ([-1, 1]^2 at z = 0, two triangles) with normals (+z) and texture coordinates in three
     formats: a ``.serialized`` (version 4, single precision), an OBJ and a binary PLY, each read
     by Mitsuba as uv ``((x + 1) / 2, (y + 1) / 2)``.
+``scenes/matpreview/matpreview.serialized`` and ``scenes/matpreview/envmap.exr``
+    ``test_anisotropic_tangents_path`` (in ``tests/scenes/vertex_tangents``, mitsuba-data's layout:
+    its ``<path value="../../../scenes/matpreview"/>`` names this folder unchanged) looks down at
+    the pole of mesh 2 of Mitsuba's material-preview file. The stand-in holds three meshes:
+    two small quads, and as mesh 2 ``../bsdf_spheres``' unit UV sphere (its poles on z, split seam
+    and poles, exact normals, 24 rings by 48 segments); the map is ``../bsdf_spheres``'
+    ``museum.exr`` room, 64 x 32.
 ``meshes/uv_sphere.obj``
     ``test_tangent_pole_path`` has no ``<path>``: its mesh is in this folder. A coarse unit UV
     sphere, 8 rings by 16 segments, its poles on z (the camera looks down the one at +z), made
@@ -95,16 +102,27 @@ RECTANGLE_UV = (RECTANGLE[:, :2] + 1.0) / 2.0
 RECTANGLE_FACES = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32)
 
 
+def write_serialized(path: Path, meshes) -> None:
+    """A ``.serialized`` file (Mitsuba 0.5's format, version 4, single precision) of ``meshes``,
+    each ``(name, vertices, faces, normals, uvs)``, with its table of offsets."""
+    streams = []
+    for name, vertices, faces, normals, uvs in meshes:
+        body = struct.pack("<I", 0x1 | 0x2 | 0x1000) + name.encode() + b"\0"
+        body += struct.pack("<QQ", len(vertices), len(faces))
+        body += b"".join(np.asarray(a, "<f4").tobytes() for a in (vertices, normals, uvs))
+        streams.append(struct.pack("<HH", 0x041C, 4) + zlib.compress(body + np.asarray(faces, "<u4").tobytes(), 9))
+    offsets = np.cumsum([0] + [len(stream) for stream in streams[:-1]])
+    table = b"".join(struct.pack("<Q", int(offset)) for offset in offsets) + struct.pack("<I", len(streams))
+    path.write_bytes(b"".join(streams) + table)
+
+
 def write_rectangles(folder: Path) -> None:
     """``rectangle_normals_uv`` as ``.serialized``, OBJ and PLY below ``folder``."""
     normals = np.tile([0.0, 0.0, 1.0], (4, 1))
     for kind in ("serialized", "obj", "ply"):
         (folder / kind).mkdir(parents=True, exist_ok=True)
-    # Mitsuba 0.5's format, version 4: flags (normals, uvs, single precision), name, counts, arrays
-    body = struct.pack("<I", 0x1 | 0x2 | 0x1000) + b"rectangle\0" + struct.pack("<QQ", 4, 2)
-    body += b"".join(np.asarray(a, "<f4").tobytes() for a in (RECTANGLE, normals, RECTANGLE_UV))
-    stream = struct.pack("<HH", 0x041C, 4) + zlib.compress(body + RECTANGLE_FACES.astype("<u4").tobytes(), 9)
-    (folder / "serialized" / "rectangle_normals_uv.serialized").write_bytes(stream + struct.pack("<QI", 0, 1))
+    rectangle = ("rectangle", RECTANGLE, RECTANGLE_FACES, normals, RECTANGLE_UV)
+    write_serialized(folder / "serialized" / "rectangle_normals_uv.serialized", [rectangle])
     lines = [f"v {x:g} {y:g} {z:g}" for x, y, z in RECTANGLE] + [f"vn {x:g} {y:g} {z:g}" for x, y, z in normals]
     lines += [f"vt {u:g} {1.0 - v:g}" for u, v in RECTANGLE_UV]  # Mitsuba's OBJ reader flips v
     lines += ["f " + " ".join(f"{i + 1}/{i + 1}/{i + 1}" for i in face) for face in RECTANGLE_FACES]
@@ -127,10 +145,22 @@ def write_png(path: Path, pixels: np.ndarray) -> None:
         raise OSError(f"{path}: {oiio.geterror()}")
 
 
+def write_matpreview(folder: Path, spheres) -> None:
+    """The material-preview stand-ins below ``folder`` (see the module's docstring)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    normals = np.tile([0.0, 0.0, 1.0], (4, 1))
+    quads = [(f"quad_{k}", RECTANGLE * (0.1 * (k + 1)), RECTANGLE_FACES, normals, RECTANGLE_UV) for k in range(2)]
+    vertices, faces, uvs = spheres.uv_sphere()
+    ball = ("ball", np.array(vertices), np.array(faces), np.array(vertices), np.array(uvs))
+    write_serialized(folder / "matpreview.serialized", [*quads, ball])
+    spheres.write_exr(folder / "envmap.exr", spheres.environment_map())
+
+
 if __name__ == "__main__":
     write_rectangles(HERE / "tests")
     (HERE / "meshes").mkdir(exist_ok=True)
     spheres = sphere_maker()
+    write_matpreview(HERE / "scenes" / "matpreview", spheres)
     vertices, faces, uvs = spheres.uv_sphere(rings=8, segments=16)
     spheres.write_obj(HERE / "meshes" / "uv_sphere.obj", vertices, faces, uvs, normals=vertices)
     (HERE / "textures").mkdir(exist_ok=True)
