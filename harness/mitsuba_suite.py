@@ -288,6 +288,7 @@ CROSSCHECKS = {
         Crosscheck("bumpmap", 64, 48, 512),
         Crosscheck("mesh_attributes", 64, 48, 512),
         Crosscheck("principled", 64, 48, 512),
+        Crosscheck("textured_emission", 64, 48, 512),
         Crosscheck("fog_area_light", 48, 36, 512, folder="media"),
         Crosscheck("milk_in_glass", 48, 36, 512, folder="media"),
         Crosscheck("camera_in_fog", 48, 36, 512, folder="media"),

@@ -23,7 +23,8 @@ CASES = [name for name, check in CROSSCHECKS.items() if not check.folder]
 # textured_roughness (a checkerboard alpha, its colours not swapped for eval_1: means -5%);
 # normal_map (shaded unmirrored: means -1.5 to -2.4%); mask (checkerboard unswapped: SSIM 0.64);
 # blend (a blendbsdf of each kind: means within 0.36%, SSIM 0.994; constant weights swapped: green -3.9%);
-# mesh_attributes (vertex colours and a blend by face weights of a PLY: means within 0.07%, SSIM 0.999).
+# mesh_attributes (vertex colours and a blend by face weights of a PLY: means within 0.07%, SSIM 0.999);
+# textured_emission (checkerboard radiance on a turned sphere and an OBJ ball, sampled by NEE).
 
 
 @pytest.mark.parametrize("name", CASES)
