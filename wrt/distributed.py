@@ -105,6 +105,10 @@ def _bounded_client():
     return BoundedClient
 
 
+class _Dropped(WrtError):
+    """A request whose connection closed before it was answered."""
+
+
 def _reason(error: BaseException) -> str:
     """A library's exception as a message shows it: its first line, escaped and cut (its type
     when it has no message)."""
@@ -209,8 +213,8 @@ class Cluster:
             self.close()
             raise
 
-    def _error(self, problem: str) -> WrtError:
-        return WrtError(f"--scheduler {self.address}: {problem}")
+    def _error(self, problem: str, kind: type[WrtError] = WrtError) -> WrtError:
+        return kind(f"--scheduler {self.address}: {problem}")
 
     def _check_address(self, distributed) -> None:
         """Refuse an address Dask would fail on with a traceback: malformed, a transport whose
@@ -276,6 +280,8 @@ class Cluster:
             return self.client.sync(method, *args, callback_timeout=seconds, **kwargs)
         except (TimeoutError, asyncio.TimeoutError):
             raise self._error(f"the scheduler did not answer within {seconds:.3g} s ({what})") from None
+        except OSError as e:  # Dask's CommClosedError among them
+            raise self._error(f"{what} failed ({_reason(e)})", _Dropped) from None
         except Exception as e:
             raise self._error(f"{what} failed ({_reason(e)})") from None
 
@@ -297,18 +303,26 @@ class Cluster:
         SHA-256 of its pickle with ``spp`` and ``seed`` left out, which its device scene does not
         depend on. The upload is given 1 s per MB for each of the rounds in which Dask copies it
         from worker to worker (each holder to two more); a cluster without workers, ``worker_timeout``
-        seconds for one to come (a worker's nanny starts a new one when it dies)."""
+        seconds for one to come (a worker's nanny starts a new one when it dies). An upload that a
+        dying worker broke is sent again, for as long."""
         data = pickle.dumps(replace(scene, render=replace(scene.render, spp=1, seed=0)))
-        since = time.monotonic()
-        while not (workers := self._ask("the count of its worker threads", self.client.nthreads)):
-            if time.monotonic() - since >= self.worker_timeout:
-                raise self._workerless(time.monotonic() - since)
-            time.sleep(WATCH_EVERY_S)
-        rounds = 1 + math.ceil(math.log(len(workers), 3))
-        seconds = self.timeout + 2 * rounds * len(data) / TRANSFER_BYTES_PER_S
         what = f"the upload of the scene, {len(data) / 1e6:.2g} MB"
-        shipped = self._transfer(what, self.client.scatter, scene, hash=False, broadcast=True, seconds=seconds)
-        return shipped, hashlib.sha256(data).hexdigest()
+        since = time.monotonic()
+        while True:
+            while not (workers := self._ask("the count of its worker threads", self.client.nthreads)):
+                if time.monotonic() - since >= self.worker_timeout:
+                    raise self._workerless(time.monotonic() - since)
+                time.sleep(WATCH_EVERY_S)
+            rounds = 1 + math.ceil(math.log(len(workers), 3))
+            seconds = self.timeout + 2 * rounds * len(data) / TRANSFER_BYTES_PER_S
+            try:
+                shipped = self._transfer(what, self.client.scatter, scene, hash=False, broadcast=True, seconds=seconds)
+                return shipped, hashlib.sha256(data).hexdigest()
+            except _Dropped:
+                # a worker it was sent to died during it (the scheduler, failing to reach it, drops
+                # the request's connection): sent again to the workers there are now
+                if time.monotonic() - since >= self.worker_timeout:
+                    raise
 
     def _scene_results(self, scene: Scene, shipment: list, submit: Callable, stop: threading.Event | None = None):
         """``_results`` of the tasks ``submit(shipped, key)`` submits for ``scene``, shipped as

@@ -166,6 +166,26 @@ def test_a_worker_error_reaches_the_client(cluster, shipped_scene):
         cluster.render(shipped_scene, spp=1, device="nowhere")
 
 
+def test_an_upload_a_dying_worker_broke_is_sent_again(cluster, shipped_scene, monkeypatch):
+    """Dask's scheduler drops the client's connection when a worker it scatters to has died (its
+    CommClosedError ends the request's handler): the scene is sent again, the image unchanged."""
+    from distributed.comm.core import CommClosedError
+
+    scatter, calls = cluster.client.scatter, []
+
+    def dropped_once(*args, **kwargs):
+        calls.append(args)
+        if len(calls) == 1:
+            raise CommClosedError("in <TCP (closed) ConnectionPool.scatter>: Stream is closed")
+        return scatter(*args, **kwargs)
+
+    monkeypatch.setattr(cluster.client, "scatter", dropped_once)
+    with deadline(60):
+        tiled = cluster.render(shipped_scene, spp=1, seed=11)
+    assert len(calls) == 2
+    assert_same(tiled, wrt.render(shipped_scene, spp=1, seed=11))
+
+
 # ---- An unusable cluster: one error line after a bounded wait, never a hang ----------------------
 
 
