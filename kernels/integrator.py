@@ -137,6 +137,44 @@ def make_trace_segment(record: bool, trace: Traversal):
     return trace_segment
 
 
+def make_camera_sample(features: Features):
+    """``camera_sample(cam, sampler, pixel, x, y, s, centre_o, centre, mid_shutter, dims) -> (o, d,
+    time)``: the camera ray of sample ``s`` of the film pixel ``(x, y)``, whose random numbers
+    ``pixel`` keys: the pixel-centre ray ``centre_o, centre`` at ``mid_shutter`` when ``spp == 1``;
+    otherwise a film position drawn from the pixel filter (dimensions ``dims[0]`` and the next), a
+    lens position (``dims[1]`` and the next; with ``features.lens``) and a shutter time (``dims[2]``;
+    with ``features.motion``)."""
+    generate_ray = make_generate_ray(features.orthographic)
+
+    @wp.func
+    def camera_sample(
+        cam: CameraData,
+        sampler: Sampler,
+        pixel: wp.int32,
+        x: wp.int32,
+        y: wp.int32,
+        s: wp.int32,
+        centre_o: wp.vec3,
+        centre: wp.vec3,
+        mid_shutter: float,
+        dims: wp.vec3i,
+    ):
+        o = centre_o
+        d = centre
+        time = mid_shutter
+        if sampler.spp > 1:
+            uv = film_position(cam, sample_2d(sampler, pixel, s, dims[0]))
+            o, d = generate_ray(cam, x, y, uv[0], uv[1])
+            if wp.static(features.lens):
+                lens = sample_2d(sampler, pixel, s, dims[1])
+                o, d = thin_lens_ray(cam, o, d, concentric_disk(lens[0], lens[1]))
+            if wp.static(features.motion):
+                time = shutter_time(cam, sample_1d(sampler, pixel, s, dims[2]))
+        return o, d, time
+
+    return camera_sample
+
+
 def make_render_kernel(
     radiance,
     *,
@@ -167,6 +205,7 @@ def make_render_kernel(
     trace = traversal(features, inline)
     trace_segment = make_trace_segment(record, trace)
     generate_ray = make_generate_ray(features.orthographic)
+    camera_sample = make_camera_sample(features)
 
     @wp.func
     def camera_ray(
@@ -226,17 +265,7 @@ def make_render_kernel(
             t, prim, inst = trace.closest_hit(geometry, o, centre, mid_shutter, 0.0, t_max)
             write_aovs(film, geometry, pixel, ray_hit(o, centre, mid_shutter, t, prim, inst))
         for s in range(first, first + launch.pass_spp):
-            o = centre_o
-            d = centre
-            time = mid_shutter
-            if sampler.spp > 1:
-                uv = film_position(cam, sample_2d(sampler, pixel, s, 0))
-                o, d = generate_ray(cam, x, y, uv[0], uv[1])
-                if wp.static(features.lens):
-                    lens = sample_2d(sampler, pixel, s, 2)
-                    o, d = thin_lens_ray(cam, o, d, concentric_disk(lens[0], lens[1]))
-                if wp.static(features.motion):
-                    time = shutter_time(cam, sample_1d(sampler, pixel, s, 4))
+            o, d, time = camera_sample(cam, sampler, pixel, x, y, s, centre_o, centre, mid_shutter, wp.vec3i(0, 2, 4))
             o, t_max = clip_ray(cam, o, d)
             ray = camera_ray(geometry, rec, pixel, s, o, d, t_max, time)
             if sampler.spp == 1:  # the pixel-centre ray is the sample, and gives the AOVs

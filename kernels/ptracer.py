@@ -54,15 +54,13 @@ from .camera import (
     TENT,
     CameraData,
     clip_ray,
-    film_position,
     make_generate_ray,
     shutter_time,
-    thin_lens_ray,
 )
 from .features import ALL, Features
 from .film import Film, write_aovs
 from .hit import Hit, make_surface_hit_for, normal_map_shadowing
-from .integrator import CameraRay, IntegratorSettings, RenderPass, make_trace_segment
+from .integrator import CameraRay, IntegratorSettings, RenderPass, make_camera_sample, make_trace_segment
 from .lights import SHADOW_MARGIN, LightData, lighting_for
 from .materials import (
     BSDF_SPECULAR,
@@ -301,6 +299,7 @@ def make_ptracer_kernel(
     surface_hit = make_surface_hit_for(features)
     link_camera = make_link_camera(features)
     generate_ray = make_generate_ray(features.orthographic)
+    camera_sample = make_camera_sample(features)
     glossy_transmission = features.rough_dielectric or features.principled  # a camera seen through a surface
 
     @wp.func
@@ -655,17 +654,9 @@ def make_ptracer_kernel(
             dropped = film.rejected[slot]
         for s in range(launch.first_sample, launch.first_sample + launch.pass_spp):
             if tracing.sky != 0:
-                o = centre_o
-                d = centre
-                time = mid_shutter
-                if sampler.spp > 1:
-                    uv = film_position(cam, sample_2d(sampler, slot, s, 9))
-                    o, d = generate_ray(cam, x, y, uv[0], uv[1])
-                    if wp.static(features.lens):
-                        lens = sample_2d(sampler, slot, s, 11)
-                        o, d = thin_lens_ray(cam, o, d, concentric_disk(lens[0], lens[1]))
-                    if wp.static(features.motion):
-                        time = shutter_time(cam, sample_1d(sampler, slot, s, 0))
+                o, d, time = camera_sample(
+                    cam, sampler, slot, x, y, s, centre_o, centre, mid_shutter, wp.vec3i(9, 11, 0)
+                )
                 dropped += sky_seen(geometry, lights, cam, tracing, rec, slot_sample(slot, s, time), o, d)
             dropped += trace_light_path(geometry, materials, lights, settings, cam, sampler, tracing, rec, slot, s)
         film.rejected[slot] = dropped

@@ -100,6 +100,16 @@ def make_emitting_pdf(shapes: bool, smooth: bool):
 
 
 @wp.func
+def pick_emitting(lights: LightData, uc: float):
+    """The emissive primitive ``uc`` in [0, 1) chooses by power: ``(its row e, its selection
+    probability, what is left of uc rescaled to [0, 1])``."""
+    e = find_interval(lights.emit_cdf, 0, lights.emit_cdf.shape[0], uc)
+    below = lights.emit_cdf[e]
+    selection = lights.emit_cdf[e + 1] - below
+    return e, selection, wp.clamp((uc - below) / selection, 0.0, 1.0)
+
+
+@wp.func
 def polygon_triangle(lights: LightData, e: wp.int32, x: float) -> wp.int32:
     """The triangle of emitting polygon ``e`` (an index into ``emit_corner`` / 3) that ``x`` in
     [0, 1) picks by area: the first whose running area fraction exceeds ``x``."""
@@ -204,9 +214,7 @@ def make_sample_emitting(smooth: bool, shapes: bool, textures: bool):
         by ``(u1, u2)``, on a polygon likewise in one of its triangles chosen by area with what is
         left of ``uc``, toward a sphere a direction uniform in its cone (none from inside);
         radiance zero where a back faces ``p``."""
-        e = find_interval(lights.emit_cdf, 0, lights.emit_cdf.shape[0], uc)
-        below = lights.emit_cdf[e]
-        selection = lights.emit_cdf[e + 1] - below
+        e, selection, x = pick_emitting(lights, uc)
         if wp.static(shapes):
             if lights.emit_kind[e] == SPHERE:
                 i = lights.emit_prim[e]
@@ -220,7 +228,6 @@ def make_sample_emitting(smooth: bool, shapes: bool, textures: bool):
                     geometry, materials, geometry.sphere_shape[i], (i << KIND_BITS) | SPHERE, q, time
                 )
                 return wi, dist, radiance, selection / solid_angle
-        x = wp.clamp((uc - below) / selection, 0.0, 1.0)
         q, ns, shape, prim = emitting_point(geometry, lights, e, x, wp.vec2(u1, u2), time)
         to_q = q - p
         dist2 = wp.dot(to_q, to_q)
@@ -257,9 +264,7 @@ def make_emit_emitting(smooth: bool, shapes: bool, textures: bool):
         """A ray leaving an emitting primitive chosen by ``uc`` with its power probability: a
         uniform point on it (a polygon's triangle chosen by area with what is left of ``uc``), a
         cosine-weighted direction about its emitting normal."""
-        e = find_interval(lights.emit_cdf, 0, lights.emit_cdf.shape[0], uc)
-        below = lights.emit_cdf[e]
-        selection = lights.emit_cdf[e + 1] - below
+        e, selection, x = pick_emitting(lights, uc)
         local = cosine_hemisphere(u_dir[0], u_dir[1])
         if wp.static(shapes):
             if lights.emit_kind[e] == SPHERE:
@@ -269,7 +274,6 @@ def make_emit_emitting(smooth: bool, shapes: bool, textures: bool):
                     geometry, materials, geometry.sphere_shape[i], (i << KIND_BITS) | SPHERE, q, time
                 )
                 return surface_emission(q, n, radiance, selection / area, local)
-        x = wp.clamp((uc - below) / selection, 0.0, 1.0)
         q, ns, shape, prim = emitting_point(geometry, lights, e, x, u_pos, time)
         radiance = emission_at(geometry, materials, shape, prim, q, time)
         return surface_emission(q, ns, radiance, selection / lights.emit_area[e], local)
