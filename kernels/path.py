@@ -27,7 +27,8 @@ Per camera sample one path is traced:
   bounce, MIS-weighted after a BSDF sample when the emitter is a light's surface or an emissive primitive
   that NEE also samples (other emissive shapes, and shapes seen through instances, are found by
   BSDF sampling only); paths leaving the scene see the
-  environment lights, MIS-weighted likewise;
+  environment lights, MIS-weighted likewise; an emissive medium's radiance along each segment in
+  it is added in full (``FreeFlight.emitted``: found by the path only, never light-sampled);
 - after ``RR_DEPTH`` segments, Russian roulette continues a path with probability
   min(0.95, largest channel of its throughput) and divides by it (unbiased; Mitsuba's rr_depth 5);
   the throughput it judges leaves out the ``eta^2`` radiance scaling of refractions (pbrt-v4's
@@ -352,7 +353,7 @@ def make_path_radiance(record: bool, features: Features = ALL, inline: bool | No
                 path.current = current
             traced = False
 
-            # A participating medium along the segment: scattered in it, or through to its end
+            # A participating medium along the segment: its emission, and scattered in it or through to its end
             t_end = found.t
             in_medium = bool(False)
             if wp.static(features.media):
@@ -367,6 +368,7 @@ def make_path_radiance(record: bool, features: Features = ALL, inline: bool | No
                         sample_1d(sampler, ray.pixel, ray.sample, flight_dim(vertex)),
                         tracking_key(sampler.seed, ray.pixel, ray.sample, track_dim(vertex)),
                     )
+                    path.radiance += wp.cw_mul(path.throughput, flight.emitted)
                     path.throughput = wp.cw_mul(path.throughput, flight.weight)
                     if flight.scattered:
                         in_medium = True

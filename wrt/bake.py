@@ -48,6 +48,8 @@ from .scene import (
 )
 from .textures import TextureTable, light_texture_table, texture_table
 
+GLOW_COLLISIONS = 8.0  # tentative collisions along the shortest edge of a clear emissive grid's box
+
 
 @dataclass
 class BakedMaterials:
@@ -160,9 +162,10 @@ def bake_media(scene: Scene, surfaces: int) -> dict[str, np.ndarray]:
     """``MediumData``'s columns: per surface (``surfaces`` of them, ``surface_materials``'
     numbering: ``BakedMaterials.shape_material``'s length) the media its shape bounds (``UNSET``
     for none), per medium its kind, extinction (``scale`` applied), albedo and phase asymmetry (0
-    for isotropic), and for a heterogeneous one the volume rows of its extinction (``scale``
-    applied) and albedo and its majorant; the volumes' frames, resolutions and texels (grey ones
-    in all three channels). One placeholder row where a table would be empty."""
+    for isotropic) and emission, and for a heterogeneous one the volume rows of its extinction
+    (``scale`` applied), albedo and emission (-1: none) and its majorant (``_majorant``); the
+    volumes' frames, resolutions and texels (grey ones in all three channels). One placeholder row
+    where a table would be empty."""
     interior = np.full(surfaces, UNSET, dtype=np.int32)
     exterior = interior.copy()
     for shape, inside, outside in scene.boundaries:
@@ -180,6 +183,8 @@ def bake_media(scene: Scene, surfaces: int) -> dict[str, np.ndarray]:
     grid = [m.type == "heterogeneous" for m in media]
     density = [row(m.sigma_t, m.scale) if g else -1 for m, g in zip(media, grid)]
     tint = [row(m.albedo) if g else -1 for m, g in zip(media, grid)]
+    glow = [row(m.emission) if g and m.emissive else -1 for m, g in zip(media, grid)]
+    majorant = [_majorant(m, volumes[d]) if d >= 0 else 0.0 for m, d in zip(media, density)]
     if not volumes:
         row((0.0, 0.0, 0.0))
     offsets = np.cumsum([0] + [v.shape[0] * v.shape[1] * v.shape[2] for _, v in volumes])[:-1]
@@ -189,15 +194,29 @@ def bake_media(scene: Scene, surfaces: int) -> dict[str, np.ndarray]:
         "sigma_t": np.array([(0.0,) * 3 if g else np.multiply(m.sigma_t, m.scale) for m, g in zip(media, grid)]),
         "albedo": np.array([(0.0,) * 3 if g else m.albedo for m, g in zip(media, grid)]),
         "g": np.array([m.g for m in media]),
+        "emission": np.array([(0.0,) * 3 if g else m.emission for m, g in zip(media, grid)]),
         "kind": np.array([GRID if g else HOMOGENEOUS for g in grid], dtype=np.int32),
         "density": np.array(density, dtype=np.int32),
         "tint": np.array(tint, dtype=np.int32),
-        "majorant": np.array([float(volumes[d][1].max()) if d >= 0 else 0.0 for d in density]),
+        "glow": np.array(glow, dtype=np.int32),
+        "majorant": np.array(majorant),
         "volume_to_local": np.array([m for m, _ in volumes]),
         "volume_res": np.array([v.shape[2::-1] for _, v in volumes], dtype=np.int32),
         "volume_offset": offsets.astype(np.int32),
         "volume_values": np.concatenate([v.reshape(-1, 3) for _, v in volumes]),
     }
+
+
+def _majorant(medium: Medium, density: tuple[np.ndarray, np.ndarray]) -> float:
+    """The bound a heterogeneous medium is tracked against: its largest extinction plus its
+    ``sigma_n``; an emissive one that would have none (clear everywhere) gets a null density of
+    ``GLOW_COLLISIONS`` collisions along its box's shortest edge, so that its emission is found."""
+    to_local, texels = density
+    bound = float(texels.max()) + medium.sigma_n
+    if bound <= 0.0 and medium.emissive:
+        edges = np.linalg.norm(np.linalg.inv(to_local)[:3, :3], axis=0)
+        bound = GLOW_COLLISIONS / float(edges.min())
+    return bound
 
 
 @dataclass

@@ -558,6 +558,12 @@ def _medium(file: str, index: int, data, scene_dir: str = ".") -> Medium:
             else _colour(t, "albedo", Medium.albedo, hi=1.0)
         ),
         "scale": lambda: t.number("scale", Medium.scale, lo=0.0),
+        "emission": lambda: (
+            _volume(t, "emission", scene_dir)
+            if heterogeneous and isinstance(t.get("emission", None), Mapping)
+            else _colour(t, "emission", Medium.emission, hi=MAX_MAGNITUDE)
+        ),
+        "sigma_n": lambda: t.number("sigma_n", Medium.sigma_n, lo=0.0, hi=MAX_MAGNITUDE),
     }
     values = {"name": t.string("name"), "type": kind}
     values.update({key: readers[key]() for key in MEDIUM_REGISTRY[kind].keys})

@@ -228,7 +228,11 @@ class Medium:
     Henyey-Greenstein of asymmetry ``g`` in (-1, 1), ``g > 0`` forward). A shape's ``interior`` and
     ``exterior`` and the camera's ``medium`` name media (``Scene.boundaries``, ``Scene.camera_medium``).
     A ``heterogeneous`` medium's ``sigma_t`` is a `Volume` (whose box bounds the medium) and its
-    ``albedo`` one or a constant."""
+    ``albedo`` one or a constant. ``emission`` (a heterogeneous medium's: also a `Volume`) is the
+    radiance it emits per unit length a ray crosses (W/(m^2 sr) per scene unit, not scaled,
+    independent of the absorption: Mitsuba 3's ``volumelight``); ``sigma_n`` a heterogeneous
+    medium's null density (per unit length), added to the bound it is tracked against: the
+    noise only."""
 
     name: str
     type: str = "homogeneous"
@@ -237,6 +241,12 @@ class Medium:
     scale: float = 1.0
     phase: str = "isotropic"
     g: float = 0.0
+    emission: tuple[float, float, float] | Volume = (0.0, 0.0, 0.0)
+    sigma_n: float = 0.0
+
+    @property
+    def emissive(self) -> bool:
+        return isinstance(self.emission, Volume) or max(self.emission) > 0.0
 
 
 STILL = (0.0, 0.0, 0.0)

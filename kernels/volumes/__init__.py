@@ -19,7 +19,8 @@ the shape's, whatever the ray was in. The nested dielectrics and their Beer-Lamb
 - ``boundary_medium(media, surface, outward, current)``: the medium beyond a surface;
 - ``free_flight(media, medium, o, d, t_max, u, key)``: a ``FreeFlight`` sample along the segment
   ``o + t d``, ``0 < t < t_max`` (infinite for a ray that leaves the scene), from the sampler's
-  number ``u`` and, where a medium needs more, the stream ``key`` (``tracking_key``);
+  number ``u`` and, where a medium needs more, the stream ``key`` (``tracking_key``), with the
+  radiance an emissive medium emits along it;
 - ``volume_transmittance(media, medium, o, d, distance, key)``: the transmittance along a shadow
   ray;
 - ``phase_value(media, medium, wo, wi)``: the phase function (1/sr), also the density with which
@@ -97,7 +98,7 @@ def free_flight(
     """A free-flight sample in ``medium`` along ``o + t d`` (unit ``d``), ``0 < t < t_max``."""
     if media.kind[medium] == GRID:
         return grid_free_flight(media, medium, o, d, t_max, u, key)
-    return homogeneous_free_flight(media.sigma_t[medium], media.albedo[medium], t_max, u)
+    return homogeneous_free_flight(media.sigma_t[medium], media.albedo[medium], media.emission[medium], t_max, u)
 
 
 @wp.func

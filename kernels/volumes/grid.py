@@ -19,6 +19,10 @@ Tracking uses one grey majorant per medium, ``sigma_bar`` (the largest texel of 
   has weights ``albedo`` and 1: classic delta tracking. Unbiased for every channel.
 - transmittance of a shadow ray (``grid_transmittance``) by ratio tracking: the product of
   ``1 - sigma_t(x) / sigma_bar`` over the tentative collisions (Novak et al. 2014).
+- emission (a ``glow`` volume): every tentative collision before the real one scores the
+  throughput so far times ``emission(x) / sigma_bar`` (pbrt-v4's ``SampleT_maj`` callback, Mitsuba
+  3's ``volumelight``), an unbiased estimate of ``int T(s) emission(s) ds``. ``sigma_n``, a null
+  density added to the bound (Mitsuba's), makes collisions where the medium is clear.
 
 The first distance of a free flight takes the sampler's number ``u``; every later number comes
 from the counter hash of ``key`` and the step (``step_uniform``), so a path is reproducible
@@ -40,7 +44,7 @@ from ..sampling import ONE_MINUS_EPSILON, pcg_hash, to_unit
 from .data import FreeFlight, MediumData
 from .interface import MediumType
 
-TYPE = MediumType("heterogeneous", ("sigma_t", "albedo", "scale"))
+TYPE = MediumType("heterogeneous", ("sigma_t", "albedo", "scale", "emission", "sigma_n"))
 
 MAX_STEPS = wp.constant(65536)
 
@@ -112,6 +116,8 @@ def grid_free_flight(
     flight.scattered = False
     flight.t = t_max
     flight.weight = wp.vec3(1.0)
+    flight.emitted = wp.vec3(0.0)
+    glow = media.glow[medium]
     sigma_bar = media.majorant[medium]
     span = volume_span(media, media.density[medium], o, d, t_max)
     if sigma_bar <= 0.0 or span[0] >= span[1]:
@@ -123,6 +129,8 @@ def grid_free_flight(
         if t >= span[1]:
             return flight
         p = o + t * d
+        if glow >= 0:
+            flight.emitted += wp.cw_mul(flight.weight, volume_lookup(media, glow, p)) / sigma_bar
         sigma_t = volume_lookup(media, media.density[medium], p)
         real = mean3(sigma_t)
         if step_uniform(key, 2 * step) * sigma_bar < real:
