@@ -206,5 +206,7 @@ def test_the_mitsuba_importer_converts_grid_and_constant_volumes_exactly(tmp_pat
     volume = scene.media[0].sigma_t
     np.testing.assert_allclose(volume.to_world @ [1, 1, 1, 1], [3, 2, 2, 1])  # the file's box, then to_world
     xml.write_text(xml.read_text().replace('<float name="scale" value="3"/>', '<float name="sigma_n" value="1"/>'))
-    with pytest.raises(WrtError, match="sigma_n.*not supported"):
+    assert load_mitsuba(xml)[0]["medium"][0]["sigma_n"] == 1.0  # its null density: the noise only
+    xml.write_text(xml.read_text().replace('name="sigma_n" value="1"', 'name="sigma_n" value="-1"'))
+    with pytest.raises(WrtError, match="'sigma_n' = -1 must not be negative"):
         load_mitsuba(xml)

@@ -3,7 +3,10 @@
 ``constvolume``, or one value) with its ``isotropic`` or ``hg`` phase function, each ``<medium>``
 once, named when a shape's ``interior`` or ``exterior`` or the sensor first uses it. A
 heterogeneous medium's plain ``sigma_t`` value is a constant volume over the unit cube, as
-Mitsuba makes it; emissive media (``volumelight``, ``sigma_n``) are refused."""
+Mitsuba makes it. A ``volumelight`` emitter on a shape is the emission of the shape's interior
+medium (``Media.emit``); a medium's ``sigma_n`` (its null density) and ``medium_sampling_mode``
+change the noise only (wrt's tracking is unbiased for any bound), ``sigma_n`` kept as the null
+density of a heterogeneous medium, which a clear emissive one needs."""
 
 from __future__ import annotations
 
@@ -13,6 +16,9 @@ from .transforms import as_list
 from .xml import Document, Element, Plugin
 
 HARMLESS_MEDIUM = ("sample_emitters",)
+SAMPLING_MODES = ("analogue", "max", "mean")
+"""Mitsuba's ``medium_sampling_mode`` values: how a chromatic medium's collisions are chosen, which
+changes the noise only."""
 HARMLESS_GRID = ("raw",)
 """Grid volume parameters of no effect in RGB: ``raw`` turns off the spectral upsampling of RGB
 texels, which Mitsuba's RGB variants do not do."""
@@ -41,6 +47,23 @@ class Media:
             self.tables.append({"name": name, **convert(self.doc, element)})
             self.sources.append(element)
         return self._names[key]
+
+    def emit(self, name: str, element: Element) -> None:
+        """Give the ``[[medium]]`` named ``name`` the emission of the ``volumelight`` ``element``
+        (its ``radiance``: a colour, or for a heterogeneous medium a volume)."""
+        table = self.tables[[t["name"] for t in self.tables].index(name)]
+        if "emission" in table:
+            raise self.doc.error(element, f"medium {name!r} has a volumelight already: a medium emits once")
+        p = Plugin(self.doc, element)
+        if table["type"] == "heterogeneous":
+            table["emission"] = volume(self.doc, p, "radiance", 1.0)
+        else:
+            if any(key == "radiance" and child.tag == "volume" for key, child in p.nested):
+                raise self.doc.error(
+                    element, "a volume radiance needs a heterogeneous medium (this one is homogeneous)"
+                )
+            table["emission"] = p.color("radiance", 1.0, emission=True)
+        p.finish()
 
     def refs(self, p: Plugin, names: tuple[str, ...]) -> dict[str, str]:
         """The media a plugin names (``interior``, ``exterior``; a sensor's any name), by the name
@@ -82,19 +105,46 @@ def convert(doc: Document, element: Element) -> dict:
     if phases:
         table["phase"] = phase(doc, phases[0])
     if p.type in ("homogeneous", "heterogeneous"):
+        sigma_n = null_density(doc, p)
+        if p.type == "heterogeneous" and sigma_n > 0.0:
+            table["sigma_n"] = sigma_n
         for name in HARMLESS_MEDIUM:
             p.boolean(name, True)
+        mode = p.string("medium_sampling_mode", "analogue")
+        if mode not in SAMPLING_MODES:
+            doc.warn(p.params["medium_sampling_mode"], f"'medium_sampling_mode' = {mode!r} is not one of Mitsuba's")
         p.finish()
     return table
 
 
+def null_density(doc: Document, p: Plugin) -> float:
+    """A medium's ``sigma_n``: a number or a ``constvolume`` (a ``gridvolume``: its bound only
+    matters, taken as 0 with a warning)."""
+    element = next((child for key, child in p.nested if key == "sigma_n" and child.tag == "volume"), None)
+    if element is None:
+        value = p.number("sigma_n", 0.0)
+    else:
+        p.used_nested.add(id(element))
+        v = Plugin(doc, element)
+        if v.type == "constvolume":
+            value = max(v.color("value", 0.0, unbounded=True))
+            v.transform("to_world")
+            v.finish()
+        else:
+            doc.warn(element, "a sigma_n volume other than a constvolume is taken as 0 (it changes the noise only)")
+            value = 0.0
+    if value < 0.0:
+        raise doc.error(p.params.get("sigma_n", element), f"'sigma_n' = {value:g} must not be negative")
+    return value
+
+
 def volume(doc: Document, p: Plugin, name: str, default: float) -> dict | list[float]:
-    """A heterogeneous medium's ``sigma_t`` or ``albedo``: its nested ``<volume>`` as a volume
-    table, or its plain value (``sigma_t``'s a constant volume over the unit cube, as Mitsuba's
-    ``constvolume`` of identity ``to_world``)."""
+    """A heterogeneous medium's ``sigma_t`` or ``albedo`` (or a ``volumelight``'s ``radiance``): its
+    nested ``<volume>`` as a volume table, or its plain value (``sigma_t``'s a constant volume over
+    the unit cube, as Mitsuba's ``constvolume`` of identity ``to_world``)."""
     element = next((child for key, child in p.nested if key == name and child.tag == "volume"), None)
     if element is None:
-        value = p.color(name, default, unbounded=name == "sigma_t")
+        value = p.color(name, default, emission=name == "radiance", unbounded=name == "sigma_t")
         return {"volume": "constant", "value": value} if name == "sigma_t" else value
     p.used_nested.add(id(element))
     v = Plugin(doc, element)

@@ -51,6 +51,11 @@ def shape(
     bsdfs, emitters = p.children("bsdf"), p.children("emitter")
     for extra in bsdfs[1:] + emitters[1:]:
         doc.warn(extra, "a shape takes one BSDF and one emitter: ignored")
+    if emitters and doc.attr(emitters[0], "type", "") == "volumelight":  # its interior medium's emission
+        if "interior" not in bounds:
+            raise doc.error(emitters[0], "a volumelight is the emission of its shape's interior medium: it has none")
+        media.emit(bounds["interior"], emitters[0])
+        emitters = []
     front = -1.0 if p.boolean("flip_normals", False) else 1.0
     mirrored = mirrors(matrix[:3, :3]) != (front < 0)  # winding must be reversed to keep Mitsuba's front
     params = materials.of(bsdfs[0] if bsdfs else None, emitter=bool(emitters)).params

@@ -3,9 +3,10 @@
 The scenes are those of Mitsuba 3's render-test suite (mitsuba-data, ``tests/scenes/
 participating_media``), element for element; their assets are not all published, so they are
 made here: the grids (``textures/sigmat.vol``, ``textures/albedo.vol``) from the density and
-albedo functions that define them in that suite (16^3 texels), the meshes and the environment maps
-as stand-ins of our own (named as the suite names them; docs/mitsuba.md says which). Run from this
-folder: ``python make_assets.py`` (deterministic; the committed files are its output).
+albedo functions that define them in that suite (16^3 texels), the meshes, the emission grid
+(``textures/radiance.vol``) and the environment maps as stand-ins of our own (named as the suite
+names them; docs/mitsuba.md says which). Run from this folder: ``python make_assets.py``
+(deterministic; the committed files are its output).
 """
 
 import math
@@ -48,6 +49,12 @@ def grids():
     )
     write_vol(HERE / "textures" / "sigmat.vol", np.maximum(density(x, y, z), 0.0))
     write_vol(HERE / "textures" / "albedo.vol", np.clip(albedo, 0.0, 1.0))
+    # a stand-in of our own: a warm core glowing through a cooler, banded shell
+    r2 = (x - 0.5) ** 2 + (y - 0.45) ** 2 + (z - 0.5) ** 2
+    core = np.exp(-r2 / 0.02)
+    bands = 0.5 * (1.0 + np.sin(12.0 * (x + z)))
+    radiance = np.stack([4.0 * core + 0.2 * bands, 2.0 * core + 0.3 * bands, 0.5 * core + 0.6 * bands], axis=-1)
+    write_vol(HERE / "textures" / "radiance.vol", radiance)
 
 
 def write_obj(name, vertices, faces, uvs=None):
@@ -124,6 +131,7 @@ def meshes():
     (HERE / "meshes").mkdir(exist_ok=True)
     write_obj("unit_cube_centered.obj", *box((-0.5,) * 3, (0.5,) * 3))
     write_obj("sphere.obj", *uv_sphere((0.0, 0.0, 0.0), 0.5))
+    write_obj("sphere_origin.obj", *uv_sphere((0.0, 0.0, 0.0), 1.0))
     write_obj("sphere_base.obj", *uv_sphere((0.0, -0.85, 0.0), 0.3, rings=16, segments=32))
     write_obj("sphere_tiny.obj", *uv_sphere((0.0, 0.1, 0.3), 0.15, rings=12, segments=24))
     write_obj("angled_cube.obj", *box((-0.15, 0.2, -0.15), (0.15, 0.5, 0.15), rotate_y=40.0))
