@@ -42,14 +42,17 @@ def homogeneous_transmittance(sigma_t: wp.vec3, distance: float) -> wp.vec3:
 def homogeneous_emitted(sigma_t: wp.vec3, emission: wp.vec3, distance: float) -> wp.vec3:
     """The radiance ``emission`` (per unit length) emits along ``distance`` towards its start:
     ``emission (1 - exp(-sigma_t distance)) / sigma_t`` per channel, ``emission distance`` where
-    clear."""
+    clear. Below an optical depth ``x`` of 1/64 the difference ``1 - exp(-x)`` would lose its
+    digits to cancellation (in float32 1.3% off at 1e-6, 19% at 1e-7): its series ``x (1 - x/2 +
+    x^2/6 - x^3/24)`` is taken there, exact to 1e-9."""
     out = wp.vec3(0.0)
     for k in range(3):
         if emission[k] > 0.0:
-            if sigma_t[k] > 0.0:
-                out[k] = emission[k] * (1.0 - wp.exp(-sigma_t[k] * distance)) / sigma_t[k]
+            x = wp.where(sigma_t[k] > 0.0, sigma_t[k] * distance, 0.0)  # clear: 0, even over an infinite distance
+            if x < 0.015625:
+                out[k] = emission[k] * distance * (1.0 - x * (0.5 - x * (1.0 / 6.0 - x / 24.0)))
             else:
-                out[k] = emission[k] * distance
+                out[k] = emission[k] * (1.0 - wp.exp(-x)) / sigma_t[k]
     return out
 
 
