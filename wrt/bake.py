@@ -32,6 +32,7 @@ from wrt.kernels.materials import (
     mask_flags,
 )
 from wrt.kernels.volumes import GRID, HOMOGENEOUS, UNSET
+from wrt.kernels.volumes.grid import MAX_CELLS as MAJORANT_CELLS
 
 from .emitting import EmittingPrimitives, emitting_primitives
 from .envmap import environment_distribution
@@ -163,7 +164,7 @@ def bake_media(scene: Scene, surfaces: int) -> dict[str, np.ndarray]:
     numbering: ``BakedMaterials.shape_material``'s length) the media its shape bounds (``UNSET``
     for none), per medium its kind, extinction (``scale`` applied), albedo and phase asymmetry (0
     for isotropic) and emission, and for a heterogeneous one the volume rows of its extinction
-    (``scale`` applied), albedo and emission (-1: none) and its majorant (``_majorant``); the
+    (``scale`` applied), albedo and emission (-1: none) and its majorants (``_majorant_grid``); the
     volumes' frames, resolutions and texels (grey ones in all three channels). One placeholder row
     where a table would be empty."""
     interior = np.full(surfaces, UNSET, dtype=np.int32)
@@ -184,10 +185,11 @@ def bake_media(scene: Scene, surfaces: int) -> dict[str, np.ndarray]:
     density = [row(m.sigma_t, m.scale) if g else -1 for m, g in zip(media, grid)]
     tint = [row(m.albedo) if g else -1 for m, g in zip(media, grid)]
     glow = [row(m.emission) if g and m.emissive else -1 for m, g in zip(media, grid)]
-    majorant = [_majorant(m, volumes[d]) if d >= 0 else 0.0 for m, d in zip(media, density)]
+    bounds = [_majorant_grid(m, volumes[d]) if d >= 0 else np.zeros((1, 1, 1)) for m, d in zip(media, density)]
     if not volumes:
         row((0.0, 0.0, 0.0))
     offsets = np.cumsum([0] + [v.shape[0] * v.shape[1] * v.shape[2] for _, v in volumes])[:-1]
+    cells = np.cumsum([0] + [b.size for b in bounds])[:-1]
     return {
         "shape_interior": interior,
         "shape_exterior": exterior,
@@ -199,7 +201,10 @@ def bake_media(scene: Scene, surfaces: int) -> dict[str, np.ndarray]:
         "density": np.array(density, dtype=np.int32),
         "tint": np.array(tint, dtype=np.int32),
         "glow": np.array(glow, dtype=np.int32),
-        "majorant": np.array(majorant),
+        "majorant": np.array([float(b.max()) for b in bounds]),
+        "majorant_res": np.array([b.shape[::-1] for b in bounds], dtype=np.int32),
+        "majorant_offset": cells.astype(np.int32),
+        "majorant_cells": np.concatenate([b.ravel() for b in bounds]).astype(np.float32),
         "volume_to_local": np.array([m for m, _ in volumes]),
         "volume_res": np.array([v.shape[2::-1] for _, v in volumes], dtype=np.int32),
         "volume_offset": offsets.astype(np.int32),
@@ -207,16 +212,34 @@ def bake_media(scene: Scene, surfaces: int) -> dict[str, np.ndarray]:
     }
 
 
-def _majorant(medium: Medium, density: tuple[np.ndarray, np.ndarray]) -> float:
-    """The bound a heterogeneous medium is tracked against: its largest extinction plus its
-    ``sigma_n``; an emissive one that would have none (clear everywhere) gets a null density of
-    ``GLOW_COLLISIONS`` collisions along its box's shortest edge, so that its emission is found."""
+def _majorant_grid(medium: Medium, density: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """The bounds a heterogeneous medium is tracked against, (z, y, x) cells over its extinction
+    grid's unit cube (``MAJORANT_CELLS`` a side at most, fewer where the grid has fewer texels):
+    each the largest extinction of the texels whose trilinear reach overlaps the cell (so no
+    lookup in it exceeds it), plus the medium's ``sigma_n``. An emissive medium's clear cells get a
+    null density of ``GLOW_COLLISIONS`` collisions along its box's shortest edge, so that its
+    emission is found there (pbrt-v4's ``MajorantGrid``)."""
     to_local, texels = density
-    bound = float(texels.max()) + medium.sigma_n
-    if bound <= 0.0 and medium.emissive:
+    grey = texels.max(axis=-1)
+    ranges = []
+    for axis, res in enumerate(grey.shape):  # z, y, x
+        cells = min(res, MAJORANT_CELLS)
+        edges = np.arange(cells + 1) / cells * res - 0.5  # cell faces in texel-centre coordinates
+        lo = np.clip(np.floor(edges[:-1]).astype(int), 0, res - 1)
+        hi = np.clip(np.floor(edges[1:]).astype(int) + 1, 0, res - 1)
+        ranges.append(list(zip(lo, hi)))
+    bounds = np.array(
+        [
+            [[grey[z0 : z1 + 1, y0 : y1 + 1, x0 : x1 + 1].max() for x0, x1 in ranges[2]] for y0, y1 in ranges[1]]
+            for z0, z1 in ranges[0]
+        ],
+        dtype=np.float64,
+    )
+    bounds += medium.sigma_n
+    if medium.emissive:
         edges = np.linalg.norm(np.linalg.inv(to_local)[:3, :3], axis=0)
-        bound = GLOW_COLLISIONS / float(edges.min())
-    return bound
+        bounds[bounds <= 0.0] = GLOW_COLLISIONS / float(edges.min())
+    return bounds
 
 
 @dataclass

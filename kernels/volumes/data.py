@@ -32,7 +32,10 @@ class MediumData:
     density: wp.array(dtype=wp.int32)  # per GRID medium: the volume row of its extinction (scale applied)
     tint: wp.array(dtype=wp.int32)  # and of its albedo
     glow: wp.array(dtype=wp.int32)  # and of its emission (-1: none), as ``emission``
-    majorant: wp.array(dtype=float)  # and its tracking bound: largest extinction, any channel, + sigma_n
+    majorant: wp.array(dtype=float)  # and the largest of its tracking bounds (1/length; 0: clear)
+    majorant_res: wp.array(dtype=wp.vec3i)  # its majorant grid's cells along x, y, z (over its extinction's unit cube)
+    majorant_offset: wp.array(dtype=wp.int32)  # where its cells start in majorant_cells
+    majorant_cells: wp.array(dtype=float)  # every majorant grid's bounds, x fastest, then y, then z
     volume_to_local: wp.array(dtype=wp.mat44)  # per volume: world to the unit cube of its grid
     volume_res: wp.array(dtype=wp.vec3i)  # its texels along x, y, z
     volume_offset: wp.array(dtype=wp.int32)  # where its texels start in volume_values

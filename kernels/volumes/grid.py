@@ -8,9 +8,13 @@ Lookups are trilinear between texel centres ``(i + 0.5) / res``, clamped at the 
 medium is where its extinction volume's box is: a ray is tracked only over the part of its segment
 inside that box (``volume_span``), and is clear elsewhere (Mitsuba 3's ``Medium::intersect_aabb``).
 
-Tracking uses one grey majorant per medium, ``sigma_bar`` (the largest texel of the extinction,
-``scale`` applied; trilinear values never exceed it), so tentative collisions come at distances
-``-ln(1 - u) / sigma_bar``:
+Tracking uses a coarse grid of grey majorants per medium (``MediumData.majorant_*``, at most
+``MAX_CELLS`` cells a side over the extinction's unit cube, each the largest texel, ``scale``
+applied, whose trilinear reach overlaps the cell, so no lookup in the cell exceeds it; pbrt-v4's
+``MajorantGrid``). A ray walks the cells it crosses (``Walk``, a 3D DDA), and tentative collisions
+come where the majorants' optical depth along it reaches ``-ln(1 - u)``; ``sigma_bar`` below is the
+majorant of the collision's cell. A sparse grid is thus tracked at its local density, and clear
+cells cost one step each:
 
 - free flight (``grid_free_flight``) by delta tracking, chromatic by spectral tracking with
   average-channel probabilities (Kutz et al. 2017): a collision at ``x`` is real with probability
@@ -47,6 +51,7 @@ from .interface import MediumType
 TYPE = MediumType("heterogeneous", ("sigma_t", "albedo", "scale", "emission", "sigma_n"))
 
 MAX_STEPS = wp.constant(65536)
+MAX_CELLS = wp.constant(8)  # a majorant grid's cells along an axis, at most (wrt.bake.MAJORANT_CELLS)
 
 
 @wp.func
@@ -107,6 +112,101 @@ def mean3(v: wp.vec3) -> float:
     return (v[0] + v[1] + v[2]) / 3.0
 
 
+@wp.struct
+class Walk:
+    """A ray's walk through a medium's majorant grid, cell by cell (a 3D DDA in the grid's unit
+    cube, whose ray parameter is the world one): ``t`` where it stands, ``t_end`` the end of its
+    span, ``cell`` the cell it is in, ``next`` the parameter at which it leaves that cell along
+    each axis and ``delta`` the parameter across one cell, ``step`` the direction of each."""
+
+    t: float
+    t_end: float
+    cell: wp.vec3i
+    next: wp.vec3
+    delta: wp.vec3
+    step: wp.vec3i
+
+
+@wp.func
+def walk_start(media: MediumData, medium: wp.int32, o: wp.vec3, d: wp.vec3, span: wp.vec2) -> Walk:
+    """The walk of ``o + t d`` over ``span`` (inside the grid's box) from its start."""
+    m = media.volume_to_local[media.density[medium]]
+    ol = wp.transform_point(m, o)
+    dl = wp.transform_vector(m, d)
+    res = media.majorant_res[medium]
+    walk = Walk()
+    walk.t = span[0]
+    walk.t_end = span[1]
+    q = ol + span[0] * dl
+    for k in range(3):
+        c = wp.clamp(int(wp.floor(q[k] * float(res[k]))), 0, res[k] - 1)
+        walk.cell[k] = c
+        walk.next[k] = wp.inf
+        walk.delta[k] = wp.inf
+        walk.step[k] = 0
+        if dl[k] > 0.0:
+            walk.next[k] = span[0] + (float(c + 1) / float(res[k]) - q[k]) / dl[k]
+            walk.delta[k] = 1.0 / (float(res[k]) * dl[k])
+            walk.step[k] = 1
+        elif dl[k] < 0.0:
+            walk.next[k] = span[0] + (float(c) / float(res[k]) - q[k]) / dl[k]
+            walk.delta[k] = -1.0 / (float(res[k]) * dl[k])
+            walk.step[k] = -1
+    return walk
+
+
+@wp.func
+def walk_bound(media: MediumData, medium: wp.int32, walk: Walk) -> float:
+    """The majorant of the cell the walk is in."""
+    res = media.majorant_res[medium]
+    c = walk.cell
+    return media.majorant_cells[media.majorant_offset[medium] + (c[2] * res[1] + c[1]) * res[0] + c[0]]
+
+
+@wp.func
+def walk_exit(walk: Walk) -> float:
+    """Where the walk leaves its cell (or its span ends)."""
+    return wp.min(wp.min(wp.min(walk.next[0], walk.next[1]), walk.next[2]), walk.t_end)
+
+
+@wp.func
+def walk_advance(media: MediumData, medium: wp.int32, walk: Walk) -> Walk:
+    """The walk moved into the next cell along the ray (``t_end`` reached: ``t = t_end``)."""
+    out = walk
+    out.t = walk_exit(walk)
+    axis = int(0)
+    if walk.next[1] < walk.next[axis]:
+        axis = 1
+    if walk.next[2] < walk.next[axis]:
+        axis = 2
+    out.cell[axis] = walk.cell[axis] + walk.step[axis]
+    out.next[axis] = walk.next[axis] + walk.delta[axis]
+    res = media.majorant_res[medium]
+    if out.cell[axis] < 0 or out.cell[axis] >= res[axis]:
+        out.t = walk.t_end
+    return out
+
+
+@wp.func
+def walk_collision(media: MediumData, medium: wp.int32, walk: Walk, tau: float):
+    """Where the walk meets optical depth ``tau`` of the majorants: ``(the walk moved to that cell,
+    the collision's t, the cell's majorant)``, ``t = t_end`` (majorant 0) where the span ends
+    first."""
+    out = walk
+    left = tau
+    for _cell in range(3 * MAX_CELLS + 3):
+        if out.t >= out.t_end:
+            break
+        sigma_bar = walk_bound(media, medium, out)
+        exit = walk_exit(out)
+        depth = sigma_bar * (exit - out.t)
+        if depth > left:
+            return out, out.t + left / sigma_bar, sigma_bar
+        left -= depth
+        out = walk_advance(media, medium, out)
+    return out, out.t_end, 0.0
+
+
 @wp.func
 def grid_free_flight(
     media: MediumData, medium: wp.int32, o: wp.vec3, d: wp.vec3, t_max: float, u: float, key: wp.uint32
@@ -118,16 +218,16 @@ def grid_free_flight(
     flight.weight = wp.vec3(1.0)
     flight.emitted = wp.vec3(0.0)
     glow = media.glow[medium]
-    sigma_bar = media.majorant[medium]
     span = volume_span(media, media.density[medium], o, d, t_max)
-    if sigma_bar <= 0.0 or span[0] >= span[1]:
+    if media.majorant[medium] <= 0.0 or span[0] >= span[1]:
         return flight
-    t = span[0]
+    walk = walk_start(media, medium, o, d, span)
     x = u
     for step in range(MAX_STEPS):
-        t = t - wp.log(1.0 - x) / sigma_bar
-        if t >= span[1]:
+        walk, t, sigma_bar = walk_collision(media, medium, walk, -wp.log(1.0 - x))
+        if sigma_bar <= 0.0:
             return flight
+        walk.t = t
         p = o + t * d
         if glow >= 0:
             flight.emitted += wp.cw_mul(flight.weight, volume_lookup(media, glow, p)) / sigma_bar
@@ -152,15 +252,15 @@ def grid_transmittance(
 ) -> wp.vec3:
     """The transmittance along ``o + t d``, ``0 < t < distance``, by ratio tracking (above)."""
     tr = wp.vec3(1.0)
-    sigma_bar = media.majorant[medium]
     span = volume_span(media, media.density[medium], o, d, distance)
-    if sigma_bar <= 0.0 or span[0] >= span[1]:
+    if media.majorant[medium] <= 0.0 or span[0] >= span[1]:
         return tr
-    t = span[0]
+    walk = walk_start(media, medium, o, d, span)
     for step in range(MAX_STEPS):
-        t = t - wp.log(1.0 - step_uniform(key, step)) / sigma_bar
-        if t >= span[1]:
+        walk, t, sigma_bar = walk_collision(media, medium, walk, -wp.log(1.0 - step_uniform(key, step)))
+        if sigma_bar <= 0.0:
             return tr
+        walk.t = t
         sigma_t = volume_lookup(media, media.density[medium], o + t * d)
         tr = wp.cw_mul(tr, wp.max(wp.vec3(1.0) - sigma_t / sigma_bar, wp.vec3(0.0)))
         if tr[0] <= 0.0 and tr[1] <= 0.0 and tr[2] <= 0.0:

@@ -13,7 +13,7 @@ import warp as wp
 from wrt.kernels.volumes import MediumData, free_flight, tracking_key, volume_transmittance
 from wrt.kernels.volumes.grid import volume_lookup
 
-from wrt.bake import bake_media
+from wrt.bake import _majorant_grid, bake_media
 from wrt.device import _table
 from wrt.meshio import transform_matrix
 from wrt.scene import Medium, Volume
@@ -106,15 +106,16 @@ RAY_D = np.array([1.0, 0.15, -0.1]) / np.linalg.norm([1.0, 0.15, -0.1])
 T_MAX = 5.0
 
 
-def quadrature(n=200_000):
+def quadrature(n=200_000, texels=TEXELS, ray_o=None, ray_d=None):
     """float64 ``(T, S, crosses, E)`` along the ray: the transmittance exp(-int sigma_t), the single
     scattering integral int T(t) sigma_s(t) dt and the emission int T(t) GLOW(t) dt, by the
     midpoint rule (the medium is clear outside its grid's box)."""
+    ray_o, ray_d = (RAY_O, RAY_D) if ray_o is None else (ray_o, ray_d)
     t = (np.arange(n) + 0.5) * (T_MAX / n)
-    p = RAY_O + t[:, None] * RAY_D
+    p = ray_o + t[:, None] * ray_d
     local = (np.linalg.inv(TO_WORLD) @ np.c_[p, np.ones(n)].T).T[:, :3]
     inside = np.all((local >= 0) & (local <= 1), axis=1)[:, None]
-    sigma_t = np.where(inside, SCALE * trilinear(TEXELS, TO_WORLD, p), 0.0)
+    sigma_t = np.where(inside, SCALE * trilinear(texels, TO_WORLD, p), 0.0)
     sigma_s = sigma_t * trilinear(ALBEDO, TO_WORLD, p)
     optical = np.cumsum(sigma_t, axis=0) * (T_MAX / n)
     emitted = np.sum(np.exp(-optical) * np.where(inside, trilinear(GLOW, TO_WORLD, p), 0.0), axis=0) * (T_MAX / n)
@@ -151,19 +152,33 @@ def test_the_lookup_matches_mitsubas_gridvolume(tmp_path):
     np.testing.assert_allclose(out.numpy(), np.array(theirs), rtol=1e-4, atol=1e-5)
 
 
-@pytest.mark.parametrize("seed", [1, 2])
-def test_delta_and_ratio_tracking_are_unbiased_against_a_float64_quadrature(seed):
+SPARSE = np.zeros((12, 16, 20, 3), np.float32)  # clear but for a chromatic slab two thirds along x
+SPARSE[4:8, 6:10, 12:15] = RNG.uniform(0.05, 0.3, size=(4, 4, 3, 3))
+SPARSE[6, 8, 13] = (2.0, 1.0, 3.0)
+ACROSS_O = (TO_WORLD @ [-0.1, 0.5, 0.5, 1.0])[:3]  # a ray along the grid's x axis, through its middle
+ACROSS_D = TO_WORLD[:3, 0] / np.linalg.norm(TO_WORLD[:3, 0])
+
+
+@pytest.mark.parametrize(
+    "seed, texels, ray",
+    [(1, TEXELS, None), (2, TEXELS, None), (3, SPARSE, (ACROSS_O, ACROSS_D))],
+    ids=["dense-1", "dense-2", "sparse"],
+)
+def test_delta_and_ratio_tracking_are_unbiased_against_a_float64_quadrature(seed, texels, ray):
     """Ratio tracking's mean is T per channel; delta tracking's weight past the segment averages
-    to T and at a collision to the single-scattering integral, per channel of a chromatic grid."""
-    expected_t, expected_s, crosses, _ = quadrature()
+    to T and at a collision to the single-scattering integral, per channel of a chromatic grid:
+    one dense everywhere, and a sparse one, clear but for a slab across the ray, whose majorant
+    grid holds cells of 0 before and after the slab's (a walk that lost its cell would miss it)."""
+    ray_o, ray_d = (RAY_O, RAY_D) if ray is None else ray
+    expected_t, expected_s, crosses, _ = quadrature(texels=texels, ray_o=ray_o, ray_d=ray_d)
     assert crosses and 0.02 < expected_t.min() and expected_t.max() < 0.9  # the ray is attenuated, not opaque
     n = 200_000
-    media = medium_table()
+    media = medium_table(sigma_t=texels)
     transmitted, passed, scattered = (wp.zeros(n, dtype=wp.vec3) for _ in range(3))
     wp.launch(
         track,
         dim=n,
-        inputs=[media, wp.vec3(*RAY_O), wp.vec3(*RAY_D), T_MAX, seed, transmitted, passed, scattered],
+        inputs=[media, wp.vec3(*ray_o), wp.vec3(*ray_d), T_MAX, seed, transmitted, passed, scattered],
     )
     for samples, expected in (
         (transmitted.numpy(), expected_t),
@@ -214,3 +229,19 @@ def test_a_clear_glowing_grid_is_tracked_and_emits_along_its_chord():
     samples = emitted.numpy().astype(np.float64)
     mean, error = samples.mean(axis=0), samples.std(axis=0) / math.sqrt(n)
     assert chord > 0.3 and np.all(np.abs(mean - 0.5 * chord) < 4 * error + 1e-3 * chord), (mean, chord)
+
+
+@pytest.mark.parametrize("texels", [TEXELS, SPARSE], ids=["dense", "sparse"])
+def test_the_majorant_grid_bounds_every_lookup_in_its_cell(texels):
+    """No trilinear extinction inside a majorant cell exceeds the cell's bound (float64 lookups at
+    random points of the unit cube, ``sigma_n`` added to every cell), and the grid is coarse: at
+    most 8 cells a side."""
+    medium = Medium(name="m", type="heterogeneous", sigma_t=Volume(values=texels, to_world=np.eye(4)), sigma_n=0.25)
+    bounds = _majorant_grid(medium, (np.eye(4), texels * np.float32(SCALE)))
+    assert bounds.shape == tuple(min(r, 8) for r in texels.shape[:3])
+    q = RNG.uniform(0.0, 1.0, size=(100_000, 3))
+    values = SCALE * trilinear(texels, np.eye(4), q).max(axis=1) + 0.25
+    cell = np.minimum((q * np.array(bounds.shape[::-1])).astype(int), np.array(bounds.shape[::-1]) - 1)
+    assert np.all(values <= bounds[cell[:, 2], cell[:, 1], cell[:, 0]] * (1 + 1e-6))
+    if texels is SPARSE:
+        assert bounds.min() == 0.25 and bounds.max() == pytest.approx(3.0 * SCALE + 0.25)
