@@ -201,7 +201,7 @@ def principled_thin(p: Plugin) -> dict:
     (``base_color`` is ``albedo``, ``anisotropic`` is ``anisotropy``), ``diff_trans`` (a number or a
     texture), its four sampling rates, and ``eta`` its ``ior`` (a number: a textured ``eta`` is
     refused)."""
-    if any(key == "eta" and child.tag == "texture" for key, child in p.nested):
+    if p.named("eta", "texture") is not None:
         raise p.doc.error(p.element, "a textured eta of a principledthin is not supported (wrt's ior is a number)")
     return {
         "type": "principled_thin",
@@ -217,7 +217,7 @@ def textured_number(p: Plugin, name: str, default: float) -> float | dict:
     """Number parameter ``name`` of ``p``: a number, or the texture table of its ``<texture>``,
     whose ``texture_float`` is Mitsuba's ``eval_1`` (a checkerboard's colours swapped: Mitsuba's
     checkerboard ``eval_1`` swaps them against its ``eval``)."""
-    nested = next((child for key, child in p.nested if key == name and child.tag == "texture"), None)
+    nested = p.named(name, "texture")
     if nested is None or name in p.params:
         return p.number(name, default)
     p.used.add(name)
@@ -409,7 +409,7 @@ class Materials:
         nested = p.children("bsdf")
         if len(nested) != 1:
             raise self.doc.error(p.element, "a normalmap BSDF needs exactly one nested <bsdf> (Mitsuba rejects it)")
-        element = next((child for key, child in p.nested if key == "normalmap" and child.tag == "texture"), None)
+        element = p.named("normalmap", "texture")
         if element is not None:
             p.used_nested.add(id(element))
             table = texture(self.doc, element)

@@ -58,7 +58,7 @@ class Media:
         if table["type"] == "heterogeneous":
             table["emission"] = volume(self.doc, p, "radiance", 1.0)
         else:
-            if any(key == "radiance" and child.tag == "volume" for key, child in p.nested):
+            if p.named("radiance", "volume") is not None:
                 raise self.doc.error(
                     element, "a volume radiance needs a heterogeneous medium (this one is homogeneous)"
                 )
@@ -120,7 +120,7 @@ def convert(doc: Document, element: Element) -> dict:
 def null_density(doc: Document, p: Plugin) -> float:
     """A medium's ``sigma_n``: a number or a ``constvolume`` (a ``gridvolume``: its bound only
     matters, taken as 0 with a warning)."""
-    element = next((child for key, child in p.nested if key == "sigma_n" and child.tag == "volume"), None)
+    element = p.named("sigma_n", "volume")
     if element is None:
         value = p.number("sigma_n", 0.0)
     else:
@@ -142,7 +142,7 @@ def volume(doc: Document, p: Plugin, name: str, default: float) -> dict | list[f
     """A heterogeneous medium's ``sigma_t`` or ``albedo`` (or a ``volumelight``'s ``radiance``): its
     nested ``<volume>`` as a volume table, or its plain value (``sigma_t``'s a constant volume over
     the unit cube, as Mitsuba's ``constvolume`` of identity ``to_world``)."""
-    element = next((child for key, child in p.nested if key == name and child.tag == "volume"), None)
+    element = p.named(name, "volume")
     if element is None:
         value = p.color(name, default, emission=name == "radiance", unbounded=name == "sigma_t")
         return {"volume": "constant", "value": value} if name == "sigma_t" else value

@@ -21,7 +21,7 @@ FORMATS = ("variant", "uint8")
 def textured_color(p: Plugin, name: str, default: float, emission: bool = False) -> list[float] | dict:
     """Colour parameter ``name`` of ``p``: an RGB list (``Plugin.color``; ``emission`` as there), or
     the texture table of the ``<texture>`` given for it."""
-    nested = next((child for key, child in p.nested if key == name and child.tag == "texture"), None)
+    nested = p.named(name, "texture")
     if nested is None or name in p.params:
         return p.color(name, default, emission=emission)
     p.used.add(name)

@@ -814,6 +814,10 @@ class Plugin:
             return np.eye(4), None
         return self.doc.transform(element)
 
+    def named(self, name: str, tag: str) -> Element | None:
+        """The nested ``tag`` element given for ``name`` (the first), or None; not marked read."""
+        return next((child for key, child in self.nested if key == name and child.tag == tag), None)
+
     def children(self, tag: str) -> list[Element]:
         """Nested plugin elements (and references) of one kind, in file order."""
         found = [child for _, child in self.nested if child.tag == tag]
